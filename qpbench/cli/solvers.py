@@ -1,0 +1,32 @@
+"""``qpbench solvers [--json]``: every solver and formulation, version, usable or why not."""
+
+from __future__ import annotations
+
+import argparse
+
+from qpbench.cli.output import print_json
+from qpbench.solvers.registry import all_solvers
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("solvers", help="list solvers, formulations and availability")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    rows = [
+        {"name": s.name, "formulation": s.formulation, "backend": s.backend,
+         "version": s.version, "usable": s.usable, "reason": s.reason}
+        for s in all_solvers()
+    ]
+    if args.json:
+        print_json({"solvers": rows})
+        return 0
+    width = max((len(f"{r['name']}/{r['formulation']}") for r in rows), default=10)
+    for row in rows:
+        key = f"{row['name']}/{row['formulation']}"
+        state = "usable" if row["usable"] else f"unusable: {row['reason']}"
+        print(f"{key:<{width}}  {row['backend']:<10} {row['version']:<10} {state}")
+    print(f"{sum(r['usable'] for r in rows)} usable of {len(rows)}")
+    return 0

@@ -1,0 +1,31 @@
+"""Errors that qpbench reports to the user as one line, never as a traceback."""
+
+from __future__ import annotations
+
+
+class QpbenchError(Exception):
+    """A user-facing error: bad input, unknown solver, unsupported feature.
+
+    The message names the file, the element and the attribute at fault where
+    there is one: ``scene.xml: <ball> attribute 'r': must be positive, got -1``.
+    """
+
+
+class InputError(QpbenchError):
+    """Bad input data (file, element, attribute)."""
+
+    def __init__(self, file: str, message: str, element: str | None = None,
+                 attribute: str | None = None) -> None:
+        self.file = str(file)
+        self.element = element
+        self.attribute = attribute
+        where = self.file
+        if element is not None:
+            where += f": <{element}>"
+        if attribute is not None:
+            where += f" attribute '{attribute}'"
+        super().__init__(f"{where}: {message}")
+
+
+class UnsupportedError(QpbenchError):
+    """Input that is well formed but asks for something qpbench does not do."""

@@ -1,0 +1,114 @@
+"""Metrics computed by qpbench from the impulses l alone, never taken from a solver's claim.
+
+All scaled metrics divide by ``scale = max(||b||_inf, TINY)`` so that they are
+relative velocities, comparable across problems.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from qpbench.problem.impact import ImpactProblem
+
+TINY = 1e-300
+
+
+def _scale(problem: ImpactProblem) -> float:
+    """max(||b||_inf, TINY)."""
+    return max(float(np.max(np.abs(problem.b), initial=0.0)), TINY)
+
+
+def is_finite(impulses: np.ndarray | None, problem: ImpactProblem) -> bool:
+    """True when l exists, has n entries and all are finite."""
+    return (
+        impulses is not None
+        and np.shape(impulses) == (problem.n_contacts,)
+        and bool(np.all(np.isfinite(impulses)))
+    )
+
+
+def natural_map(problem: ImpactProblem, impulses: np.ndarray) -> np.ndarray:
+    """F(l) = min(D l, w) elementwise, D = diag(Q), w = Q l + b; zero exactly at LCP solutions."""
+    return np.minimum(problem.diag_Q * impulses, problem.w(impulses))
+
+
+def residual(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """residual = ||min(D l, Q l + b)||_inf / max(||b||_inf, tiny)."""
+    if problem.n_contacts == 0:
+        return 0.0
+    return float(np.max(np.abs(natural_map(problem, impulses)))) / _scale(problem)
+
+
+def complementarity(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity)."""
+    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / _scale(problem) ** 2
+
+
+def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """infeasibility = max(0, -min(D l), -min(w)) / max(||b||_inf, tiny)."""
+    if problem.n_contacts == 0:
+        return 0.0
+    worst = max(0.0, -float(np.min(problem.diag_Q * impulses)), -float(np.min(problem.w(impulses))))
+    return worst / _scale(problem)
+
+
+def v_error(problem: ImpactProblem, impulses: np.ndarray, v_plus_ref: np.ndarray) -> float:
+    """v_error = ||v+(l) - v+_ref||_M / ||v-||_M (||v-||_M replaced by tiny when zero)."""
+    difference = problem.m_norm(problem.v_plus(impulses) - v_plus_ref)
+    return difference / max(problem.m_norm(problem.v_minus), TINY)
+
+
+def energy_gain(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """energy_gain = (KE+ - KE-) / KE-, signed; KE = 1/2 v^T M v."""
+    before = problem.kinetic_energy(problem.v_minus)
+    after = problem.kinetic_energy(problem.v_plus(impulses))
+    return (after - before) / max(before, TINY)
+
+
+def energy_change_identity(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """KE+ - KE- from the impulses alone, true for ANY l:
+
+    ``KE+ - KE- = l^T (b / (1 + c) - nrel) + 1/2 l^T Q l``; with nrel = 0 and one c this is
+    ``l^T w / (1 + c) - (1 - c) / (2 (1 + c)) * l^T Q l``.
+    """
+    Q_l = problem.Q @ impulses
+    u_minus = problem.b / (1.0 + problem.restitution) - problem.n_rel
+    return float(impulses @ u_minus + 0.5 * impulses @ Q_l)
+
+
+def energy_identity_gap(problem: ImpactProblem, impulses: np.ndarray) -> float:
+    """|(KE(v+) - KE(v-)) - energy_change_identity(l)| / max(KE-, tiny): checks the assembly."""
+    before = problem.kinetic_energy(problem.v_minus)
+    direct = problem.kinetic_energy(problem.v_plus(impulses)) - before
+    return abs(direct - energy_change_identity(problem, impulses)) / max(before, TINY)
+
+
+def evaluate(problem: ImpactProblem, impulses: np.ndarray | None, accuracy: float) -> dict[str, Any]:
+    """Every metric of an answer, and qpbench's verdict: finite l and residual <= accuracy.
+
+    ``v_error`` is NaN when the problem has no verified reference.
+    """
+    nan = math.nan
+    if not is_finite(impulses, problem):
+        return {
+            "success": False, "residual": nan, "v_error": nan, "energy_gain": nan,
+            "complementarity": nan, "infeasibility": nan, "energy_identity_gap": nan,
+        }
+    assert impulses is not None
+    reference = problem.reference
+    result_residual = residual(problem, impulses)
+    return {
+        "success": bool(result_residual <= accuracy),
+        "residual": result_residual,
+        "v_error": (
+            v_error(problem, impulses, reference.v_plus)
+            if reference is not None and reference.verified else nan
+        ),
+        "energy_gain": energy_gain(problem, impulses),
+        "complementarity": complementarity(problem, impulses),
+        "infeasibility": infeasibility(problem, impulses),
+        "energy_identity_gap": energy_identity_gap(problem, impulses),
+    }

@@ -1,0 +1,5 @@
+"""Impact problems: the data (G, M^-1, v-, c, nrel), their file format, generators and references."""
+
+from qpbench.problem.impact import ImpactProblem, Reference
+
+__all__ = ["ImpactProblem", "Reference"]

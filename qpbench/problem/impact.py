@@ -1,0 +1,206 @@
+"""The impact problem of one collision event: G, M^-1, v-, restitution and nrel.
+
+With n contacts and d degrees of freedom:
+
+* ``G`` (d x n, sparse): column k is the gradient of the gap of contact k;
+* ``m_inv`` (d): the diagonal of M^-1 (0 for a kinematic degree of freedom);
+* ``v_minus`` (d): velocities before impact;
+* ``restitution`` (n): coefficient of restitution c per contact;
+* ``n_rel`` (n): normal velocity of moving boundaries (0 when none).
+
+From them: ``Q = G^T M^-1 G`` and ``b = (1 + c) * (G^T v- + nrel)``; the impulses l
+solve ``min 1/2 l^T Q l + b^T l, l >= 0`` and give ``v+ = v- + M^-1 G l``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench.errors import InputError
+
+
+@dataclass
+class Reference:
+    """The verified post-impact velocity of a problem.
+
+    ``v_plus`` comes from ``method``; ``v_plus_check`` from an independent
+    ``check_method``; ``agreement = ||v_a - v_b||_M / max(||v-||_M, tiny)``. A
+    reference is ``verified`` only when the two agree within ``tolerance``.
+    """
+
+    v_plus: np.ndarray
+    impulses: np.ndarray
+    method: str
+    v_plus_check: np.ndarray
+    check_method: str
+    agreement: float
+    tolerance: float
+
+    @property
+    def verified(self) -> bool:
+        return bool(np.isfinite(self.agreement) and self.agreement <= self.tolerance)
+
+
+@dataclass
+class ImpactProblem:
+    """One impact event posed as the LCP/QP of simultaneous impact."""
+
+    name: str
+    G: sp.csc_matrix
+    m_inv: np.ndarray
+    v_minus: np.ndarray
+    restitution: np.ndarray
+    n_rel: np.ndarray
+    family: str = ""
+    source: str = ""
+    dofs_per_body: int = 2
+    metadata: dict[str, Any] = field(default_factory=dict)
+    data: dict[str, np.ndarray] = field(default_factory=dict)
+    reference: Reference | None = None
+
+    @classmethod
+    def build(
+        cls,
+        name: str,
+        G: Any,
+        m_inv: Any,
+        v_minus: Any,
+        restitution: float | Any = 1.0,
+        n_rel: Any | None = None,
+        **kwargs: Any,
+    ) -> ImpactProblem:
+        """Builds a problem, broadcasting a scalar restitution and a missing nrel to n contacts."""
+        G = sp.csc_matrix(G, dtype=float)
+        n = G.shape[1]
+        restitution = np.broadcast_to(np.asarray(restitution, dtype=float), (n,)).copy()
+        n_rel = np.zeros(n) if n_rel is None else np.asarray(n_rel, dtype=float).reshape(n)
+        problem = cls(
+            name=name,
+            G=G,
+            m_inv=np.asarray(m_inv, dtype=float).ravel(),
+            v_minus=np.asarray(v_minus, dtype=float).ravel(),
+            restitution=restitution,
+            n_rel=n_rel,
+            **kwargs,
+        )
+        problem.validate()
+        return problem
+
+    def validate(self, file: str | None = None) -> None:
+        """Checks shapes, finiteness, m_inv >= 0 and 0 <= c <= 1; raises InputError naming the field."""
+        where = file or self.source or self.name
+        d, n = self.G.shape
+        for label, vector, size in (
+            ("m_inv", self.m_inv, d),
+            ("v_minus", self.v_minus, d),
+            ("restitution", self.restitution, n),
+            ("n_rel", self.n_rel, n),
+        ):
+            if vector.shape != (size,):
+                raise InputError(where, f"shape {vector.shape} does not match G {self.G.shape}",
+                                 attribute=label)
+            if not np.all(np.isfinite(vector)):
+                raise InputError(where, "contains NaN or infinity", attribute=label)
+        if not np.all(np.isfinite(self.G.data)):
+            raise InputError(where, "contains NaN or infinity", attribute="G")
+        if np.any(self.m_inv < 0):
+            raise InputError(where, "inverse masses must be >= 0", attribute="m_inv")
+        if np.any((self.restitution < 0) | (self.restitution > 1)):
+            raise InputError(where, "restitution must lie in [0, 1]", attribute="restitution")
+
+    # --- sizes -----------------------------------------------------------------
+    @property
+    def n_contacts(self) -> int:
+        return int(self.G.shape[1])
+
+    @property
+    def n_dofs(self) -> int:
+        return int(self.G.shape[0])
+
+    @property
+    def n_bodies(self) -> int:
+        return self.n_dofs // max(self.dofs_per_body, 1)
+
+    # --- derived matrices --------------------------------------------------------
+    @cached_property
+    def M_inv_G(self) -> sp.csc_matrix:
+        """M^-1 G (d x n)."""
+        return sp.csc_matrix(sp.diags(self.m_inv) @ self.G)
+
+    @cached_property
+    def Q(self) -> sp.csc_matrix:
+        """Q = G^T M^-1 G, symmetric positive semi-definite (n x n)."""
+        Q = sp.csc_matrix(self.G.T @ self.M_inv_G)
+        Q = sp.csc_matrix(0.5 * (Q + Q.T))
+        Q.sort_indices()
+        return Q
+
+    @cached_property
+    def L(self) -> sp.csc_matrix:
+        """L = M^-1/2 G, so that Q = L^T L."""
+        return sp.csc_matrix(sp.diags(np.sqrt(self.m_inv)) @ self.G)
+
+    @cached_property
+    def b(self) -> np.ndarray:
+        """b = (1 + c) * (G^T v- + nrel), elementwise in c."""
+        return (1.0 + self.restitution) * (self.G.T @ self.v_minus + self.n_rel)
+
+    @cached_property
+    def diag_Q(self) -> np.ndarray:
+        """D = diag(Q)."""
+        return np.asarray(self.Q.diagonal()).ravel()
+
+    @cached_property
+    def mass(self) -> np.ndarray:
+        """The diagonal of M (infinite where m_inv = 0)."""
+        with np.errstate(divide="ignore"):
+            return np.where(self.m_inv > 0, 1.0 / np.where(self.m_inv > 0, self.m_inv, 1.0), np.inf)
+
+    # --- maps of the impulses --------------------------------------------------
+    def v_plus(self, impulses: np.ndarray) -> np.ndarray:
+        """v+ = v- + M^-1 G l."""
+        return self.v_minus + self.M_inv_G @ impulses
+
+    def w(self, impulses: np.ndarray) -> np.ndarray:
+        """w = Q l + b (the LCP slack: post-impact normal velocities, scaled)."""
+        return self.Q @ impulses + self.b
+
+    def kinetic_energy(self, velocity: np.ndarray) -> float:
+        """KE = 1/2 v^T M v over the degrees of freedom with finite mass."""
+        finite = self.m_inv > 0
+        return float(0.5 * np.sum(velocity[finite] ** 2 / self.m_inv[finite]))
+
+    def m_norm(self, velocity: np.ndarray) -> float:
+        """||v||_M = sqrt(v^T M v) over the degrees of freedom with finite mass."""
+        return float(np.sqrt(2.0 * self.kinetic_energy(velocity)))
+
+    # --- structure -----------------------------------------------------------------
+    @cached_property
+    def rank_deficiency(self) -> int:
+        """n - numerical rank of Q (from the singular values of L = M^-1/2 G); -1 if too large."""
+        if self.n_contacts == 0:
+            return 0
+        if self.n_contacts > 2500:
+            return -1
+        singular = np.linalg.svd(self.L.toarray(), compute_uv=False)
+        if singular.size == 0 or singular[0] == 0.0:
+            return self.n_contacts
+        tol = max(self.L.shape) * np.finfo(float).eps * singular[0]
+        return int(self.n_contacts - np.count_nonzero(singular > tol))
+
+    def summary(self) -> dict[str, Any]:
+        """Name, family, source, bodies, contacts, nnz of Q and rank deficiency."""
+        return {
+            "problem": self.name,
+            "family": self.family,
+            "source": self.source,
+            "bodies": self.n_bodies,
+            "contacts": self.n_contacts,
+            "nnz": int(self.Q.nnz),
+            "rank_deficiency": self.rank_deficiency,
+        }

@@ -1,0 +1,23 @@
+"""Every solver family, registered by a guarded import: a missing backend drops out and says why.
+
+Add a backend: write ``qpbench/solvers/<family>_.py`` that calls
+``registry.register`` for each solver/formulation, then name it in ``_FAMILIES``.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from qpbench.solvers.registry import register_unusable
+
+# module -> (solver names it provides, formulations, backend) to report when it cannot import
+_FAMILIES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
+    "qpsolvers_": (("osqp", "clarabel"), ("dual",), "qpsolvers"),
+}
+
+for _module, (_names, _formulations, _backend) in _FAMILIES.items():
+    try:
+        importlib.import_module(f"qpbench.solvers.{_module}")
+    except ImportError as _error:
+        for _name in _names:
+            register_unusable(_name, _formulations, _backend, f"import failed: {_error}")

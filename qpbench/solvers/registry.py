@@ -1,0 +1,67 @@
+"""The one registry of solvers. Backend modules call :func:`register`; a backend whose
+import fails registers its solvers as unusable with the reason, so it drops out and says why.
+"""
+
+from __future__ import annotations
+
+from qpbench.errors import QpbenchError
+from qpbench.solvers.base import SolverSpec
+
+_SOLVERS: dict[str, SolverSpec] = {}
+
+
+def register(spec: SolverSpec) -> SolverSpec:
+    """Adds ``spec`` under ``NAME/FORMULATION`` (a later registration replaces an earlier one)."""
+    _SOLVERS[spec.key] = spec
+    return spec
+
+
+def register_unusable(name: str, formulations: tuple[str, ...], backend: str, reason: str) -> None:
+    """Records that ``name`` exists but cannot run here, and why."""
+    for formulation in formulations:
+        register(SolverSpec(name=name, formulation=formulation, backend=backend, solve=None,
+                            reason=reason))
+
+
+def all_solvers() -> list[SolverSpec]:
+    """Every registered solver-formulation pair, usable or not, sorted by key."""
+    from qpbench import solvers  # noqa: F401  (imports every backend module once)
+
+    return [_SOLVERS[key] for key in sorted(_SOLVERS)]
+
+
+def usable_solvers() -> list[SolverSpec]:
+    return [spec for spec in all_solvers() if spec.usable]
+
+
+def resolve(names: list[str] | str) -> list[SolverSpec]:
+    """Solver specs for names; ``NAME`` alone is every formulation it supports, ``NAME/FORM`` one.
+
+    Raises QpbenchError for an unknown name or one that is not usable here (with why).
+    """
+    if isinstance(names, str):
+        names = [part for part in names.split(",") if part.strip()]
+    specs = all_solvers()
+    chosen: list[SolverSpec] = []
+    for raw in names:
+        name = raw.strip()
+        matches = [s for s in specs if s.key == name or s.name == name]
+        if not matches:
+            known = ", ".join(sorted({s.name for s in specs}))
+            raise QpbenchError(f"unknown solver '{name}' (known: {known})")
+        usable = [s for s in matches if s.usable]
+        if not usable:
+            raise QpbenchError(f"solver '{name}' is not usable here: {matches[0].reason}")
+        chosen.extend(s for s in usable if s not in chosen)
+    return chosen
+
+
+DEFAULT_FORMULATIONS = ("dual", "lcp", "primal", "dual-factored")
+
+
+def get(name: str) -> SolverSpec:
+    """The usable solver ``NAME/FORMULATION``; ``NAME`` alone means its default formulation,
+    the first it has of DEFAULT_FORMULATIONS."""
+    specs = resolve([name])
+    rank = {formulation: i for i, formulation in enumerate(DEFAULT_FORMULATIONS)}
+    return min(specs, key=lambda spec: rank.get(spec.formulation, len(rank)))
