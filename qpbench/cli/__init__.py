@@ -27,6 +27,7 @@ COMMANDS = (
     "report",
     "export",
     "render",
+    "scaling",
 )
 
 EXIT_INPUT_ERROR = 2
