@@ -86,7 +86,9 @@ def energy_identity_gap(problem: ImpactProblem, impulses: np.ndarray) -> float:
     return abs(direct - energy_change_identity(problem, impulses)) / max(before, TINY)
 
 
-def evaluate(problem: ImpactProblem, impulses: np.ndarray | None, accuracy: float) -> dict[str, Any]:
+def evaluate(
+    problem: ImpactProblem, impulses: np.ndarray | None, accuracy: float
+) -> dict[str, Any]:
     """Every metric of an answer, and qpbench's verdict: finite l and residual <= accuracy.
 
     ``v_error`` is NaN when the problem has no verified reference.

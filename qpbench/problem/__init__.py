@@ -1,4 +1,4 @@
-"""Impact problems: the data (G, M^-1, v-, c, nrel), their file format, generators and references."""
+"""Impact problems: the data (G, M^-1, v-, c, nrel), file format, generators, references."""
 
 from qpbench.problem.impact import ImpactProblem, Reference
 

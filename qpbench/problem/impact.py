@@ -92,7 +92,7 @@ class ImpactProblem:
         return problem
 
     def validate(self, file: str | None = None) -> None:
-        """Checks shapes, finiteness, m_inv >= 0 and 0 <= c <= 1; raises InputError naming the field."""
+        """Checks shapes, finiteness, m_inv >= 0 and 0 <= c <= 1; InputError names the field."""
         where = file or self.source or self.name
         d, n = self.G.shape
         for label, vector, size in (

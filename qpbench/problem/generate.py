@@ -1,0 +1,245 @@
+"""Seeded, deterministic families of hard impact problems (2 degrees of freedom per ball).
+
+Every family lays out balls, finds the contacts and assembles G the way the
+simulator does: ball-ball contact a,b puts ``+n_ab`` in a's rows and ``-n_ab`` in
+b's, ``n_ab = (x_a - x_b) / |x_a - x_b|``; a ball-plane contact puts the plane
+normal in the ball's rows. A contact is active when the balls overlap (or touch
+within ``touch_tolerance``) and approach each other or rest against each other
+(``G^T v- <= 0``), as in SCISim's impact detection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from qpbench.errors import QpbenchError
+from qpbench.problem.impact import ImpactProblem
+
+
+@dataclass
+class Layout:
+    """Balls (and static planes) at the start of an impact step."""
+
+    positions: np.ndarray  # (balls, 2)
+    velocities: np.ndarray  # (balls, 2)
+    radii: np.ndarray  # (balls,)
+    masses: np.ndarray  # (balls,)
+    plane_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    plane_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    restitution: float = 1.0
+    touch_tolerance: float = 1e-9
+    approaching_only: bool = True
+
+
+def ball_pairs(layout: Layout) -> np.ndarray:
+    """Pairs (a, b), a < b, with |x_a - x_b| <= r_a + r_b + touch_tolerance."""
+    reach = 2.0 * float(np.max(layout.radii)) + layout.touch_tolerance
+    pairs = cKDTree(layout.positions).query_pairs(reach, output_type="ndarray")
+    if pairs.size == 0:
+        return np.zeros((0, 2), dtype=int)
+    pairs = np.sort(pairs, axis=1)
+    gaps = np.linalg.norm(layout.positions[pairs[:, 0]] - layout.positions[pairs[:, 1]], axis=1)
+    reach_pairs = layout.radii[pairs[:, 0]] + layout.radii[pairs[:, 1]]
+    touching = gaps <= reach_pairs + layout.touch_tolerance
+    pairs = pairs[touching]
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
+def assemble(name: str, family: str, layout: Layout, metadata: dict | None = None,
+             extra_normals: list[tuple[int, int, np.ndarray]] | None = None) -> ImpactProblem:
+    """The ImpactProblem of ``layout``: G, M^-1 = diag(1/m, 1/m), v-, one restitution.
+
+    ``extra_normals`` adds contacts (a, b, n): +n in a's rows and -n in b's (b = -1 for none).
+    """
+    balls = layout.positions.shape[0]
+    rows: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    vals: list[np.ndarray] = []
+    column = 0
+
+    def add(a: np.ndarray, b: np.ndarray | None, normals: np.ndarray) -> None:
+        nonlocal column
+        k = np.arange(column, column + len(a))
+        for sign, body in ((1.0, a), (-1.0, b)):
+            if body is None:
+                continue
+            for axis in (0, 1):
+                rows.append(2 * body + axis)
+                cols.append(k)
+                vals.append(sign * normals[:, axis])
+        column += len(a)
+
+    pairs = ball_pairs(layout)
+    if len(pairs):
+        delta = layout.positions[pairs[:, 0]] - layout.positions[pairs[:, 1]]
+        add(pairs[:, 0], pairs[:, 1], delta / np.linalg.norm(delta, axis=1)[:, None])
+    for point, normal in zip(layout.plane_points, layout.plane_normals, strict=True):
+        distance = (layout.positions - point) @ normal
+        touching = np.flatnonzero(distance <= layout.radii + layout.touch_tolerance)
+        add(touching, None, np.tile(normal, (len(touching), 1)))
+    for a, b, normal in extra_normals or []:
+        add(np.array([a]), None if b < 0 else np.array([b]), np.asarray(normal)[None, :])
+    G = sp.csc_matrix(
+        (np.concatenate(vals) if vals else [], (np.concatenate(rows) if rows else [],
+                                                np.concatenate(cols) if cols else [])),
+        shape=(2 * balls, column),
+    )
+    v_minus = layout.velocities.reshape(-1)
+    if layout.approaching_only:
+        G = G[:, np.flatnonzero(G.T @ v_minus <= 0)]
+    m_inv = np.repeat(1.0 / layout.masses, 2)
+    return ImpactProblem.build(name, G, m_inv, v_minus, layout.restitution, family=family,
+                               source="generated", metadata=metadata or {})
+
+
+def _rotate(points: np.ndarray, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return points @ np.array([[c, s], [-s, c]])
+
+
+def _symmetric(positions: np.ndarray, rng: np.random.Generator | None) -> Layout:
+    """Unit balls of radius 1 at ``positions`` moving to their centroid; rotated when seeded."""
+    if rng is not None:
+        angle = rng.uniform(0, 2 * np.pi)
+        positions = _rotate(positions, angle)
+    centre = positions.mean(axis=0)
+    velocities = -(positions - centre) / np.linalg.norm(positions - centre, axis=1)[:, None]
+    if rng is not None:
+        velocities *= rng.uniform(0.5, 2.0, size=(len(positions), 1))
+    return Layout(positions, velocities, np.ones(len(positions)), np.ones(len(positions)))
+
+
+def k3(size: int, rng: np.random.Generator | None) -> Layout:
+    """Three collinear overlapping unit balls at x = -1/2, 0, 1/2 (radius 1), v- = (1, 0, -1) along
+    the line; contacts (0,1), (0,2), (1,2) give Q = [[2,1,-1],[1,2,1],[-1,1,2]] and every solution
+    l = (t, 2 - t, t), 0 <= t <= 2, gives v+_x = (-1, 0, 1) for c = 1."""
+    positions = np.array([[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0]])
+    velocities = np.array([[1.0, 0.0], [0.0, 0.0], [-1.0, 0.0]])
+    if rng is not None:
+        angle = rng.uniform(0, 2 * np.pi)
+        positions, velocities = _rotate(positions, angle), _rotate(velocities, angle)
+        velocities *= rng.uniform(0.5, 2.0)
+    return Layout(positions, velocities, np.ones(3), np.ones(3))
+
+
+def k4(size: int, rng: np.random.Generator | None) -> Layout:
+    """Four unit balls (radius 1) on the corners of a unit square, moving to its centre:
+    six contacts, Q of rank 5."""
+    return _symmetric(np.array([[-0.5, 0.5], [0.5, 0.5], [0.5, -0.5], [-0.5, -0.5]]), rng)
+
+
+def k4_middle(size: int, rng: np.random.Generator | None) -> Layout:
+    """K4 plus a fifth ball at rest in the centre: ten contacts."""
+    layout = k4(size, rng)
+    centre = layout.positions.mean(axis=0)
+    return Layout(np.vstack([layout.positions, centre]), np.vstack([layout.velocities, [0, 0]]),
+                  np.ones(5), np.ones(5))
+
+
+def cradle(size: int, rng: np.random.Generator | None) -> Layout:
+    """Newton's cradle: ``size`` touching balls (radius 1/2) in a row, the first moving at
+    v = (1, 0); for size 3 the LCP gives v+ = (-1/3, 2/3, 2/3) in x."""
+    positions = np.column_stack([np.arange(size, dtype=float), np.zeros(size)])
+    velocities = np.zeros((size, 2))
+    velocities[0, 0] = 1.0
+    if rng is not None:
+        velocities[0, 0] = rng.uniform(0.5, 2.0)
+    return Layout(positions, velocities, np.full(size, 0.5), np.ones(size))
+
+
+def grid(size: int, rng: np.random.Generator | None) -> Layout:
+    """``size`` x ``size`` balls of radius 1 at spacing 1, perturbed by up to 0.01, velocities
+    uniform in [-1, 1]^2: the overlapping grids on which policy iteration was found to fail."""
+    rng = rng or np.random.default_rng(0)
+    ii, jj = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    positions = np.column_stack([ii.ravel(), jj.ravel()]).astype(float)
+    positions += rng.uniform(0.0, 0.01, size=positions.shape)
+    velocities = rng.uniform(-1.0, 1.0, size=positions.shape)
+    return Layout(positions, velocities, np.ones(len(positions)), np.ones(len(positions)))
+
+
+def box(size: int, rng: np.random.Generator | None) -> Layout:
+    """``size`` balls (radius 1/2) densely packed in a square box with four walls: a jittered
+    square lattice at spacing 0.98 (so neighbours overlap slightly), random velocities."""
+    rng = rng or np.random.default_rng(0)
+    side = int(np.ceil(np.sqrt(size)))
+    spacing = 0.98
+    ii, jj = np.divmod(np.arange(size), side)
+    positions = np.column_stack([jj, ii]).astype(float) * spacing + 0.5
+    positions += rng.uniform(-0.01, 0.01, size=positions.shape)
+    velocities = rng.uniform(-1.0, 1.0, size=positions.shape)
+    width = (side - 1) * spacing + 1.0 - 0.02
+    plane_points = np.array([[0.0, 0.0], [width, 0.0], [0.0, 0.0], [0.0, width]])
+    plane_normals = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    return Layout(positions, velocities, np.full(size, 0.5), np.ones(size), plane_points,
+                  plane_normals)
+
+
+def mass_ratio(size: int, rng: np.random.Generator | None) -> Layout:
+    """A perturbed grid whose masses are log-uniform over 1e-6 .. 1e6."""
+    rng = rng or np.random.default_rng(0)
+    layout = grid(size, rng)
+    layout.masses = 10.0 ** rng.uniform(-6.0, 6.0, size=len(layout.masses))
+    return layout
+
+
+def near_duplicate(size: int, rng: np.random.Generator | None) -> tuple[Layout, list]:
+    """A perturbed grid where every ball-ball contact appears twice, the copy's normal turned
+    by about 1e-9 rad: Q is numerically rank deficient."""
+    rng = rng or np.random.default_rng(0)
+    layout = grid(size, rng)
+    extra = []
+    for a, b in ball_pairs(layout):
+        delta = layout.positions[a] - layout.positions[b]
+        normal = _rotate((delta / np.linalg.norm(delta))[None, :], rng.uniform(0.5e-9, 2e-9))[0]
+        extra.append((int(a), int(b), normal))
+    return layout, extra
+
+
+Builder = Callable[[int, np.random.Generator | None], "Layout | tuple[Layout, list]"]
+
+# family -> (builder, default size)
+FAMILIES: dict[str, tuple[Builder, int]] = {
+    "k3": (k3, 3),
+    "k4": (k4, 4),
+    "k4-middle": (k4_middle, 5),
+    "cradle": (cradle, 3),
+    "grid": (grid, 5),
+    "box": (box, 100),
+    "mass-ratio": (mass_ratio, 5),
+    "near-duplicate": (near_duplicate, 4),
+}
+
+
+def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1,
+             restitution: float | None = None) -> list[ImpactProblem]:
+    """``count`` problems of ``family``; problem i uses seed ``seed + i``.
+
+    For k3, k4, k4-middle and cradle, seed 0 is the canonical, unrotated case.
+    """
+    if family not in FAMILIES:
+        raise QpbenchError(f"unknown family '{family}' (known: {', '.join(FAMILIES)})")
+    builder, default_size = FAMILIES[family]
+    size = default_size if size is None else int(size)
+    if size < 1:
+        raise QpbenchError(f"family '{family}': size must be >= 1, got {size}")
+    problems = []
+    for index in range(count):
+        problem_seed = seed + index
+        rng = np.random.default_rng(problem_seed) if (problem_seed or family in
+                                                       ("grid", "box", "mass-ratio",
+                                                        "near-duplicate")) else None
+        built = builder(size, rng)
+        layout, extra = built if isinstance(built, tuple) else (built, None)
+        if restitution is not None:
+            layout.restitution = restitution
+        name = f"{family}-{size}-s{problem_seed}"
+        metadata = {"family": family, "size": size, "seed": problem_seed,
+                    "restitution": layout.restitution}
+        problems.append(assemble(name, family, layout, metadata, extra))
+    return problems
