@@ -1,0 +1,41 @@
+"""``qpbench generate FAMILY [--size N] [--seed S] [--count K] -o DIR``: hard-case families."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.problem import files
+from qpbench.problem.generate import FAMILIES, generate
+from qpbench.problem.reference import attach_reference
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "generate", help="write seeded problems of a hard-case family",
+        description=f"families: {', '.join(FAMILIES)}",
+    )
+    parser.add_argument("family", help="one of: " + ", ".join(FAMILIES))
+    parser.add_argument("--size", type=int, default=None, help="balls (grid: per side)")
+    parser.add_argument("--seed", type=int, default=0, help="first seed (0)")
+    parser.add_argument("--count", type=int, default=1, help="problems, seeds seed..seed+count-1")
+    parser.add_argument("--restitution", type=float, default=None, help="coefficient c (1)")
+    parser.add_argument("--no-reference", action="store_true",
+                        help="skip the reference solution (v_error will be empty)")
+    parser.add_argument("-o", "--output", required=True, help="output folder")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    problems = generate(args.family, size=args.size, seed=args.seed, count=args.count,
+                        restitution=args.restitution)
+    for problem in problems:
+        if not args.no_reference:
+            attach_reference(problem)
+            if not problem.reference.verified:
+                print(f"qpbench generate: {problem.name}: references disagree "
+                      f"({problem.reference.agreement:.1e}); v_error will not be computed",
+                      file=sys.stderr)
+        path = files.save(problem, f"{args.output}/{problem.name}")
+        print(path)
+    return 0

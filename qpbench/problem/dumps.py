@@ -1,0 +1,184 @@
+"""Import of the LCP dumps printed by a research fork of SCISim at a scene's first impact.
+
+Two layouts (DESIGN section 5):
+
+* JSON-like: an object with trailing commas whose matrix entries (``N``, ``Q``, ``Minv``,
+  ``v0``, ``b``, ``ipopt_sol``, ``policy_sol``) are ``{"shape": [r, c], "data": [[i, j, value],
+  ...]}``, plus ``*_converges`` flags and ``*_time`` integers;
+* text: ``NAME:`` / ``size: r c`` / ``(i,j,value) ...`` blocks and ``NAME:`` / value pairs; no
+  ``b`` (it is ``(1 + CoR) N^T v0``, CoR 1 unless told).
+
+G = N, M^-1 = diag(Minv), v- = v0; the restitution comes from b where b is given. The dumped
+solutions, Q, b, flags and times are kept as data: they are not references (the dumped IPOPT
+answers are not all converged).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench.errors import InputError
+from qpbench.problem.impact import ImpactProblem
+
+REQUIRED = ("N", "Minv", "v0")
+_TRAILING_COMMA = re.compile(r",(\s*[}\]])")
+_TRIPLET = re.compile(r"\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)")
+
+
+def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
+    """A sparse matrix from its shape and (i, j, value) triplets, checked against the shape."""
+    try:
+        rows, cols = (int(size) for size in shape)
+    except (TypeError, ValueError) as error:
+        raise InputError(file, f"shape must be two integers, got {shape!r}", name, "shape") from error
+    if rows < 0 or cols < 0:
+        raise InputError(file, f"negative shape {shape!r}", name, "shape")
+    try:
+        data = np.asarray(triplets, dtype=float).reshape(-1, 3)
+    except (TypeError, ValueError) as error:
+        raise InputError(file, "entries must be [i, j, value] triplets", name, "data") from error
+    index = data[:, :2]
+    if np.any(index != np.round(index)) or np.any(index < 0) or np.any(
+        index >= np.array([rows, cols])
+    ):
+        raise InputError(file, f"an index lies outside shape [{rows}, {cols}]", name, "data")
+    if not np.all(np.isfinite(data[:, 2])):
+        raise InputError(file, "contains NaN or infinity", name, "data")
+    return sp.coo_matrix((data[:, 2], (data[:, 0].astype(int), data[:, 1].astype(int))),
+                         shape=(rows, cols))
+
+
+def _parse_json(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
+    try:
+        raw = json.loads(_TRAILING_COMMA.sub(r"\1", text))
+    except json.JSONDecodeError as error:
+        raise InputError(file, f"malformed dump: {error.msg} at line {error.lineno}") from error
+    if not isinstance(raw, dict):
+        raise InputError(file, "malformed dump: expected an object")
+    matrices: dict[str, sp.coo_matrix] = {}
+    scalars: dict[str, Any] = {}
+    for name, value in raw.items():
+        if isinstance(value, dict):
+            if "shape" not in value or "data" not in value:
+                missing = "shape" if "shape" not in value else "data"
+                raise InputError(file, "missing", name, missing)
+            matrices[name] = _matrix(file, name, value["shape"], value["data"])
+        else:
+            scalars[name] = value
+    return matrices, scalars
+
+
+def _parse_text(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
+    matrices: dict[str, sp.coo_matrix] = {}
+    scalars: dict[str, Any] = {}
+    lines = [line.strip() for line in text.splitlines()]
+    index = 0
+    while index < len(lines):
+        line = lines[index]
+        index += 1
+        if not line or ":" not in line:
+            continue
+        name, _, rest = line.partition(":")
+        name, rest = name.strip(), rest.strip()
+        if rest:  # "solve status: 0"
+            scalars[name] = rest
+            continue
+        following = lines[index] if index < len(lines) else ""
+        if following.startswith("size:"):
+            shape = following.split(":", 1)[1].split()
+            body = lines[index + 1] if index + 1 < len(lines) else ""
+            triplets = [[float(a), float(b), float(c)] for a, b, c in _TRIPLET.findall(body)]
+            matrices[name] = _matrix(file, name, shape, triplets)
+            index += 2
+        else:
+            scalars[name] = following
+            index += 1
+    if not matrices:
+        raise InputError(file, "malformed dump: no NAME: / size: / (i,j,value) blocks found")
+    return matrices, scalars
+
+
+def _scalar(value: Any) -> Any:
+    if isinstance(value, str):
+        for cast in (int, float):
+            try:
+                return cast(value)
+            except ValueError:
+                pass
+    return value
+
+
+def import_dump(path: str | Path, restitution: float | None = None) -> ImpactProblem:
+    """The ImpactProblem of one dump file; InputError names the file, entry and field at fault."""
+    file = str(path)
+    try:
+        text = Path(path).read_text()
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(file, f"cannot read dump ({error})") from error
+    layout = "json" if text.lstrip().startswith("{") else "text"
+    matrices, scalars = (_parse_json if layout == "json" else _parse_text)(file, text)
+    for name in REQUIRED:
+        if name not in matrices:
+            raise InputError(file, "missing entry", name)
+    G = sp.csc_matrix(matrices["N"])
+    dofs, contacts = G.shape
+    m_inv_matrix = matrices["Minv"].tocsr()
+    if m_inv_matrix.shape != (dofs, dofs):
+        raise InputError(file, f"is {m_inv_matrix.shape}, N has {dofs} rows", "Minv", "shape")
+    if sp.triu(m_inv_matrix, 1).nnz or sp.tril(m_inv_matrix, -1).nnz:
+        raise InputError(file, "must be diagonal", "Minv", "data")
+    v0 = matrices["v0"].toarray()
+    if v0.shape != (dofs, 1):
+        raise InputError(file, f"is {v0.shape}, expected ({dofs}, 1)", "v0", "shape")
+    v_minus = v0.ravel()
+    u_minus = G.T @ v_minus
+    kept: dict[str, np.ndarray] = {}
+    if "b" in matrices:
+        b = matrices["b"].toarray()
+        if b.shape != (contacts, 1):
+            raise InputError(file, f"is {b.shape}, expected ({contacts}, 1)", "b", "shape")
+        kept["b"] = b.ravel()
+    if restitution is None:
+        restitution = 1.0
+        if "b" in kept:
+            moving = np.abs(u_minus) > 1e-6 * max(float(np.max(np.abs(u_minus))), 1e-300)
+            if np.any(moving):
+                restitution = float(np.median(kept["b"][moving] / u_minus[moving] - 1.0))
+                if -1e-8 <= restitution <= 1.0 + 1e-8:  # printed digits only
+                    restitution = min(max(restitution, 0.0), 1.0)
+            mismatch = np.max(np.abs(kept["b"] - (1.0 + restitution) * u_minus), initial=0.0)
+            if mismatch > 1e-8 * max(float(np.max(np.abs(kept["b"]))), 1.0) or not (
+                0.0 <= restitution <= 1.0
+            ):
+                raise InputError(file, "is not (1 + CoR) N^T v0 for one CoR in [0, 1]", "b")
+    for name in ("Q", "ipopt_sol", "policy_sol"):
+        if name in matrices:
+            kept[name] = matrices[name].toarray().squeeze(axis=-1) if matrices[name].shape[1] == 1 \
+                else matrices[name].toarray()
+    for name, value in kept.items():
+        if name.endswith("_sol") and value.shape != (contacts,):
+            raise InputError(file, f"is {value.shape}, expected ({contacts}, 1)", name, "shape")
+    m_inv = m_inv_matrix.diagonal()
+    rotation_rows = np.arange(2, dofs, 3)
+    dofs_per_body = 3 if dofs % 3 == 0 and G[rotation_rows].nnz == 0 else 2
+    problem = ImpactProblem(
+        name=Path(path).stem,
+        G=G,
+        m_inv=np.asarray(m_inv, dtype=float),
+        v_minus=v_minus,
+        restitution=np.full(contacts, float(restitution)),
+        n_rel=np.zeros(contacts),
+        family="dump",
+        source=file,
+        dofs_per_body=dofs_per_body,
+        metadata={"layout": layout, **{k: _scalar(v) for k, v in scalars.items()}},
+        data=kept,
+    )
+    problem.validate(file)
+    return problem
