@@ -36,7 +36,8 @@ def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
     try:
         rows, cols = (int(size) for size in shape)
     except (TypeError, ValueError) as error:
-        raise InputError(file, f"shape must be two integers, got {shape!r}", name, "shape") from error
+        raise InputError(file, f"shape must be two integers, got {shape!r}", name,
+                         "shape") from error
     if rows < 0 or cols < 0:
         raise InputError(file, f"negative shape {shape!r}", name, "shape")
     try:
