@@ -66,7 +66,94 @@ def primal_qp(problem: ImpactProblem) -> PrimalQP:
 
 
 def impulses_from_velocity(problem: ImpactProblem, v_plus: np.ndarray) -> np.ndarray:
-    """The least-squares l with M^-1 G l = v+ - v- (for a primal solver that gives no multipliers)."""
+    """The least-squares l with M^-1 G l = v+ - v- (for a primal solver without multipliers)."""
     from scipy.sparse.linalg import lsqr
 
     return lsqr(problem.M_inv_G, v_plus - problem.v_minus, atol=1e-15, btol=1e-15)[0]
+
+
+@dataclass(frozen=True)
+class FactoredDualQP:
+    """The dual with ``Q = L^T L`` as a QP in ``x = (l, y)`` that never forms Q.
+
+    ``min 1/2 y^T y + b^T l  s.t.  L l - y = 0,  l >= 0``, with ``L = M^-1/2 G`` restricted
+    to the degrees of freedom with finite mass (its other rows are zero). In qpsolvers'
+    form: ``P = diag(0_n, I_k)``, ``q = (b, 0)``, ``A = [L, -I]``, ``A x = 0``,
+    ``G = [-I, 0]``, ``G x <= 0``. The impulses are ``x[:n]``.
+    """
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    A: sp.csc_matrix
+    b_eq: np.ndarray
+    G: sp.csc_matrix
+    h: np.ndarray
+    n_contacts: int
+
+    def impulses(self, x: np.ndarray) -> np.ndarray:
+        """l = x[:n]."""
+        return np.asarray(x[: self.n_contacts], dtype=float)
+
+
+def factored_rows(problem: ImpactProblem) -> sp.csc_matrix:
+    """L = M^-1/2 G without the rows of kinematic degrees of freedom (k x n, k = free dofs)."""
+    free = problem.m_inv > 0
+    return sp.csc_matrix(sp.csr_matrix(problem.L)[free])
+
+
+def factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
+    """The dual-factored formulation as a QP (see :class:`FactoredDualQP`)."""
+    L = factored_rows(problem)
+    k, n = L.shape
+    P = sp.block_diag([sp.csc_matrix((n, n)), sp.identity(k)], format="csc")
+    return FactoredDualQP(
+        P=P,
+        q=np.concatenate([problem.b, np.zeros(k)]),
+        A=sp.csc_matrix(sp.hstack([L, -sp.identity(k)])),
+        b_eq=np.zeros(k),
+        G=sp.csc_matrix(sp.hstack([-sp.identity(n), sp.csc_matrix((n, k))])),
+        h=np.zeros(n),
+        n_contacts=n,
+    )
+
+
+@dataclass(frozen=True)
+class PsdCertificate:
+    """Evidence that Q is positive semi-definite, computed here rather than assumed.
+
+    ``method`` is ``eigenvalues`` (the smallest eigenvalue of the symmetric Q, accepted
+    when ``>= -tolerance``) or ``gram`` (for large n: ``||Q - L^T L||_max <= tolerance``,
+    so Q is a Gram matrix up to rounding). ``tolerance = 100 n eps_machine max|Q_ij|``.
+    """
+
+    psd: bool
+    method: str
+    value: float
+    tolerance: float
+
+
+EIGENVALUE_LIMIT = 2000
+
+
+def certify_psd(problem: ImpactProblem) -> PsdCertificate:
+    """Certifies Q = G^T M^-1 G positive semi-definite (see :class:`PsdCertificate`)."""
+    Q = problem.Q
+    n = problem.n_contacts
+    largest = float(np.max(np.abs(Q.data), initial=0.0))
+    tolerance = 100.0 * max(n, 1) * np.finfo(float).eps * max(largest, np.finfo(float).tiny)
+    if n == 0:
+        return PsdCertificate(True, "empty", 0.0, tolerance)
+    symmetric = float(np.max(np.abs((Q - Q.T).data), initial=0.0)) == 0.0
+    if n <= EIGENVALUE_LIMIT:
+        smallest = float(np.linalg.eigvalsh(Q.toarray())[0])
+        return PsdCertificate(symmetric and smallest >= -tolerance, "eigenvalues", smallest,
+                              tolerance)
+    gram = problem.L.T @ problem.L
+    difference = sp.csr_matrix(Q - gram)
+    gap = float(np.max(np.abs(difference.data), initial=0.0))
+    return PsdCertificate(symmetric and gap <= tolerance, "gram", gap, tolerance)
+
+
+def regularized(Q: sp.spmatrix, delta: float) -> sp.csc_matrix:
+    """Q + delta I: a different problem, used only by variants named ``*-reg``."""
+    return sp.csc_matrix(Q + delta * sp.identity(Q.shape[0], format="csc"))

@@ -12,7 +12,9 @@ from qpbench.solvers.registry import register_unusable
 
 # module -> (solver names it provides, formulations, backend) to report when it cannot import
 _FAMILIES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
-    "qpsolvers_": (("osqp", "clarabel"), ("dual",), "qpsolvers"),
+    "qpsolvers_": (("osqp", "clarabel", "proxqp", "piqp", "daqp", "highs", "scs", "ecos",
+                    "cvxopt", "quadprog", "qpalm"), ("dual", "primal", "dual-factored"),
+                   "qpsolvers"),
 }
 
 for _module, (_names, _formulations, _backend) in _FAMILIES.items():

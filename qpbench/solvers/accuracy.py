@@ -27,13 +27,91 @@ def _relative(eps: float, scale: float) -> float:
     return eps
 
 
+def _gap(eps: float, scale: float) -> float:
+    """eps * scale^2: an absolute duality gap l^T w (velocity^2 when diag(Q) ~ 1)."""
+    return eps * scale * scale
+
+
+def _ktratio(eps: float, scale: float) -> float:
+    """min(1e-6, eps)"""
+    return min(1e-6, eps)
+
+
+def _regularization(eps: float, scale: float) -> float:
+    """0.1 * eps: delta / max(diag Q) of a *-reg variant (it solves Q + delta I)"""
+    return 0.1 * eps
+
+
+def _highs_reg(eps: float, scale: float) -> float:
+    """0.1 * eps: HiGHS's own Hessian regularization of its QP solver (default 1e-7)"""
+    return 0.1 * eps
+
+
+ITERATIVE_MAX_ITER = 200_000  # first-order methods (ADMM, proximal, SCS)
+INTERIOR_MAX_ITER = 500  # interior-point methods
+
+
 OPTIONS: dict[str, dict[str, OptionValue]] = {
-    # --- through qpsolvers (and cvxpy, same option names) ---------------------
+    # --- through qpsolvers -----------------------------------------------------
     "osqp": {"eps_abs": _absolute, "eps_rel": _relative, "polishing": True,
-             "max_iter": 200_000, "time_limit": DEFAULT_TIME_LIMIT_S},
-    "clarabel": {"tol_gap_abs": _absolute, "tol_gap_rel": _relative, "tol_feas": _relative,
-                 "tol_ktratio": lambda eps, scale: min(1e-6, eps), "max_iter": 500,
+             "max_iter": ITERATIVE_MAX_ITER, "time_limit": DEFAULT_TIME_LIMIT_S},
+    "clarabel": {"tol_gap_abs": _gap, "tol_gap_rel": _relative, "tol_feas": _relative,
+                 "tol_ktratio": _ktratio, "max_iter": INTERIOR_MAX_ITER,
                  "time_limit": DEFAULT_TIME_LIMIT_S},
+    "proxqp": {"eps_abs": _absolute, "eps_rel": 0.0, "check_duality_gap": True,
+               "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": 0.0,
+               "max_iter": ITERATIVE_MAX_ITER},
+    "piqp": {"eps_abs": _absolute, "eps_rel": _relative, "check_duality_gap": True,
+             "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": _relative,
+             "max_iter": INTERIOR_MAX_ITER},
+    "daqp": {"primal_tol": _absolute, "dual_tol": _absolute, "iter_limit": 100_000,
+             "time_limit": DEFAULT_TIME_LIMIT_S},
+    "highs": {"primal_feasibility_tolerance": _absolute,
+              "dual_feasibility_tolerance": _absolute, "qp_regularization_value": _highs_reg,
+              "time_limit": DEFAULT_TIME_LIMIT_S},
+    "scs": {"eps_abs": _absolute, "eps_rel": _relative, "max_iters": ITERATIVE_MAX_ITER,
+            "time_limit_secs": DEFAULT_TIME_LIMIT_S},
+    "ecos": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+             "max_iters": INTERIOR_MAX_ITER},
+    "ecos-reg": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+                 "max_iters": INTERIOR_MAX_ITER, "regularization": _regularization},
+    "cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+               "maxiters": INTERIOR_MAX_ITER},
+    "quadprog": {},  # an exact active-set method: no tolerance, no limit
+    "quadprog-reg": {"regularization": _regularization},
+    "qpalm": {"eps_abs": _absolute, "eps_rel": _relative, "max_iter": ITERATIVE_MAX_ITER,
+              "time_limit": DEFAULT_TIME_LIMIT_S},
+    # --- IPOPT through cyipopt, configured as SCISim's LCP0OperatorIpopt ----------
+    "ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
+              "max_wall_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
+              "hessian_constant": "yes", "jac_c_constant": "yes", "jac_d_constant": "yes",
+              "print_level": 0, "sb": "yes"},
+    # --- through cvxpy (its own option names per solver) ----------------------------
+    "cvxpy-osqp": {"eps_abs": _absolute, "eps_rel": _relative, "polishing": True,
+                   "max_iter": ITERATIVE_MAX_ITER, "time_limit": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-clarabel": {"tol_gap_abs": _gap, "tol_gap_rel": _relative, "tol_feas": _relative,
+                       "tol_ktratio": _ktratio, "max_iter": INTERIOR_MAX_ITER,
+                       "time_limit": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-proxqp": {"eps_abs": _absolute, "eps_rel": 0.0, "max_iter": ITERATIVE_MAX_ITER},
+    "cvxpy-piqp": {"eps_abs": _absolute, "eps_rel": _relative, "check_duality_gap": True,
+                   "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": _relative,
+                   "max_iter": INTERIOR_MAX_ITER},
+    "cvxpy-daqp": {"primal_tol": _absolute, "dual_tol": _absolute, "iter_limit": 100_000,
+                   "time_limit": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-highs": {"primal_feasibility_tolerance": _absolute,
+                    "dual_feasibility_tolerance": _absolute,
+                    "qp_regularization_value": _highs_reg,
+                    "time_limit": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-scs": {"eps_abs": _absolute, "eps_rel": _relative, "max_iters": ITERATIVE_MAX_ITER,
+                  "time_limit_secs": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-ecos": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+                   "max_iters": INTERIOR_MAX_ITER},
+    "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+                     "max_iters": INTERIOR_MAX_ITER},
+    "cvxpy-ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
+                    "max_wall_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
+                    "hessian_constant": "yes", "jac_c_constant": "yes",
+                    "jac_d_constant": "yes", "print_level": 0, "sb": "yes"},
     # --- solvers written here: tolerance on qpbench's own relative residual ---
     "pi": {"tol": _relative, "max_iters": 100},
 }
