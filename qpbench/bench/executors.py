@@ -1,0 +1,176 @@
+"""Where the cells run: in order on one worker, on N local workers, or on a Dask cluster.
+
+Every executor hands each cell to an :class:`~qpbench.bench.runner.IsolatedWorker`
+(a child process), so all three give the same rows; they differ only in how many
+cells run at once and on which machine. Cells are grouped by problem file so a
+worker loads each problem once. ``map(cells, limits)`` yields ``(cell, row)`` as
+cells finish, in any order.
+"""
+
+from __future__ import annotations
+
+import atexit
+import queue
+import threading
+from collections.abc import Iterator
+from itertools import groupby
+from typing import Any, Protocol
+
+from qpbench.bench.runner import IsolatedWorker, solve_serially
+from qpbench.bench.settings import Cell, Limits
+from qpbench.errors import QpbenchError
+
+Result = tuple[Cell, dict[str, Any]]
+
+
+class Executor(Protocol):
+    name: str
+
+    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]: ...
+
+
+def by_problem(cells: list[Cell]) -> list[list[Cell]]:
+    """The cells in consecutive groups of one problem file each."""
+    return [list(group) for _, group in groupby(cells, key=lambda cell: cell.problem_file)]
+
+
+class SerialExecutor:
+    """One worker process, cells in matrix order."""
+
+    name = "serial"
+
+    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        yield from solve_serially(cells, limits)
+
+
+class ProcessExecutor:
+    """``workers`` worker processes on this machine, fed by as many threads."""
+
+    name = "processes"
+
+    def __init__(self, workers: int) -> None:
+        if workers < 1:
+            raise QpbenchError(f"--workers must be at least 1, got {workers}")
+        self.workers = workers
+
+    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        chunks: queue.Queue[list[Cell] | None] = queue.Queue()
+        for chunk in by_problem(cells):
+            chunks.put(chunk)
+        results: queue.Queue[Result | BaseException | None] = queue.Queue()
+        stop = threading.Event()
+        workers = [IsolatedWorker() for _ in range(self.workers)]
+
+        def serve(worker: IsolatedWorker) -> None:
+            try:
+                while not stop.is_set():
+                    try:
+                        chunk = chunks.get_nowait()
+                    except queue.Empty:
+                        break
+                    for cell in chunk:
+                        if stop.is_set():
+                            break
+                        results.put((cell, worker.solve(cell, limits)))
+            except BaseException as error:  # reported to the caller, which stops the run
+                results.put(error)
+            finally:
+                worker.close()
+                results.put(None)
+
+        threads = [threading.Thread(target=serve, args=(worker,), daemon=True)
+                   for worker in workers]
+        for thread in threads:
+            thread.start()
+        finished = 0
+        try:
+            while finished < len(threads):
+                item = results.get()
+                if item is None:
+                    finished += 1
+                elif isinstance(item, BaseException):
+                    raise item
+                else:
+                    yield item
+        finally:
+            stop.set()
+            for worker in workers:
+                worker.stop()
+            for thread in threads:
+                thread.join(timeout=10)
+
+
+# --- Dask ----------------------------------------------------------------------------------
+_DASK_WORKERS: dict[int, IsolatedWorker] = {}
+_DASK_LOCK = threading.Lock()
+
+
+def _close_dask_workers() -> None:
+    with _DASK_LOCK:
+        for worker in _DASK_WORKERS.values():
+            worker.close()
+        _DASK_WORKERS.clear()
+
+
+atexit.register(_close_dask_workers)
+
+
+def solve_chunk(chunk: list[Cell], limits: Limits) -> list[Result]:
+    """A Dask task: the cells of one problem on this thread's isolated worker (kept for the
+    next task, so the worker process starts once per Dask worker thread)."""
+    key = threading.get_ident()
+    with _DASK_LOCK:
+        worker = _DASK_WORKERS.setdefault(key, IsolatedWorker())
+    return list(solve_serially(chunk, limits, worker=worker))
+
+
+class DaskExecutor:
+    """Cells grouped by problem, one Dask task per group, on the scheduler at ``address``."""
+
+    name = "dask"
+
+    def __init__(self, address: str) -> None:
+        self.address = address
+
+    def client(self) -> Any:
+        try:
+            from distributed import Client
+        except ImportError as error:
+            raise QpbenchError(f"--executor {self.address}: dask.distributed is not installed"
+                               ) from error
+        try:
+            return Client(self.address, timeout="20s")
+        except (OSError, TimeoutError, ValueError) as error:
+            raise QpbenchError(f"--executor: cannot reach the Dask scheduler at {self.address}: "
+                               f"{error}") from error
+
+    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        from distributed import as_completed
+
+        client = self.client()
+        try:
+            futures = [client.submit(solve_chunk, chunk, limits, pure=False)
+                       for chunk in by_problem(cells)]
+            for future in as_completed(futures):
+                yield from future.result()
+        finally:
+            client.close()
+
+
+def make_executor(executor: str, workers: int = 1) -> Executor:
+    """``serial``, ``processes`` (with ``workers``) or ``dask://HOST:PORT`` (or tcp://...)."""
+    if executor in ("", "auto"):
+        executor = "processes" if workers > 1 else "serial"
+    if executor == "serial":
+        if workers > 1:
+            raise QpbenchError("--executor serial runs one worker; drop --workers or use "
+                               "--executor processes")
+        return SerialExecutor()
+    if executor == "processes":
+        return ProcessExecutor(workers)
+    if executor.startswith("dask://"):
+        return DaskExecutor("tcp://" + executor.removeprefix("dask://"))
+    if executor.startswith(("tcp://", "tls://", "inproc://")):
+        return DaskExecutor(executor)
+    raise QpbenchError(f"--executor: unknown executor '{executor}' "
+                       "(serial, processes or dask://HOST:PORT)")

@@ -1,0 +1,188 @@
+"""The results: one Parquet long table, one row per solve, safe against kill -9.
+
+Layout beside ``FILE.parquet``: a folder ``FILE.parquet.parts/`` of part files,
+each one batch of rows written to a temporary name, flushed to disk and renamed
+(a reader sees a whole part or none). :meth:`ResultStore.compact` merges the main
+file and the parts into a new main file (again by rename) and only then deletes
+the parts. Readers take the main file and every part and keep the first row of
+each cell key, so a kill between the rename and the deletions duplicates nothing.
+Rows are collected in lists and turned into one table per batch: no per-row concat.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+import uuid
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from qpbench.bench.settings import CELL_KEY
+from qpbench.errors import InputError
+
+# column order of the table, with the dtype each column is stored as
+FLOAT_COLUMNS = (
+    "accuracy", "residual", "v_error", "energy_gain", "complementarity", "infeasibility",
+    "energy_identity_gap", "time_s", "time_median_s", "time_max_s", "setup_time_s",
+    "timer_overhead_s", "time_limit_s", "cell_wall_s",
+)
+INT_COLUMNS = (
+    "bodies", "contacts", "nnz", "rank_deficiency", "iterations", "repeats", "repeats_requested",
+    "memory_limit_mb",
+)
+BOOL_COLUMNS = ("success", "claimed_success", "status_honest", "warm_start_used")
+COLUMNS = (
+    "problem", "family", "source", "problem_file", "bodies", "contacts", "nnz",
+    "rank_deficiency", "solver", "formulation", "backend", "solver_version", "accuracy", "mode",
+    "status", "solver_status", "claimed_success", "status_honest", "success", "residual",
+    "v_error", "energy_gain", "complementarity", "infeasibility", "energy_identity_gap",
+    "iterations", "time_s", "time_median_s", "time_max_s", "repeats", "repeats_requested",
+    "setup_time_s", "warm_start_source", "warm_start_used", "time_limit_s", "memory_limit_mb",
+    "timer_overhead_s", "cell_wall_s", "qpbench_version", "python_version", "numpy_version",
+    "platform", "cpu_model", "hostname", "date",
+)
+
+
+def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The rows as one DataFrame with the columns of COLUMNS (then any others) and fixed dtypes."""
+    frame = pd.DataFrame.from_records(rows)
+    extra = [column for column in frame.columns if column not in COLUMNS]
+    frame = frame.reindex(columns=[*COLUMNS, *extra])
+    for column in FLOAT_COLUMNS:
+        frame[column] = pd.to_numeric(frame[column], errors="coerce").astype("float64")
+    for column in INT_COLUMNS:
+        frame[column] = pd.to_numeric(frame[column], errors="coerce").astype("Int64")
+    for column in BOOL_COLUMNS:
+        frame[column] = frame[column].astype("boolean")
+    for column in frame.columns:
+        if column not in FLOAT_COLUMNS + INT_COLUMNS + BOOL_COLUMNS:
+            frame[column] = frame[column].astype("string")
+    return frame
+
+
+def _write_atomically(frame: pd.DataFrame, path: Path) -> None:
+    """Writes ``frame`` to a temporary file beside ``path``, syncs it and renames it to ``path``."""
+    temporary = path.with_name(f".tmp-{uuid.uuid4().hex}-{path.name}")
+    try:
+        frame.to_parquet(temporary, engine="pyarrow", index=False)
+        with open(temporary, "rb") as stream:
+            os.fsync(stream.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+    _sync_folder(path.parent)
+
+
+def _sync_folder(folder: Path) -> None:
+    """Makes a rename in ``folder`` durable (fsync of the directory, where supported)."""
+    try:
+        descriptor = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(descriptor)
+    except OSError:
+        pass
+    finally:
+        os.close(descriptor)
+
+
+class ResultStore:
+    """The results of one run: ``path`` (compacted) plus ``path.parts/`` (batches since)."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.parts = self.path.with_name(self.path.name + ".parts")
+
+    def part_files(self) -> list[Path]:
+        if not self.parts.is_dir():
+            return []
+        return sorted(self.parts.glob("part-*.parquet"))
+
+    def _read_file(self, path: Path, columns: Iterable[str] | None) -> pd.DataFrame:
+        try:
+            return pd.read_parquet(path, engine="pyarrow",
+                                   columns=list(columns) if columns is not None else None)
+        except (OSError, ValueError) as error:
+            raise InputError(str(path), f"not a readable results file ({error})") from error
+
+    def read(self, columns: Iterable[str] | None = None) -> pd.DataFrame:
+        """Every row: main file then parts, the first row of each cell key kept."""
+        sources = ([self.path] if self.path.exists() else []) + self.part_files()
+        if not sources:
+            return table([])
+        wanted = None if columns is None else list(dict.fromkeys([*CELL_KEY, *columns]))
+        frames = [self._read_file(path, wanted) for path in sources]
+        frames = [frame for frame in frames if len(frame)]
+        if not frames:
+            return table([])
+        frame = frames[0] if len(frames) == 1 else pd.concat(frames, ignore_index=True)
+        keys = [column for column in CELL_KEY if column in frame.columns]
+        frame = frame.drop_duplicates(subset=keys, keep="first").reset_index(drop=True)
+        return frame if columns is None else frame[list(columns)]
+
+    def finished_keys(self) -> set[tuple[str, str, str, float, str]]:
+        """The cell keys already stored (problem, solver, formulation, accuracy, mode)."""
+        frame = self.read(CELL_KEY)
+        return {
+            (str(p), str(s), str(f), float(a), str(m))
+            for p, s, f, a, m in frame[list(CELL_KEY)].itertuples(index=False, name=None)
+        }
+
+    def writer(self, batch_rows: int = 20, batch_seconds: float = 10.0) -> BatchWriter:
+        return BatchWriter(self, batch_rows, batch_seconds)
+
+    def write_part(self, rows: list[dict[str, Any]]) -> Path:
+        """Stores ``rows`` as one new part file (atomically) and returns its path."""
+        self.parts.mkdir(parents=True, exist_ok=True)
+        name = f"part-{time.time_ns():020d}-{os.getpid()}-{uuid.uuid4().hex[:8]}.parquet"
+        path = self.parts / name
+        _write_atomically(table(rows), path)
+        return path
+
+    def compact(self) -> int:
+        """Merges main file and parts into the main file, then removes the parts; returns rows."""
+        parts = self.part_files()
+        if not parts and self.path.exists():
+            return len(self._read_file(self.path, CELL_KEY))
+        frame = self.read()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        _write_atomically(table(frame.to_dict("records")) if len(frame) else table([]),
+                          self.path)
+        for part in parts:
+            part.unlink(missing_ok=True)
+        if self.parts.is_dir():
+            for leftover in self.parts.glob(".tmp-*"):
+                leftover.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # not empty: another writer's part arrived
+                self.parts.rmdir()
+        return len(frame)
+
+
+class BatchWriter:
+    """Collects rows and writes them as a part file every ``batch_rows`` rows or
+    ``batch_seconds`` seconds (whichever comes first) and on :meth:`flush`."""
+
+    def __init__(self, store: ResultStore, batch_rows: int, batch_seconds: float) -> None:
+        self.store = store
+        self.batch_rows = max(1, batch_rows)
+        self.batch_seconds = batch_seconds
+        self.rows: list[dict[str, Any]] = []
+        self.last_flush = time.monotonic()
+
+    def add(self, row: dict[str, Any]) -> None:
+        self.rows.append(row)
+        if (len(self.rows) >= self.batch_rows
+                or time.monotonic() - self.last_flush >= self.batch_seconds):
+            self.flush()
+
+    def flush(self) -> None:
+        if self.rows:
+            self.store.write_part(self.rows)
+            self.rows = []
+        self.last_flush = time.monotonic()

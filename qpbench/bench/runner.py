@@ -1,0 +1,297 @@
+"""The runner: every cell of the matrix solved in a worker process, whatever happens to it.
+
+Each cell goes to an :class:`IsolatedWorker`, a child process
+(``python -m qpbench.bench.worker``) that lives across cells and is replaced when
+it dies. A solver that segfaults or aborts kills only that process (status
+``crashed``); one that runs past the wall-clock limit is killed (``timeout``);
+one that exceeds the address-space cap gets MemoryError, or is killed by SIGKILL
+from the kernel (``out-of-memory``). Each becomes a row and the run goes on.
+
+:func:`run` drives the whole matrix through an executor (serial, local processes or
+Dask) and writes rows to the resumable result store as they arrive.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from qpbench.bench.settings import Cell, Limits, RunSettings, cells
+from qpbench.errors import InputError, QpbenchError
+from qpbench.problem import files
+
+CRASHED = "crashed"
+TIMEOUT = "timeout"
+OUT_OF_MEMORY = "out-of-memory"
+ERROR = "error"
+STARTUP_TIMEOUT_S = 300.0
+# allowance for the parts of a cell that are not the solver call (loading the problem, judging)
+OUTSIDE_SOLVE_ALLOWANCE_S = 120.0
+SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+class WorkerDied(Exception):
+    """The worker process ended (exit code or signal) while a cell was running."""
+
+    def __init__(self, returncode: int | None) -> None:
+        self.returncode = returncode
+        super().__init__(f"worker exited with {returncode}")
+
+
+class IsolatedWorker:
+    """A child process that solves cells; restarted after a crash or a timeout."""
+
+    def __init__(self) -> None:
+        self.process: subprocess.Popen[bytes] | None = None
+        self._buffer = b""
+        self._log: Any = None
+
+    # --- process life --------------------------------------------------------------
+    def start(self) -> None:
+        env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
+        self._log = tempfile.TemporaryFile()  # noqa: SIM115 (lives as long as the worker)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "qpbench.bench.worker"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
+            start_new_session=True,  # a Ctrl-C in the terminal reaches the runner only
+        )
+        self._buffer = b""
+        try:
+            message = self._next_message(time.monotonic() + STARTUP_TIMEOUT_S)
+        except WorkerDied as died:
+            raise QpbenchError(f"the worker process could not start ({died}): "
+                               f"{self.stderr_tail() or 'no message'}") from died
+        if message is None or message.get("event") != "ready":
+            self.stop()
+            raise QpbenchError("the worker process did not start within "
+                               f"{STARTUP_TIMEOUT_S:.0f} s")
+
+    def stop(self) -> None:
+        """Kills the process (if running) and forgets it."""
+        if self.process is not None:
+            if self.process.poll() is None:
+                self.process.kill()
+            self.process.wait()
+            for stream in (self.process.stdin, self.process.stdout):
+                if stream is not None:
+                    stream.close()
+            self.process = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def close(self) -> None:
+        """Asks the process to finish (end of input), then makes sure it is gone."""
+        if self.process is not None and self.process.stdin is not None:
+            try:
+                self.process.stdin.close()
+                self.process.wait(timeout=5)
+            except (OSError, subprocess.TimeoutExpired):
+                pass
+        self.stop()
+
+    def stderr_tail(self, lines: int = 3) -> str:
+        """The last lines the process wrote to stderr (solver messages, fatal errors)."""
+        if self._log is None:
+            return ""
+        self._log.seek(0, os.SEEK_END)
+        size = self._log.tell()
+        self._log.seek(max(0, size - 4096))
+        text = self._log.read().decode("utf-8", "replace")
+        return " | ".join(line.strip() for line in text.strip().splitlines()[-lines:])
+
+    # --- messages --------------------------------------------------------------------
+    def _next_message(self, deadline: float) -> dict[str, Any] | None:
+        """The next JSON line from the process; None at the deadline; WorkerDied on exit."""
+        assert self.process is not None and self.process.stdout is not None
+        descriptor = self.process.stdout.fileno()
+        while b"\n" not in self._buffer:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            ready, _, _ = select.select([descriptor], [], [], remaining)
+            if not ready:
+                return None
+            chunk = os.read(descriptor, 65536)
+            if not chunk:
+                raise WorkerDied(self.process.wait())
+            self._buffer += chunk
+        line, self._buffer = self._buffer.split(b"\n", 1)
+        return json.loads(line)
+
+    def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
+        """The row of ``cell``, from the worker or, when it failed, a row saying how."""
+        if self.process is None or self.process.poll() is not None:
+            self.stop()
+            self.start()
+        assert self.process is not None and self.process.stdin is not None
+        request = {"cell": cell.as_dict(), "limits": asdict(limits)}
+        started = time.monotonic()
+        try:
+            self.process.stdin.write((json.dumps(request) + "\n").encode())
+            self.process.stdin.flush()
+            in_solve = False
+            while True:
+                allowance = limits.timeout_s if in_solve else OUTSIDE_SOLVE_ALLOWANCE_S
+                message = self._next_message(time.monotonic() + allowance)
+                if message is None:
+                    self.stop()
+                    phase = "solver call" if in_solve else "setup or judging"
+                    return failure_row(cell, TIMEOUT, f"killed after {allowance:g} s in {phase}",
+                                       time_s=limits.timeout_s if in_solve else math.nan)
+                event = message.get("event")
+                if event == "begin":
+                    in_solve = True
+                elif event == "end":
+                    in_solve = False
+                elif event == "row":
+                    row = message["row"]
+                    row["cell_wall_s"] = time.monotonic() - started
+                    return row
+                elif event == "error":  # the cell could not be set up or judged
+                    return failure_row(cell, ERROR, str(message.get("message"))[:500])
+        except (WorkerDied, BrokenPipeError) as error:
+            code = error.returncode if isinstance(error, WorkerDied) else self.process.poll()
+            tail = self.stderr_tail()
+            self.stop()
+            return failure_row(cell, *classify_death(code, tail))
+
+
+def classify_death(returncode: int | None, stderr_tail: str) -> tuple[str, str]:
+    """(status, message) for a worker that died: SIGKILL that the runner did not send, or a
+    fatal allocation failure on stderr, is ``out-of-memory``; anything else ``crashed``."""
+    if returncode is not None and returncode < 0:
+        try:
+            cause = signal.Signals(-returncode).name
+        except ValueError:
+            cause = f"signal {-returncode}"
+    else:
+        cause = f"exit code {returncode}"
+    memory_words = ("MemoryError", "bad_alloc", "Cannot allocate memory", "out of memory")
+    out_of_memory = returncode == -signal.SIGKILL or any(w in stderr_tail for w in memory_words)
+    message = f"worker died: {cause}" + (f" ({stderr_tail})" if stderr_tail else "")
+    return (OUT_OF_MEMORY if out_of_memory else CRASHED), message[:500]
+
+
+def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
+                ) -> dict[str, Any]:
+    """The row of a cell whose worker crashed, hung or ran out of memory: no answer."""
+    nan = math.nan
+    return {
+        "solver": cell.solver,
+        "formulation": cell.formulation,
+        "accuracy": cell.accuracy,
+        "mode": cell.mode,
+        "status": status,
+        "solver_status": message,
+        "claimed_success": False,
+        "status_honest": True,
+        "success": False,
+        "residual": nan, "v_error": nan, "energy_gain": nan, "complementarity": nan,
+        "infeasibility": nan, "energy_identity_gap": nan,
+        "iterations": None,
+        "time_s": time_s,
+        "time_median_s": time_s,
+        "repeats": 0,
+    }
+
+
+def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limits: Limits
+                 ) -> dict[str, Any]:
+    """Adds the cell key, the problem's summary and the limits to a row (worker or failure)."""
+    return {
+        **summary,
+        "problem_file": cell.problem_file,
+        **row,
+        "problem": cell.problem,
+        "solver": cell.solver,
+        "formulation": cell.formulation,
+        "accuracy": float(cell.accuracy),
+        "mode": cell.mode,
+        "time_limit_s": limits.timeout_s,
+        "repeats_requested": limits.repeats,
+    }
+
+
+# --- the problem set ---------------------------------------------------------------------
+def problem_index(paths: Iterable[str | os.PathLike[str]]) -> list[tuple[str, str]]:
+    """(file, problem name) for every problem file named or found; InputError on a name twice."""
+    index: list[tuple[str, str]] = []
+    seen: dict[str, str] = {}
+    for path in files.find(paths):
+        name = files.load(path).name
+        if name in seen:
+            raise InputError(str(path), f"problem name '{name}' is also used by {seen[name]}; "
+                             "names identify results, so they must be unique", attribute="name")
+        seen[name] = str(path)
+        index.append((str(path), name))
+    return index
+
+
+def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
+    """problem file -> ``problem.summary()`` (name, family, source, sizes, rank deficiency)."""
+    return {path: files.load(path).summary() for path in problem_files}
+
+
+# --- the whole run -------------------------------------------------------------------------
+def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLike[str],
+        executor: Any, progress: bool = True, batch_rows: int = 20,
+        batch_seconds: float = 10.0) -> dict[str, int]:
+    """Runs every cell not yet in ``output`` and stores its row; returns counts.
+
+    Rows are written in batches (``batch_rows`` rows or ``batch_seconds``), each batch one
+    atomically renamed part file; at the end the parts are compacted into ``output``.
+    """
+    from qpbench.bench.results import ResultStore
+
+    store = ResultStore(Path(output))
+    index = problem_index(problem_paths)
+    if not index:
+        raise QpbenchError("no problem files found in " + ", ".join(problem_paths))
+    matrix = cells(index, list(settings.solvers), settings)
+    done = store.finished_keys()
+    pending = [cell for cell in matrix if cell.key not in done]
+    problem_summaries = summaries(sorted({cell.problem_file for cell in pending}))
+    counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}
+    bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
+               unit="solve", file=sys.stderr, dynamic_ncols=True)
+    writer = store.writer(batch_rows=batch_rows, batch_seconds=batch_seconds)
+    try:
+        for cell, row in executor.map(pending, settings.limits):
+            writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
+                                    settings.limits))
+            counts["run"] += 1
+            bar.set_postfix_str(f"{cell.solver_key} {row.get('status', '?')}", refresh=False)
+            bar.update(1)
+        writer.flush()
+    finally:
+        writer.flush()
+        bar.close()
+    store.compact()
+    return counts
+
+
+def solve_serially(cells_to_run: Iterable[Cell], limits: Limits,
+                   worker: IsolatedWorker | None = None) -> Iterator[tuple[Cell, dict[str, Any]]]:
+    """(cell, row) for each cell, in order, on one isolated worker."""
+    own = worker is None
+    worker = worker or IsolatedWorker()
+    try:
+        for cell in cells_to_run:
+            yield cell, worker.solve(cell, limits)
+    finally:
+        if own:
+            worker.close()

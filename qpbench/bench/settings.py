@@ -1,0 +1,125 @@
+"""What a run is: the matrix problems x solvers x accuracy levels x modes, and its limits.
+
+A *cell* is one entry of the matrix; its key ``(problem, solver, formulation, accuracy,
+mode)`` identifies it in the results, so a resumed run skips the cells already there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from qpbench.errors import QpbenchError
+
+MODES = ("cold", "warm")
+DEFAULT_ACCURACIES: tuple[float, ...] = (1e-4, 1e-8)
+DEFAULT_TIMEOUT_S = 60.0
+DEFAULT_MEMORY_LIMIT_MB = 4096
+DEFAULT_REPEATS = 1
+
+# the columns that identify one cell of the matrix (one row of the results)
+CELL_KEY = ("problem", "solver", "formulation", "accuracy", "mode")
+
+# relative size of the deterministic perturbation of the reference impulses used as a warm
+# start when a problem carries no previous impulses (see qpbench.bench.runner.warm_start_for)
+WARM_START_PERTURBATION = 1e-2
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One solve to run: a problem file, a solver ``NAME/FORMULATION``, a level, a mode."""
+
+    problem_file: str
+    problem: str
+    solver: str
+    formulation: str
+    accuracy: float
+    mode: str
+
+    @property
+    def key(self) -> tuple[str, str, str, float, str]:
+        """(problem, solver, formulation, accuracy, mode), as in CELL_KEY."""
+        return (self.problem, self.solver, self.formulation, float(self.accuracy), self.mode)
+
+    @property
+    def solver_key(self) -> str:
+        return f"{self.solver}/{self.formulation}"
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Per-solve limits: wall clock (seconds, enforced by killing the worker process),
+    address space of the worker (MiB, via resource.setrlimit), and timed repeats."""
+
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    memory_limit_mb: int = DEFAULT_MEMORY_LIMIT_MB
+    repeats: int = DEFAULT_REPEATS
+
+    def __post_init__(self) -> None:
+        if not self.timeout_s > 0:
+            raise QpbenchError(f"--timeout must be positive, got {self.timeout_s}")
+        if self.repeats < 1:
+            raise QpbenchError(f"--repeats must be at least 1, got {self.repeats}")
+        if self.memory_limit_mb < 0:
+            raise QpbenchError(f"--memory-limit must be >= 0 (0: none), got {self.memory_limit_mb}")
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The whole matrix and its limits, as the ``run`` command was given it."""
+
+    solvers: tuple[str, ...]
+    accuracies: tuple[float, ...] = DEFAULT_ACCURACIES
+    modes: tuple[str, ...] = ("cold",)
+    limits: Limits = field(default_factory=Limits)
+
+    def __post_init__(self) -> None:
+        for mode in self.modes:
+            if mode not in MODES:
+                raise QpbenchError(f"unknown mode '{mode}' (known: {', '.join(MODES)})")
+        for accuracy in self.accuracies:
+            if not 0 < accuracy < 1:
+                raise QpbenchError(f"accuracy levels must lie in (0, 1), got {accuracy}")
+
+
+def parse_accuracies(text: str) -> tuple[float, ...]:
+    """``"1e-4,1e-8"`` -> (1e-4, 1e-8); raises QpbenchError on a value that is not a number."""
+    levels = []
+    for part in text.split(","):
+        if not part.strip():
+            continue
+        try:
+            levels.append(float(part))
+        except ValueError as error:
+            raise QpbenchError(f"--accuracy: '{part.strip()}' is not a number") from error
+    if not levels:
+        raise QpbenchError("--accuracy: no level given")
+    return tuple(levels)
+
+
+def parse_modes(text: str) -> tuple[str, ...]:
+    """``"cold,warm"`` -> ("cold", "warm")."""
+    modes = tuple(part.strip() for part in text.split(",") if part.strip())
+    for mode in modes:
+        if mode not in MODES:
+            raise QpbenchError(f"--mode: unknown mode '{mode}' (known: {', '.join(MODES)})")
+    if not modes:
+        raise QpbenchError("--mode: no mode given")
+    return modes
+
+
+def cells(problems: list[tuple[str, str]], solver_keys: list[str], settings: RunSettings
+          ) -> list[Cell]:
+    """Every cell of the matrix, problem-major: ``problems`` are (file, name) pairs."""
+    matrix = []
+    for problem_file, name in problems:
+        for solver_key in solver_keys:
+            solver, formulation = solver_key.split("/", 1)
+            for accuracy in settings.accuracies:
+                for mode in settings.modes:
+                    matrix.append(Cell(problem_file, name, solver, formulation, float(accuracy),
+                                       mode))
+    return matrix

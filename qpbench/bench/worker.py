@@ -1,0 +1,235 @@
+"""The worker process: runs cells one at a time, inside its own process, for the runner.
+
+``python -m qpbench.bench.worker`` reads one JSON request per line on stdin and
+answers with JSON lines on the stdout it was started with (a solver that prints
+goes to stderr instead, so it cannot corrupt the answers). For each request it
+says ``begin`` before and ``end`` after every timed solver call, so the runner
+can enforce the wall-clock limit per solve, then sends the ``row``.
+
+The address space of the process is limited with ``resource.setrlimit`` (an
+allocation beyond it raises MemoryError, which becomes the status
+``out-of-memory``). Numerical libraries are kept to one thread each (the runner
+sets OPENBLAS/OMP/MKL_NUM_THREADS) so times do not depend on how many workers share
+the cores.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import os
+import platform
+import resource
+import socket
+import statistics
+import sys
+import time
+import zlib
+from typing import IO, Any
+
+import numpy as np
+
+from qpbench import __version__
+from qpbench.bench.settings import WARM_START_PERTURBATION, Cell, Limits
+from qpbench.problem import files
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.registry import all_solvers, resolve
+from qpbench.solvers.run import call_solver, solve_and_judge
+
+OUT_OF_MEMORY = "out-of-memory"
+
+
+def timer_overhead_s(samples: int = 2000) -> float:
+    """The smallest gap between two back-to-back ``time.perf_counter()`` calls (seconds):
+    the resolution below which a measured solve time means nothing."""
+    best = math.inf
+    for _ in range(samples):
+        start = time.perf_counter()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def cpu_model() -> str:
+    """The CPU's model name from /proc/cpuinfo, else platform.processor()."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as stream:
+            for line in stream:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def provenance() -> dict[str, Any]:
+    """Machine and version columns common to every row this process writes."""
+    return {
+        "qpbench_version": __version__,
+        "python_version": platform.python_version(),
+        "numpy_version": np.__version__,
+        "platform": platform.platform(),
+        "cpu_model": cpu_model(),
+        "hostname": socket.gethostname(),
+    }
+
+
+def virtual_memory_mb() -> float:
+    """This process's address space (VmSize) in MiB, NaN where /proc is missing."""
+    try:
+        with open("/proc/self/status", encoding="utf-8") as stream:
+            for line in stream:
+                if line.startswith("VmSize:"):
+                    return float(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return math.nan
+
+
+def limit_memory(limit_mb: int) -> int:
+    """Caps the address space at ``limit_mb`` MiB (raised to VmSize + limit_mb if the loaded
+    process already exceeds it); returns the cap applied in MiB (0: no cap)."""
+    if limit_mb <= 0:
+        return 0
+    current = virtual_memory_mb()
+    applied = limit_mb if not current >= limit_mb else int(current) + limit_mb
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    cap = applied * 1024 * 1024
+    if hard != resource.RLIM_INFINITY:
+        cap = min(cap, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    return applied
+
+
+def warm_start_for(problem: ImpactProblem) -> tuple[np.ndarray | None, str]:
+    """The warm start of ``problem`` and where it came from.
+
+    * ``previous``: the impulses of the previous solve stored with the problem
+      (``problem.data["warm_start"]``, e.g. the last time step of a simulation);
+    * ``perturbed-reference``: otherwise the verified reference impulses, each multiplied
+      by ``1 + 1e-2 z`` (z standard normal, seeded by the problem name) and clipped at 0;
+    * ``none``: neither exists; the solve is then a cold start.
+    """
+    previous = problem.data.get("warm_start")
+    if previous is not None and np.shape(previous) == (problem.n_contacts,):
+        return np.asarray(previous, dtype=float), "previous"
+    reference = problem.reference
+    if reference is not None and reference.verified:
+        rng = np.random.default_rng(zlib.crc32(problem.name.encode()))
+        noise = rng.standard_normal(problem.n_contacts)
+        impulses = np.asarray(reference.impulses, dtype=float)
+        return np.maximum(impulses * (1.0 + WARM_START_PERTURBATION * noise), 0.0), \
+            "perturbed-reference"
+    return None, "none"
+
+
+def _finite(values: list[float]) -> list[float]:
+    return [value for value in values if value is not None and math.isfinite(value)]
+
+
+class CellSolver:
+    """Runs cells in this process, keeping the last problem loaded (cells come problem-major)."""
+
+    def __init__(self, announce: IO[str] | None = None) -> None:
+        self.announce = announce
+        self._problem_file: str | None = None
+        self._problem: ImpactProblem | None = None
+        self._specs: dict[str, SolverSpec] = {}
+        self.timer_overhead_s = timer_overhead_s()
+        self.provenance = provenance()
+        self.memory_limit_mb = 0
+
+    def _say(self, event: str, **fields: Any) -> None:
+        if self.announce is not None:
+            self.announce.write(json.dumps({"event": event, **fields}) + "\n")
+            self.announce.flush()
+
+    def problem(self, path: str) -> ImpactProblem:
+        if path != self._problem_file:
+            self._problem, self._problem_file = None, None
+            self._problem = files.load(path)
+            self._problem_file = path
+        assert self._problem is not None
+        return self._problem
+
+    def spec(self, key: str) -> SolverSpec:
+        if key not in self._specs:
+            self._specs[key] = resolve([key])[0]
+        return self._specs[key]
+
+    def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
+        """The row of ``cell``: qpbench's judgement of the first repeat, times of all repeats."""
+        problem = self.problem(cell.problem_file)
+        spec = self.spec(cell.solver_key)
+        warm_start, warm_source = (None, "cold")
+        if cell.mode == "warm":
+            warm_start, warm_source = warm_start_for(problem)
+        times: list[float] = []
+        setup_times: list[float] = []
+        row: dict[str, Any] = {}
+        for repeat in range(limits.repeats):
+            self._say("begin", repeat=repeat)
+            if repeat == 0:
+                row, output = solve_and_judge(spec, problem, cell.accuracy, warm_start)
+            else:
+                output = call_solver(spec, problem, cell.accuracy, warm_start)
+            self._say("end", repeat=repeat)
+            times.append(output.solve_time_s)
+            setup_times.append(output.setup_time_s)
+            if output.impulses is None and repeat == 0:
+                break  # a failed solve is not repeated
+        if str(row.get("solver_status", "")).startswith("error: MemoryError"):
+            row["status"] = OUT_OF_MEMORY
+        finite_times = _finite(times)
+        row.update({
+            "mode": cell.mode,
+            "warm_start_source": warm_source,
+            "warm_start_used": bool(warm_start is not None and spec.warm_start),
+            "repeats": len(times),
+            "time_s": min(finite_times) if finite_times else math.nan,
+            "time_median_s": statistics.median(finite_times) if finite_times else math.nan,
+            "time_max_s": max(finite_times) if finite_times else math.nan,
+            "setup_time_s": min(_finite(setup_times), default=math.nan),
+            "timer_overhead_s": self.timer_overhead_s,
+            "memory_limit_mb": self.memory_limit_mb,
+            "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            **self.provenance,
+        })
+        return row
+
+
+def serve(requests: IO[str], answers: IO[str]) -> None:
+    """Answers each request line ``{"cell": ..., "limits": ...}`` with begin/end events and a row
+    (or ``{"event": "error", ...}`` if the cell could not even start, e.g. a bad problem file)."""
+    solver = CellSolver(announce=answers)
+    all_solvers()  # import every backend before the memory cap and before timing anything
+    solver._say("ready", pid=os.getpid())
+    for line in requests:
+        if not line.strip():
+            continue
+        request = json.loads(line)
+        cell = Cell(**request["cell"])
+        limits = Limits(**request["limits"])
+        if not solver.memory_limit_mb and limits.memory_limit_mb:
+            solver.memory_limit_mb = limit_memory(limits.memory_limit_mb)
+        try:
+            row = solver.solve(cell, limits)
+        except MemoryError:
+            solver._say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError"})
+            continue
+        except Exception as error:  # a problem file or solver that cannot be set up
+            solver._say("error", message=f"{type(error).__name__}: {error}")
+            continue
+        solver._say("row", row=row)
+
+
+def main() -> None:
+    """Entry point of the worker process: answers on a private copy of stdout."""
+    answers = os.fdopen(os.dup(sys.stdout.fileno()), "w", encoding="utf-8")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # stray solver output goes to stderr
+    serve(sys.stdin, answers)
+
+
+if __name__ == "__main__":
+    main()

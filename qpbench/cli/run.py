@@ -1,0 +1,75 @@
+"""``qpbench run [PROBLEMS...] [--solvers ...] [--accuracy ...] [--timeout S] [--repeats K]
+[--mode cold,warm] [--workers N] [--executor serial|processes|dask://HOST:PORT] -o FILE.parquet``.
+
+Re-running the same command resumes: cells already in FILE.parquet are skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.bench import runner
+from qpbench.bench.executors import make_executor
+from qpbench.bench.settings import (
+    DEFAULT_ACCURACIES,
+    DEFAULT_MEMORY_LIMIT_MB,
+    DEFAULT_REPEATS,
+    DEFAULT_TIMEOUT_S,
+    Limits,
+    RunSettings,
+    parse_accuracies,
+    parse_modes,
+)
+from qpbench.solvers.registry import resolve, usable_solvers
+
+DEFAULT_PROBLEMS = ("problems",)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "run", help="solve problems x solvers x accuracy levels into one Parquet table",
+        description="Every cell runs in an isolated worker process: a crash, hang or memory "
+                    "blow-up becomes a row (crashed, timeout, out-of-memory). Re-running the "
+                    "same command resumes where it stopped.")
+    parser.add_argument("problems", nargs="*", default=list(DEFAULT_PROBLEMS),
+                        help="problem files (.npz) or folders of them (default: problems/)")
+    parser.add_argument("--solvers", default="",
+                        help="NAME or NAME/FORMULATION, comma-separated (default: every usable)")
+    parser.add_argument("--accuracy", default=",".join(f"{a:g}" for a in DEFAULT_ACCURACIES),
+                        help="accuracy levels, comma-separated (default: %(default)s)")
+    parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
+                        help="wall-clock limit per solve in seconds (default: %(default)s)")
+    parser.add_argument("--repeats", type=int, default=DEFAULT_REPEATS,
+                        help="timed repeats per cell; time_s is the minimum (default: 1)")
+    parser.add_argument("--mode", default="cold",
+                        help="cold, warm or cold,warm (default: cold)")
+    parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT_MB,
+                        help="address-space cap of a worker in MiB, 0 for none "
+                             "(default: %(default)s)")
+    parser.add_argument("--workers", type=int, default=1, help="worker processes (default: 1)")
+    parser.add_argument("--executor", default="auto",
+                        help="serial, processes or dask://HOST:PORT (default: serial, or "
+                             "processes with --workers > 1)")
+    parser.add_argument("--batch", type=int, default=20,
+                        help="rows per part file written (default: %(default)s)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("-o", "--output", required=True, help="results file (.parquet)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
+    settings = RunSettings(
+        solvers=tuple(spec.key for spec in specs),
+        accuracies=parse_accuracies(args.accuracy),
+        modes=parse_modes(args.mode),
+        limits=Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
+                      repeats=args.repeats),
+    )
+    executor = make_executor(args.executor, args.workers)
+    counts = runner.run(args.problems, settings, args.output, executor,
+                        progress=not args.no_progress, batch_rows=args.batch)
+    print(f"qpbench run: {counts['cells']} cells, {counts['skipped']} already done, "
+          f"{counts['run']} run -> {args.output}", file=sys.stderr)
+    return 0
