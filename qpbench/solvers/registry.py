@@ -23,10 +23,29 @@ def register_unusable(name: str, formulations: tuple[str, ...], backend: str, re
                             reason=reason))
 
 
+EXTRA_SOLVERS_ENV = "QPBENCH_EXTRA_SOLVERS"
+
+
+def _import_extra_solvers() -> None:
+    """Imports the modules named in $QPBENCH_EXTRA_SOLVERS (``module,module``), which register
+    more solvers (e.g. test-only ones); worker processes inherit the variable, so see them too."""
+    import importlib
+    import os
+
+    for module in os.environ.get(EXTRA_SOLVERS_ENV, "").split(","):
+        if module.strip():
+            try:
+                importlib.import_module(module.strip())
+            except ImportError as error:
+                raise QpbenchError(f"${EXTRA_SOLVERS_ENV}: cannot import '{module.strip()}': "
+                                   f"{error}") from error
+
+
 def all_solvers() -> list[SolverSpec]:
     """Every registered solver-formulation pair, usable or not, sorted by key."""
     from qpbench import solvers  # noqa: F401  (imports every backend module once)
 
+    _import_extra_solvers()
     return [_SOLVERS[key] for key in sorted(_SOLVERS)]
 
 
