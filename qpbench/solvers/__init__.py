@@ -15,6 +15,17 @@ _FAMILIES: dict[str, tuple[tuple[str, ...], tuple[str, ...], str]] = {
     "qpsolvers_": (("osqp", "clarabel", "proxqp", "piqp", "daqp", "highs", "scs", "ecos",
                     "cvxopt", "quadprog", "qpalm"), ("dual", "primal", "dual-factored"),
                    "qpsolvers"),
+    "cvxpy_": (tuple(f"cvxpy-{name}" for name in ("clarabel", "osqp", "scs", "ecos", "piqp",
+                                                  "proxqp", "cvxopt", "daqp", "highs",
+                                                  "ipopt")),
+               ("dual", "primal", "dual-factored"), "cvxpy"),
+    "ipopt_": (("ipopt",), ("dual", "primal"), "cyipopt"),
+    "policy_iteration": (("pi", "pi-v2"), ("lcp",), "qpbench"),
+    "pi_robust": (("pi-robust",), ("lcp",), "qpbench"),
+    "pgs": (("pgs",), ("lcp",), "qpbench"),
+    "lemke": (("lemke",), ("lcp",), "qpbench"),
+    "penalty": (("penalty",), ("lcp",), "qpbench"),
+    "apgd": (("apgd",), ("lcp",), "qpbench"),
 }
 
 for _module, (_names, _formulations, _backend) in _FAMILIES.items():

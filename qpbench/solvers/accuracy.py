@@ -27,6 +27,11 @@ def _relative(eps: float, scale: float) -> float:
     return eps
 
 
+def _inner_tolerance(eps: float, scale: float) -> float:
+    """0.01 * eps: relative tolerance of an inner linear solve (CG)"""
+    return 0.01 * eps
+
+
 def _gap(eps: float, scale: float) -> float:
     """eps * scale^2: an absolute duality gap l^T w (velocity^2 when diag(Q) ~ 1)."""
     return eps * scale * scale
@@ -83,7 +88,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
               "time_limit": DEFAULT_TIME_LIMIT_S},
     # --- IPOPT through cyipopt, configured as SCISim's LCP0OperatorIpopt ----------
     "ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
-              "max_wall_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
+              "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
               "hessian_constant": "yes", "jac_c_constant": "yes", "jac_d_constant": "yes",
               "print_level": 0, "sb": "yes"},
     # --- through cvxpy (its own option names per solver) ----------------------------
@@ -109,11 +114,21 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
                      "max_iters": INTERIOR_MAX_ITER},
     "cvxpy-ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
-                    "max_wall_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
+                    "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
                     "hessian_constant": "yes", "jac_c_constant": "yes",
                     "jac_d_constant": "yes", "print_level": 0, "sb": "yes"},
     # --- solvers written here: tolerance on qpbench's own relative residual ---
-    "pi": {"tol": _relative, "max_iters": 100},
+    "pi": {"tol": _relative, "max_iters": 100, "cg_rtol": _inner_tolerance,
+           "cg_max_iters": 2_000},
+    "pi-v2": {"tol": _relative, "max_iters": 200, "cg_rtol": _inner_tolerance,
+              "cg_max_iters": 2_000, "seed": 0},
+    "pi-robust": {"tol": _relative, "rho": 1e-8, "rho_min": 1e-14, "rho_decrease": 0.01,
+                  "stall_ratio": 0.5, "stall_steps": 3, "backup_steps": 3, "max_iters": 400,
+                  "dense_limit": 300, "lemke_limit": 400},
+    "pgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
+    "lemke": {"tol": _relative, "max_contacts": 1_500, "max_pivots_per_contact": 50},
+    "penalty": {"tol": _relative, "kappa": 1e9, "max_iters": 100, "dense_limit": 300},
+    "apgd": {"tol": _relative, "max_iters": 200_000, "check_every": 10},
 }
 
 

@@ -1,0 +1,170 @@
+"""Backends reached through cvxpy (https://www.cvxpy.org), in three forms.
+
+* ``dual``: ``min 1/2 quad_form(l, Q) + b^T l  s.t.  l >= 0``. Q is certified positive
+  semi-definite here (:func:`qpbench.problem.formulations.certify_psd`) before it is
+  wrapped in ``psd_wrap``; without a certificate cvxpy runs its own check.
+* ``dual-factored``: ``min 1/2 sum_squares(L l) + b^T l  s.t.  l >= 0``, ``L = M^-1/2 G``
+  (Q never formed; the natural conic form).
+* ``primal``: ``min 1/2 sum_squares(M^1/2 (v - v-))  s.t.  G^T v >= lower``; cvxpy's
+  ``dual_value`` of a ``>=`` constraint is ``>= 0`` and equals the impulses l.
+
+cvxpy's compile time goes in ``setup_time_s``; ``solve_time_s`` is the rest of the call
+(the solver and unpacking its answer). IPOPT runs through cvxpy's NLP path
+(``nlp=True``) as ``cvxpy-ipopt``, started at the warm start when one is given.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from collections.abc import Callable
+from importlib import metadata
+from typing import Any
+
+import cvxpy as cp
+import numpy as np
+
+from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.qpsolvers_ import c_stdout_silenced, problem_scale
+from qpbench.solvers.registry import register, register_unusable
+
+BACKEND = "cvxpy"
+# cvxpy solver name -> the package that provides it
+SOLVERS = {"CLARABEL": "clarabel", "OSQP": "osqp", "SCS": "scs", "ECOS": "ecos",
+           "PIQP": "piqp", "PROXQP": "proxsuite", "CVXOPT": "cvxopt", "DAQP": "daqp",
+           "HIGHS": "highspy", "IPOPT": "cyipopt"}
+FORMULATIONS = ("dual", "primal", "dual-factored")
+NLP_SOLVERS = frozenset({"IPOPT"})  # solved through cvxpy's NLP path, which takes a start
+
+
+def qpbench_name(solver: str) -> str:
+    """``cvxpy-<solver lower>``."""
+    return f"cvxpy-{solver.lower()}"
+
+
+class Model:
+    """One formulation posed in cvxpy, with how to read the impulses and set a start."""
+
+    def __init__(self, problem: ImpactProblem, formulation: str) -> None:
+        self.formulation = formulation
+        self.info: dict[str, Any] = {}
+        n = problem.n_contacts
+        if formulation == "primal":
+            primal = primal_qp(problem)
+            mass = primal.P.diagonal()
+            self.free = primal.free
+            self.variable = cp.Variable(int(self.free.sum()), name="v")
+            v_minus = problem.v_minus[self.free]
+            self.constraint = primal.A @ self.variable >= primal.lower
+            objective = 0.5 * cp.sum_squares(cp.multiply(np.sqrt(mass), self.variable - v_minus))
+        else:
+            self.variable = cp.Variable(n, name="l")
+            self.constraint = self.variable >= 0
+            if formulation == "dual":
+                certificate = certify_psd(problem)
+                self.info["psd_certificate"] = (
+                    f"{certificate.method}: {certificate.value:.3e} "
+                    f"(tolerance {certificate.tolerance:.1e})")
+                Q = problem.Q
+                quadratic = cp.quad_form(self.variable, cp.psd_wrap(Q) if certificate.psd else Q)
+                self.info["psd_wrap"] = bool(certificate.psd)
+            elif formulation == "dual-factored":
+                quadratic = cp.sum_squares(factored_rows(problem) @ self.variable)
+            else:
+                raise ValueError(f"unknown formulation {formulation!r}")
+            objective = 0.5 * quadratic + problem.b @ self.variable
+        self.problem = cp.Problem(cp.Minimize(objective), [self.constraint])
+
+    def impulses(self) -> np.ndarray | None:
+        value = self.constraint.dual_value if self.formulation == "primal" else self.variable.value
+        return None if value is None else np.asarray(value, dtype=float).ravel()
+
+    def start_at(self, problem: ImpactProblem, warm_start: np.ndarray) -> None:
+        """Sets the variable's value from warm-start impulses (l, or v+(l) for primal)."""
+        impulses = np.asarray(warm_start, dtype=float)
+        if self.formulation == "primal":
+            self.variable.value = problem.v_plus(impulses)[self.free]
+        else:
+            self.variable.value = impulses
+
+
+def make_solve(solver: str, formulation: str) -> Callable[..., SolverOutput]:
+    """The solve function of ``cvxpy-<solver>`` on ``formulation``."""
+    name = qpbench_name(solver)
+
+    def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
+              ) -> SolverOutput:
+        scale = problem_scale(problem)
+        options = accuracy.options_for(name, eps, scale)
+        with Stopwatch() as build:
+            model = Model(problem, formulation)
+            if warm_start is not None and solver in NLP_SOLVERS:
+                model.start_at(problem, warm_start)
+        extra = {"nlp": True} if solver in NLP_SOLVERS else {}
+        quiet = c_stdout_silenced() if solver in ("OSQP", "IPOPT") else contextlib.nullcontext()
+        error: Exception | None = None
+        with warnings.catch_warnings(), quiet, Stopwatch() as call:
+            warnings.simplefilter("ignore")
+            try:
+                model.problem.solve(solver=solver, **extra, **options)
+            except (cp.error.SolverError, ValueError, ArithmeticError) as raised:
+                error = raised
+        compile_time = _compile_time(model.problem)
+        info = {"scale": scale, **model.info}
+        stats = model.problem.solver_stats
+        if stats is not None and stats.solve_time is not None:
+            info["solver_reported_time_s"] = float(stats.solve_time)
+        if error is not None:
+            return SolverOutput(impulses=None, status=f"error: {type(error).__name__}: {error}",
+                                claimed_success=False, solve_time_s=call.elapsed - compile_time,
+                                setup_time_s=build.elapsed + compile_time, info=info)
+        status = str(model.problem.status)
+        iterations = getattr(stats, "num_iters", None) if stats is not None else None
+        return SolverOutput(
+            impulses=model.impulses(),
+            status=status,
+            claimed_success=status == cp.OPTIMAL,
+            solve_time_s=call.elapsed - compile_time,
+            setup_time_s=build.elapsed + compile_time,
+            iterations=int(iterations) if isinstance(iterations, int | np.integer) else None,
+            info=info,
+        )
+
+    return solve
+
+
+def _compile_time(problem: cp.Problem) -> float:
+    """cvxpy's compilation time of the last solve (0 when it did not record one)."""
+    value = getattr(problem, "compilation_time", None)
+    return float(value) if isinstance(value, int | float) else 0.0
+
+
+def _version(solver: str) -> str:
+    try:
+        return f"{metadata.version(SOLVERS[solver])} (cvxpy {cp.__version__})"
+    except metadata.PackageNotFoundError:
+        return f"cvxpy {cp.__version__}"
+
+
+def _register_all() -> None:
+    installed = set(cp.installed_solvers())
+    for solver in SOLVERS:
+        name = qpbench_name(solver)
+        if solver not in installed:
+            register_unusable(name, FORMULATIONS, BACKEND, f"cvxpy has no '{solver}' installed")
+            continue
+        for formulation in FORMULATIONS:
+            if solver in NLP_SOLVERS and formulation == "primal":
+                register_unusable(name, (formulation,), BACKEND,
+                                  "cvxpy's NLP path gives no constraint multipliers (no l)")
+                continue
+            register(SolverSpec(name=name, formulation=formulation, backend=BACKEND,
+                                solve=make_solve(solver, formulation), version=_version(solver),
+                                warm_start=solver in NLP_SOLVERS,
+                                description=f"{solver} through cvxpy"))
+
+
+_register_all()
