@@ -158,12 +158,13 @@ def import_dump(path: str | Path, restitution: float | None = None) -> ImpactPro
                 0.0 <= restitution <= 1.0
             ):
                 raise InputError(file, "is not (1 + CoR) N^T v0 for one CoR in [0, 1]", "b")
-    for name in ("Q", "ipopt_sol", "policy_sol"):
+    if "Q" in matrices:
+        kept["Q"] = matrices["Q"].toarray()
+    for name in ("ipopt_sol", "policy_sol"):
         if name in matrices:
-            kept[name] = matrices[name].toarray().squeeze(axis=-1) if matrices[name].shape[1] == 1 \
-                else matrices[name].toarray()
+            kept[name] = matrices[name].toarray().ravel()
     for name, value in kept.items():
-        if name.endswith("_sol") and value.shape != (contacts,):
+        if name.endswith("_sol") and value.shape != (contacts,):  # a column of n entries
             raise InputError(file, f"is {value.shape}, expected ({contacts}, 1)", name, "shape")
     m_inv = m_inv_matrix.diagonal()
     rotation_rows = np.arange(2, dofs, 3)

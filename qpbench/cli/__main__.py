@@ -1,0 +1,7 @@
+"""``python -m qpbench.cli``."""
+
+import sys
+
+from qpbench.cli import main
+
+sys.exit(main())

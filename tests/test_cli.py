@@ -1,0 +1,59 @@
+"""The command line as a user meets it: generate, import-dump, solve; one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+DUMPS = Path(__file__).resolve().parents[1].parent / "shared" / "dumps"
+
+
+def qpbench(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "qpbench.cli", *args], capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_import_dumps_then_clarabel_solves_grid5_to_1e_8(tmp_path: Path) -> None:
+    imported = qpbench("import-dump", *map(str, sorted(DUMPS.glob("*"))), "-o", str(tmp_path))
+    assert imported.returncode == 0, imported.stderr
+    assert len(list(tmp_path.glob("*.npz"))) == 4
+    solved = qpbench("solve", str(tmp_path / "grid5_itr_0.npz"), "--solver", "clarabel", "--json")
+    result = json.loads(solved.stdout)
+    assert result["residual"] <= 1e-8
+    assert result["success"] is True
+    assert result["v_error"] <= 1e-6
+    assert len(result["lambda"]) == 46
+
+
+def test_generate_writes_seeded_problems(tmp_path: Path) -> None:
+    done = qpbench("generate", "k4", "--count", "2", "-o", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k4-4-s0.npz", "k4-4-s1.npz"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("solve", "missing.npz", "--solver", "osqp"), "missing.npz: no such problem file"),
+        (("generate", "k9", "-o", "x"), "unknown family 'k9'"),
+        (("import-dump", __file__, "-o", "x"), "test_cli.py: malformed dump"),
+    ],
+)
+def test_bad_input_is_one_line_and_nonzero(args: tuple[str, ...], message: str) -> None:
+    done = qpbench(*args)
+    assert done.returncode == 2
+    assert message in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in done.stderr
+
+
+def test_unknown_solver_is_one_line(tmp_path: Path) -> None:
+    qpbench("generate", "k3", "-o", str(tmp_path))
+    done = qpbench("solve", str(tmp_path / "k3-3-s0.npz"), "--solver", "nope")
+    assert done.returncode == 2
+    assert "unknown solver 'nope'" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
