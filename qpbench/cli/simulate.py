@@ -1,0 +1,68 @@
+"""``qpbench simulate SCENE [--end-time T] [--steps N] [--solver NAME] [--capture DIR] [--json]``.
+
+Without ``<end_time>`` in the scene and without ``--end-time``, the run stops after
+``DEFAULT_STEPS`` steps and says so. Exit 0 when the run ends; 1 when an inner solve
+failed (the JSON says which), 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.cli.output import print_json
+from qpbench.scenes import load_scene
+from qpbench.simulation.stepper import DEFAULT_ACCURACY, Simulator
+
+DEFAULT_STEPS = 1000
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("simulate", help="simulate a SCISim 2D scene")
+    parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
+    parser.add_argument("--end-time", type=float, default=None,
+                        help="simulated seconds (default: the scene's <end_time>)")
+    parser.add_argument("--steps", type=int, default=None, help="at most this many steps")
+    parser.add_argument("--solver", default=None,
+                        help="inner solver NAME[/FORMULATION] (default: the scene's, mapped)")
+    parser.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY,
+                        help=f"residual asked of every inner solve ({DEFAULT_ACCURACY:g})")
+    parser.add_argument("--capture", default=None, metavar="DIR",
+                        help="write every impact problem to DIR/<scene>_step<k>.npz")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    scene = load_scene(args.scene)
+    for warning in scene.warnings:
+        print(f"qpbench simulate: warning: {warning}", file=sys.stderr)
+    if args.steps is not None and args.steps < 0:
+        parser_error = "--steps must be >= 0"
+        print(f"qpbench simulate: {parser_error}", file=sys.stderr)
+        return 2
+    if args.end_time is not None and not args.end_time >= 0:
+        print("qpbench simulate: --end-time must be >= 0", file=sys.stderr)
+        return 2
+    steps = args.steps
+    if scene.end_time is None and args.end_time is None and steps is None:
+        steps = DEFAULT_STEPS
+        print(f"qpbench simulate: note: {scene.path} has no <end_time>; simulating "
+              f"{DEFAULT_STEPS} steps (use --end-time or --steps)", file=sys.stderr)
+    simulator = Simulator(scene, solver=args.solver, accuracy=args.accuracy,
+                          capture=args.capture)
+    for note in simulator.notes:
+        print(f"qpbench simulate: note: {note}", file=sys.stderr)
+    result = simulator.run(end_time=args.end_time, max_steps=steps)
+    summary = result.as_dict()
+    if args.json:
+        print_json(summary)
+    else:
+        for key, value in summary.items():
+            if key not in ("x_final", "v_final"):
+                print(f"{key:>18}: {value}")
+    if result.failure is not None:
+        print(f"qpbench simulate: inner solve failed at step {result.failure['step']}: "
+              f"{result.failure['reason']} ({result.failure['solver']})", file=sys.stderr)
+        return 1
+    return 0

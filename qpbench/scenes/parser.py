@@ -1,0 +1,450 @@
+"""Reads SCISim's ``<ball2d_scene>`` and ``<rigidbody2d_scene>`` files as they are.
+
+XML is parsed with defusedxml, so entity declarations (billion-laughs bombs) and
+external references are refused. Every fault in the input is one
+:class:`~qpbench.errors.InputError` naming the file, the element and the
+attribute; a feature qpbench does not simulate (box geometry, friction with
+mu > 0) is an :class:`~qpbench.errors.UnsupportedError`. Unknown elements and
+attributes are accepted, as SCISim does, and named once in ``Scene.warnings``.
+A ``<scripting callback>`` is never run.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from fractions import Fraction
+from pathlib import Path
+from xml.etree.ElementTree import Element
+
+import defusedxml
+import defusedxml.ElementTree as SafeET
+import numpy as np
+
+from qpbench.errors import InputError, UnsupportedError
+from qpbench.scenes.model import (
+    INTEGRATORS,
+    OPERATORS,
+    Bodies,
+    ImpactOperator,
+    Scene,
+    SolverChoice,
+)
+from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH, qpbench_name
+
+MAX_SCENE_BYTES = 256 * 1024 * 1024
+
+# Known attributes of every element qpbench reads (``None``: any attribute is fine).
+_COMMON: dict[str, frozenset[str] | None] = {
+    "camera": None,
+    "integrator": frozenset({"type", "dt"}),
+    "impact_operator": frozenset({"type", "CoR", "v_tol", "cache_impulses"}),
+    "end_time": frozenset({"t"}),
+    "static_plane": frozenset({"x", "n"}),
+    "scripting": frozenset({"callback"}),
+    "sobogus_friction_solver": None,
+    "staggered_projections_friction_solver": None,
+}
+_KNOWN: dict[str, dict[str, frozenset[str] | None]] = {
+    "ball2d": {
+        **_COMMON,
+        "ball": frozenset({"x", "y", "vx", "vy", "m", "r", "fixed"}),
+        "gravity": frozenset({"fx", "fy"}),
+        "static_drum": frozenset({"x", "y", "r"}),
+    },
+    "rigidbody2d": {
+        **_COMMON,
+        "geometry": frozenset({"type", "r"}),
+        "rigid_body": frozenset({"x", "theta", "v", "omega", "rho", "geo_idx", "fixed"}),
+        "near_earth_gravity": frozenset({"f"}),
+    },
+}
+_OPERATOR_CHILDREN = frozenset({"solver", "elastic_operator", "inelastic_operator"})
+_SINGLETONS = ("integrator", "impact_operator", "end_time")
+_FRICTION_SOLVERS = ("sobogus_friction_solver", "staggered_projections_friction_solver")
+
+
+class _Reader:
+    """Reads typed attributes of elements; every fault names file, element and attribute."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.unknown: list[str] = []
+
+    def error(self, element: Element, attribute: str | None, message: str,
+              index: int | None = None) -> InputError:
+        where = f" ({element.tag} #{index})" if index is not None else ""
+        return InputError(self.path, message + where, element=element.tag, attribute=attribute)
+
+    def note_unknown(self, element: Element, known: frozenset[str] | None) -> None:
+        if known is None:
+            return
+        for name in element.attrib:
+            if name not in known:
+                self.unknown.append(f"<{element.tag}> '{name}'")
+
+    def text(self, element: Element, name: str, index: int | None = None) -> str:
+        value = element.get(name)
+        if value is None:
+            raise self.error(element, name, "missing", index)
+        return value
+
+    def number(self, element: Element, name: str, index: int | None = None,
+               default: float | None = None, check: str | None = None) -> float:
+        """A finite float; ``check`` is ``positive``, ``nonnegative`` or ``unit`` ([0, 1])."""
+        if default is not None and element.get(name) is None:
+            return default
+        raw = self.text(element, name, index)
+        try:
+            value = float(raw)
+        except ValueError:
+            raise self.error(element, name, f"not a number: {raw!r}", index) from None
+        if not math.isfinite(value):
+            raise self.error(element, name, f"must be finite, got {raw!r}", index)
+        self._check(element, name, value, raw, check, index)
+        return value
+
+    def _check(self, element: Element, name: str, value: float, raw: str, check: str | None,
+               index: int | None) -> None:
+        if check == "positive" and not value > 0:
+            raise self.error(element, name, f"must be positive, got {raw!r}", index)
+        if check == "nonnegative" and not value >= 0:
+            raise self.error(element, name, f"must be >= 0, got {raw!r}", index)
+        if check == "unit" and not 0 <= value <= 1:
+            raise self.error(element, name, f"must lie in [0, 1], got {raw!r}", index)
+
+    def vector(self, element: Element, name: str, index: int | None = None) -> np.ndarray:
+        """Two finite floats separated by white space: ``x="0.5 -1"``."""
+        raw = self.text(element, name, index)
+        parts = raw.split()
+        if len(parts) != 2:
+            raise self.error(element, name, f"expected two numbers, got {raw!r}", index)
+        try:
+            values = np.array([float(part) for part in parts])
+        except ValueError:
+            raise self.error(element, name, f"not two numbers: {raw!r}", index) from None
+        if not np.all(np.isfinite(values)):
+            raise self.error(element, name, f"must be finite, got {raw!r}", index)
+        return values
+
+    def boolean(self, element: Element, name: str, index: int | None = None,
+                default: bool | None = None) -> bool:
+        """SCISim's booleans: ``0`` or ``1``."""
+        if default is not None and element.get(name) is None:
+            return default
+        raw = self.text(element, name, index).strip()
+        if raw not in ("0", "1"):
+            raise self.error(element, name, f"must be 0 or 1, got {raw!r}", index)
+        return raw == "1"
+
+    def integer(self, element: Element, name: str, index: int | None = None) -> int:
+        raw = self.text(element, name, index)
+        try:
+            return int(raw.strip())
+        except ValueError:
+            raise self.error(element, name, f"not an integer: {raw!r}", index) from None
+
+    def fraction(self, element: Element, name: str, index: int | None = None) -> Fraction:
+        """A positive exact rational from a decimal (``0.01``) or a fraction (``1/10080``)."""
+        raw = self.text(element, name, index)
+        text = raw.strip()
+        try:
+            if "/" in text:
+                numerator, denominator = text.split("/", 1)
+                value = Fraction(int(numerator), int(denominator))
+            else:
+                as_float = float(text)
+                if not math.isfinite(as_float) or abs(as_float) > 1e300:
+                    raise ValueError(text)
+                value = Fraction(text)
+        except (ValueError, ZeroDivisionError):
+            raise self.error(element, name, f"not a decimal or a fraction: {raw!r}",
+                             index) from None
+        if not value > 0 or float(value) <= 0.0:
+            raise self.error(element, name, f"must be positive, got {raw!r}", index)
+        return value
+
+
+def load_scene(path: str | os.PathLike[str]) -> Scene:
+    """Reads and parses the scene file at ``path``."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_SCENE_BYTES:
+            raise InputError(str(path), f"scene file too large ({size} bytes)")
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(str(path), "no such scene file") from None
+    except IsADirectoryError:
+        raise InputError(str(path), "is a folder, not a scene file") from None
+    except OSError as error:
+        raise InputError(str(path), f"cannot read scene file ({error.strerror})") from None
+    return parse_scene(data, str(path))
+
+
+def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
+    """Parses the text of a scene file; ``path`` names it in messages."""
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    try:
+        root = SafeET.fromstring(data)
+    except defusedxml.DefusedXmlException as error:
+        raise InputError(path, f"refused: {error} (entity declarations and external "
+                               "references are not allowed)") from None
+    except ET.ParseError as error:
+        raise InputError(path, f"malformed XML: {error}") from None
+    except ValueError as error:
+        raise InputError(path, f"malformed XML: {error}") from None
+    dialect = root.tag.removesuffix("_scene") if root.tag.endswith("_scene") else ""
+    if dialect not in _KNOWN:
+        if root.tag.endswith("_scene"):
+            raise UnsupportedError(f"{path}: <{root.tag}>: not supported: qpbench reads "
+                                   "<ball2d_scene> and <rigidbody2d_scene>")
+        raise InputError(path, "not a SCISim 2D scene (expected <ball2d_scene> or "
+                               "<rigidbody2d_scene>)", element=root.tag)
+    reader = _Reader(path)
+    known = _KNOWN[dialect]
+    unknown_elements: list[str] = []
+    children: dict[str, list[Element]] = {}
+    for child in root:
+        if not isinstance(child.tag, str):
+            continue
+        if child.tag not in known:
+            unknown_elements.append(f"<{child.tag}>")
+            continue
+        reader.note_unknown(child, known[child.tag])
+        children.setdefault(child.tag, []).append(child)
+    for tag in _SINGLETONS:
+        if len(children.get(tag, [])) > 1:
+            raise InputError(path, f"appears {len(children[tag])} times; a scene has one",
+                             element=tag)
+
+    warnings: list[str] = []
+    bodies = (_ball2d_bodies if dialect == "ball2d" else _rigidbody2d_bodies)(
+        reader, children, warnings)
+    integrator, dt = _integrator(reader, children)
+    scene = Scene(path=path, dialect=dialect, bodies=bodies, integrator=integrator, dt=dt)
+    scene.gravity = _gravity(reader, children, dialect)
+    scene.plane_points, scene.plane_normals = _planes(reader, children)
+    if dialect == "ball2d":
+        scene.drum_centers, scene.drum_radii = _drums(reader, children)
+    scene.impact = _impact(reader, children)
+    if "end_time" in children:
+        scene.end_time = reader.fraction(children["end_time"][0], "t")
+    for script in children.get("scripting", []):
+        warnings.append(f"{path}: <scripting callback={script.get('callback', '')!r}> ignored: "
+                        "qpbench never runs code named by a scene")
+    unknown = sorted(set(unknown_elements)) + sorted(set(reader.unknown))
+    if unknown:
+        warnings.insert(0, f"{path}: ignoring what qpbench does not know: {', '.join(unknown)}")
+    scene.warnings = warnings
+    return scene
+
+
+def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]],
+                   warnings: list[str]) -> Bodies:
+    """``<ball x y vx vy m r fixed/>``, mass given."""
+    rows = []
+    for index, ball in enumerate(children.get("ball", [])):
+        rows.append((
+            reader.number(ball, "x", index), reader.number(ball, "y", index),
+            reader.number(ball, "vx", index), reader.number(ball, "vy", index),
+            reader.number(ball, "m", index, check="positive"),
+            reader.number(ball, "r", index, check="positive"),
+            float(reader.boolean(ball, "fixed", index)),
+        ))
+    table = np.array(rows, dtype=float).reshape(-1, 7)
+    return Bodies(positions=table[:, 0:2].copy(), velocities=table[:, 2:4].copy(),
+                  masses=table[:, 4].copy(), radii=table[:, 5].copy(),
+                  fixed=table[:, 6] > 0.5)
+
+
+def _rigidbody2d_bodies(reader: _Reader, children: dict[str, list[Element]],
+                        warnings: list[str]) -> Bodies:
+    """``<geometry type="circle" r/>`` in file order and ``<rigid_body x theta v omega rho
+    geo_idx fixed/>``; mass m = rho pi r^2."""
+    geometries: list[tuple[str, float]] = []
+    for index, geometry in enumerate(children.get("geometry", [])):
+        kind = reader.text(geometry, "type", index).strip()
+        if kind == "circle":
+            geometries.append(("circle", reader.number(geometry, "r", index, check="positive")))
+        elif kind == "box":
+            geometries.append(("box", math.nan))
+        else:
+            raise reader.error(geometry, "type", f"must be circle or box, got {kind!r}", index)
+    rows = []
+    for index, body in enumerate(children.get("rigid_body", [])):
+        geo_idx = reader.integer(body, "geo_idx", index)
+        if not 0 <= geo_idx < len(geometries):
+            raise reader.error(body, "geo_idx", f"out of range: {geo_idx} (the scene has "
+                               f"{len(geometries)} <geometry> elements)", index)
+        kind, radius = geometries[geo_idx]
+        if kind == "box":
+            raise UnsupportedError(f"{reader.path}: <rigid_body> attribute 'geo_idx' "
+                                   f"(rigid_body #{index}): not supported: box geometry "
+                                   f"(geometry #{geo_idx}); qpbench simulates circles only")
+        rho = reader.number(body, "rho", index, check="positive")
+        position = reader.vector(body, "x", index)
+        velocity = reader.vector(body, "v", index)
+        rows.append((
+            *position, *velocity, rho * math.pi * radius**2, radius,
+            float(reader.boolean(body, "fixed", index, default=False)),
+            reader.number(body, "theta", index), reader.number(body, "omega", index),
+        ))
+    if any(kind == "box" for kind, _ in geometries):
+        warnings.append(f"{reader.path}: <geometry type='box'> ignored: no body uses it")
+    table = np.array(rows, dtype=float).reshape(-1, 9)
+    return Bodies(positions=table[:, 0:2].copy(), velocities=table[:, 2:4].copy(),
+                  masses=table[:, 4].copy(), radii=table[:, 5].copy(),
+                  fixed=table[:, 6] > 0.5, theta=table[:, 7].copy(), omega=table[:, 8].copy())
+
+
+def _integrator(reader: _Reader, children: dict[str, list[Element]]) -> tuple[str, Fraction]:
+    if "integrator" not in children:
+        raise InputError(reader.path, "missing: a scene needs one", element="integrator")
+    element = children["integrator"][0]
+    kind = reader.text(element, "type").strip()
+    if kind not in INTEGRATORS:
+        raise reader.error(element, "type", f"must be one of {', '.join(INTEGRATORS)}, "
+                                            f"got {kind!r}")
+    return kind, reader.fraction(element, "dt")
+
+
+def _gravity(reader: _Reader, children: dict[str, list[Element]],
+             dialect: str) -> np.ndarray | None:
+    """The sum of every gravity element (an acceleration), or None when there is none."""
+    total: np.ndarray | None = None
+    if dialect == "ball2d":
+        for index, element in enumerate(children.get("gravity", [])):
+            value = np.array([reader.number(element, "fx", index),
+                              reader.number(element, "fy", index)])
+            total = value if total is None else total + value
+    else:
+        for index, element in enumerate(children.get("near_earth_gravity", [])):
+            value = reader.vector(element, "f", index)
+            total = value if total is None else total + value
+    return total
+
+
+def _planes(reader: _Reader, children: dict[str, list[Element]]
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """``<static_plane x="px py" n="nx ny"/>`` with n normalized."""
+    points, normals = [], []
+    for index, plane in enumerate(children.get("static_plane", [])):
+        points.append(reader.vector(plane, "x", index))
+        normal = reader.vector(plane, "n", index)
+        length = float(np.hypot(normal[0], normal[1]))
+        if not length > 1e-300:
+            raise reader.error(plane, "n", "must be a non-zero normal", index)
+        normals.append(normal / length)
+    return np.array(points, dtype=float).reshape(-1, 2), np.array(normals).reshape(-1, 2)
+
+
+def _drums(reader: _Reader, children: dict[str, list[Element]]
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """``<static_drum x y r/>``: keeps balls inside the circle."""
+    centers, radii = [], []
+    for index, drum in enumerate(children.get("static_drum", [])):
+        centers.append((reader.number(drum, "x", index), reader.number(drum, "y", index)))
+        radii.append(reader.number(drum, "r", index, check="positive"))
+    return np.array(centers, dtype=float).reshape(-1, 2), np.array(radii, dtype=float)
+
+
+def _impact(reader: _Reader, children: dict[str, list[Element]]) -> ImpactOperator | None:
+    friction = [element for tag in _FRICTION_SOLVERS for element in children.get(tag, [])]
+    if "impact_operator" in children and friction:
+        raise InputError(reader.path, f"a scene has an impact operator or <{friction[0].tag}>, "
+                                      "not both", element="impact_operator")
+    if len(friction) > 1:
+        raise InputError(reader.path, "appears twice; a scene has one friction solver",
+                         element=friction[1].tag)
+    if friction:
+        return _frictionless(reader, friction[0])
+    if "impact_operator" in children:
+        return _operator(reader, children["impact_operator"][0], restitution=None)
+    return None
+
+
+def _frictionless(reader: _Reader, element: Element) -> ImpactOperator:
+    """A friction solver with mu = 0 declares frictionless impact with its CoR (an ``lcp``)."""
+    mu = reader.number(element, "mu", check="nonnegative")
+    if mu > 0:
+        raise UnsupportedError(f"{reader.path}: <{element.tag}> attribute 'mu': not supported: "
+                               f"friction (mu = {mu:g} > 0); qpbench simulates frictionless "
+                               "impact only")
+    restitution = reader.number(element, "CoR", check="unit")
+    return ImpactOperator(type="lcp", restitution=restitution, v_tol=0.0,
+                          cache_impulses=_cache_impulses(reader, element),
+                          declared_by=element.tag)
+
+
+def _cache_impulses(reader: _Reader, element: Element) -> bool:
+    """``cache_impulses``: 0/1 (impact operators) or none/constraint/full (friction solvers)."""
+    raw = element.get("cache_impulses")
+    if raw is None:
+        return False
+    value = raw.strip()
+    if value in ("0", "none"):
+        return False
+    if value in ("1", "constraint", "full"):
+        return True
+    raise reader.error(element, "cache_impulses", f"must be 0, 1, none, constraint or full, "
+                                                  f"got {raw!r}")
+
+
+def _operator(reader: _Reader, element: Element, restitution: float | None) -> ImpactOperator:
+    """``<impact_operator>`` (or a grr's ``<elastic_operator>``/``<inelastic_operator>``, whose
+    restitution is fixed at 1 and 0)."""
+    reader.note_unknown(element, _COMMON["impact_operator"])
+    kind = reader.text(element, "type").strip()
+    if kind not in OPERATORS:
+        raise reader.error(element, "type", f"must be one of {', '.join(OPERATORS)}, got {kind!r}")
+    if restitution is None:
+        restitution = reader.number(element, "CoR", check="unit")
+    elif element.get("CoR") is not None:
+        reader.number(element, "CoR", check="unit")
+    operator = ImpactOperator(
+        type=kind, restitution=restitution,
+        v_tol=reader.number(element, "v_tol", default=1e-9, check="nonnegative"),
+        cache_impulses=_cache_impulses(reader, element),
+        declared_by=element.tag,
+    )
+    children: dict[str, list[Element]] = {}
+    for child in element:
+        if not isinstance(child.tag, str):
+            continue
+        if child.tag not in _OPERATOR_CHILDREN:
+            reader.unknown.append(f"<{element.tag}><{child.tag}>")
+            continue
+        children.setdefault(child.tag, []).append(child)
+    for tag, items in children.items():
+        if len(items) > 1:
+            raise InputError(reader.path, f"appears {len(items)} times in <{element.tag}>",
+                             element=tag)
+    if kind in ("lcp", "gr"):
+        if "solver" not in children:
+            raise InputError(reader.path, f"missing: <{element.tag} type={kind!r}> needs a "
+                                          "<solver name=...> child", element="solver")
+        operator.solver = _solver(reader, children["solver"][0])
+    if kind == "grr":
+        for tag, value in (("elastic_operator", 1.0), ("inelastic_operator", 0.0)):
+            if tag not in children:
+                raise InputError(reader.path, f"missing: <{element.tag} type='grr'> needs "
+                                              f"<{tag}>", element=tag)
+            sub = _operator(reader, children[tag][0], restitution=value)
+            if sub.type == "grr":
+                raise reader.error(children[tag][0], "type", "a grr cannot nest another grr")
+            setattr(operator, tag.removesuffix("_operator"), sub)
+    return operator
+
+
+def _solver(reader: _Reader, element: Element) -> SolverChoice:
+    name = reader.text(element, "name").strip()
+    mapped = qpbench_name(name)
+    if mapped is None:
+        raise reader.error(element, "name", f"unknown SCISim solver {name!r} (known: "
+                                            f"{', '.join(SCISIM_TO_QPBENCH)})")
+    options = {key: value for key, value in element.attrib.items() if key != "name"}
+    return SolverChoice(scisim_name=name, qpbench_name=mapped, options=options)
+

@@ -1,0 +1,1 @@
+"""Simulation of SCISim scenes: broad phase, contacts, impact operators, integrators, stepper."""

@@ -1,0 +1,138 @@
+"""Contacts of one step and the matrix G they define.
+
+* ball-ball (a, b): active when the balls overlap at the start of the step or
+  come within ``r_a + r_b`` of each other while moving linearly from their start
+  to their predicted positions (continuous detection); normal
+  ``n_ab = (x_a - x_b) / |x_a - x_b|`` at the start of the step; G gets ``+n_ab``
+  in a's rows and ``-n_ab`` in b's.
+* ball-plane: active when ``n . (x1 - p) <= r`` at the predicted position x1;
+  G gets the plane normal n in the ball's rows.
+* ball-drum: active when ``|x1 - c| >= R - r`` at the predicted position; G gets
+  ``(c - x0) / |c - x0|`` (towards the drum centre) in the ball's rows.
+
+A contact between two kinematic (fixed) bodies, or a kinematic body and a
+boundary, cannot take an impulse and is left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench.errors import UnsupportedError
+from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
+
+BALL, PLANE, DRUM = 0, 1, 2
+KIND_NAMES = {BALL: "ball", PLANE: "plane", DRUM: "drum"}
+
+
+@dataclass
+class Contacts:
+    """n contacts: body a, body b (-1 for a boundary), kind, boundary index, unit normal."""
+
+    body_a: np.ndarray  # (n,) int
+    body_b: np.ndarray  # (n,) int, -1 for planes and drums
+    kind: np.ndarray  # (n,) BALL, PLANE or DRUM
+    boundary: np.ndarray  # (n,) index of the plane or drum, -1 for ball-ball
+    normals: np.ndarray  # (n, 2)
+
+    @classmethod
+    def empty(cls) -> Contacts:
+        none = np.zeros(0, dtype=np.int64)
+        return cls(none, none.copy(), none.copy(), none.copy(), np.zeros((0, 2)))
+
+    @property
+    def count(self) -> int:
+        return int(self.body_a.shape[0])
+
+    def keys(self) -> np.ndarray:
+        """An integer identity per contact (kind, a, b or boundary), stable across steps."""
+        other = np.where(self.kind == BALL, self.body_b, self.boundary)
+        return (self.kind.astype(np.int64) << 60) | (self.body_a.astype(np.int64) << 30) | other
+
+    def jacobian(self, bodies: int, dofs_per_body: int) -> sp.csc_matrix:
+        """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k."""
+        column = np.arange(self.count)
+        two_body = self.body_b >= 0
+        rows = [dofs_per_body * self.body_a, dofs_per_body * self.body_a + 1,
+                dofs_per_body * self.body_b[two_body], dofs_per_body * self.body_b[two_body] + 1]
+        cols = [column, column, column[two_body], column[two_body]]
+        values = [self.normals[:, 0], self.normals[:, 1],
+                  -self.normals[two_body, 0], -self.normals[two_body, 1]]
+        return sp.csc_matrix(
+            (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(bodies * dofs_per_body, self.count),
+        )
+
+    @staticmethod
+    def concatenate(parts: list[Contacts]) -> Contacts:
+        return Contacts(*(np.concatenate([getattr(part, name) for part in parts])
+                          for name in ("body_a", "body_b", "kind", "boundary", "normals")))
+
+
+def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
+              where: str = "") -> Contacts:
+    """Ball-ball contacts by continuous detection over the step (see the module docstring).
+
+    The distance of the relative position ``d(t) = d0 + t (d1 - d0)``, t in [0, 1], is
+    smallest at ``t* = clip(-d0.(d1 - d0) / |d1 - d0|^2, 0, 1)``; the pair is active when
+    ``|d(t*)| <= r_a + r_b``.
+    """
+    lower, upper = swept_boxes(x0, x1, radii)
+    pairs = candidate_pairs(lower, upper)
+    if pairs.shape[0] == 0:
+        return Contacts.empty()
+    a, b = pairs[:, 0], pairs[:, 1]
+    movable = ~(fixed[a] & fixed[b])
+    a, b = a[movable], b[movable]
+    d0 = x0[a] - x0[b]
+    motion = (x1[a] - x1[b]) - d0
+    reach = radii[a] + radii[b]
+    motion_sq = np.einsum("ij,ij->i", motion, motion)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(motion_sq > 0, -np.einsum("ij,ij->i", d0, motion) / motion_sq, 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    closest = d0 + t[:, None] * motion
+    active = np.einsum("ij,ij->i", closest, closest) <= reach**2
+    a, b, d0 = a[active], b[active], d0[active]
+    length = np.hypot(d0[:, 0], d0[:, 1])
+    if np.any(length <= 0.0):
+        k = int(np.argmax(length <= 0.0))
+        raise UnsupportedError(f"{where}bodies #{a[k]} and #{b[k]} have the same centre, so "
+                               "their contact normal is undefined")
+    none = np.full(a.shape[0], -1, dtype=np.int64)
+    return Contacts(a.astype(np.int64), b.astype(np.int64), np.full_like(none, BALL), none,
+                    d0 / length[:, None])
+
+
+def ball_plane(x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray, points: np.ndarray,
+               normals: np.ndarray) -> Contacts:
+    """Ball-plane contacts at the predicted positions: ``n . (x1 - p) <= r``."""
+    parts = []
+    for index, (point, normal) in enumerate(zip(points, normals, strict=True)):
+        balls = np.flatnonzero(((x1 - point) @ normal <= radii) & ~fixed)
+        parts.append(Contacts(balls, np.full_like(balls, -1), np.full_like(balls, PLANE),
+                              np.full_like(balls, index), np.tile(normal, (balls.shape[0], 1))))
+    return Contacts.concatenate(parts) if parts else Contacts.empty()
+
+
+def ball_drum(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
+              centers: np.ndarray, drum_radii: np.ndarray, where: str = "") -> Contacts:
+    """Ball-drum contacts at the predicted positions: ``|x1 - c| >= R - r``; normal
+    ``(c - x0) / |c - x0|`` (from x1 when x0 is at the centre)."""
+    parts = []
+    for index, (center, drum_radius) in enumerate(zip(centers, drum_radii, strict=True)):
+        balls = np.flatnonzero((np.hypot(*(x1 - center).T) >= drum_radius - radii) & ~fixed)
+        inward = center - x0[balls]
+        length = np.hypot(inward[:, 0], inward[:, 1])
+        at_centre = length <= 0.0
+        inward[at_centre] = center - x1[balls[at_centre]]
+        length[at_centre] = np.hypot(inward[at_centre, 0], inward[at_centre, 1])
+        if np.any(length <= 0.0):
+            raise UnsupportedError(f"{where}body #{balls[np.argmax(length <= 0)]} sits at the "
+                                   f"centre of drum #{index}, so the contact normal is undefined")
+        parts.append(Contacts(balls, np.full_like(balls, -1), np.full_like(balls, DRUM),
+                              np.full_like(balls, index), inward / length[:, None]))
+    return Contacts.concatenate(parts) if parts else Contacts.empty()

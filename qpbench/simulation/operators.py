@@ -1,0 +1,187 @@
+"""Impact operators: from an impact problem to the impulses l (so that v+ = v- + M^-1 G l).
+
+* ``lcp``: one LCP ``l >= 0, w = Q l + b >= 0, l^T w = 0`` over every contact,
+  ``b = (1 + c)(G^T v- + nrel)``, solved by the inner solver.
+* ``gr`` (generalized reflections): while some contact approaches,
+  ``G_k^T v + nrel_k < -v_tol``, solve the LCP restricted to those contacts at the
+  current velocity with restitution c and add its impulses.
+* ``grr``: ``l = (1 - c) l_inelastic + c l_elastic``, the inelastic operator run
+  with c = 0 and the elastic one with c = 1.
+* ``gauss_seidel``: pairwise sweeps; each approaching contact k in turn gets
+  ``dl = -(1 + c_k) u_k / Q_kk`` (``u_k = G_k^T v + nrel_k``) until none approaches.
+
+Every inner LCP answer is judged with qpbench's own residual
+(``qpbench.metrics``): above the accuracy asked it counts as inaccurate; not
+finite, or above :data:`REJECT_RESIDUAL`, it is a failure that stops the run
+(:class:`InnerSolveFailed`), never used silently.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from qpbench import metrics
+from qpbench.problem.impact import ImpactProblem
+from qpbench.scenes.model import ImpactOperator
+from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.run import call_solver
+
+REJECT_RESIDUAL = 1e-3
+MAX_GR_ROUNDS = 1000
+MAX_GAUSS_SEIDEL_SWEEPS = 10_000
+
+
+class InnerSolveFailed(Exception):
+    """The inner solver gave no usable answer; ``detail`` says which solve and why."""
+
+    def __init__(self, detail: dict[str, Any]) -> None:
+        self.detail = detail
+        super().__init__(detail.get("reason", "inner solve failed"))
+
+
+@dataclass
+class SolveLog:
+    """Counts over a run: solves, trivial ones (b >= 0, so l = 0 exactly), inaccurate ones."""
+
+    solves: int = 0
+    trivial: int = 0
+    inaccurate: int = 0
+    max_residual: float = 0.0
+    solve_time_s: float = 0.0
+    gr_max_rounds: int = 0
+    unconverged: int = 0
+    solvers: set[str] = field(default_factory=set)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "solves": self.solves, "trivial_solves": self.trivial,
+            "inaccurate_solves": self.inaccurate, "max_residual": self.max_residual,
+            "solve_time_s": self.solve_time_s, "gr_max_rounds": self.gr_max_rounds,
+            "unconverged_events": self.unconverged, "solvers": sorted(self.solvers),
+        }
+
+
+@dataclass
+class InnerSolver:
+    """A registered solver used inside an impact operator, its answers judged by qpbench."""
+
+    spec: SolverSpec
+    accuracy: float
+    log: SolveLog
+
+    def solve(self, problem: ImpactProblem, warm_start: np.ndarray | None = None) -> np.ndarray:
+        """Impulses l of the LCP of ``problem``; raises InnerSolveFailed on an unusable answer."""
+        if problem.n_contacts == 0:
+            return np.zeros(0)
+        if np.all(problem.b >= 0):  # nothing approaches: l = 0 solves the LCP exactly
+            self.log.trivial += 1
+            return np.zeros(problem.n_contacts)
+        start = warm_start if self.spec.warm_start else None
+        output = call_solver(self.spec, problem, self.accuracy, start)
+        self.log.solves += 1
+        self.log.solvers.add(self.spec.key)
+        if math.isfinite(output.solve_time_s):
+            self.log.solve_time_s += output.solve_time_s
+        impulses = output.impulses
+        finite = metrics.is_finite(impulses, problem)
+        residual = metrics.residual(problem, impulses) if finite else math.nan
+        if finite:
+            self.log.max_residual = max(self.log.max_residual, residual)
+        if not finite or not residual <= REJECT_RESIDUAL:
+            raise InnerSolveFailed({
+                "solver": self.spec.key, "solver_status": output.status,
+                "contacts": problem.n_contacts, "residual": residual,
+                "reason": ("no finite answer" if not finite else
+                           f"residual {residual:.3g} > {REJECT_RESIDUAL:g}"),
+            })
+        if residual > self.accuracy:
+            self.log.inaccurate += 1
+        assert impulses is not None
+        return impulses
+
+
+def with_restitution(problem: ImpactProblem, restitution: float) -> ImpactProblem:
+    """The same contacts and velocities with one restitution c for every contact."""
+    return ImpactProblem.build(problem.name, problem.G, problem.m_inv, problem.v_minus,
+                               restitution, problem.n_rel, dofs_per_body=problem.dofs_per_body)
+
+
+def apply(operator: ImpactOperator, problem: ImpactProblem,
+          inner: dict[int, InnerSolver], log: SolveLog,
+          warm_start: np.ndarray | None = None) -> np.ndarray:
+    """The impulses ``operator`` gives for ``problem`` (whose restitution is the operator's).
+
+    ``inner`` maps ``id(operator)`` to the inner solver of each lcp/gr operator.
+    """
+    if problem.n_contacts == 0:
+        return np.zeros(0)
+    if operator.type == "lcp":
+        return inner[id(operator)].solve(problem, warm_start)
+    if operator.type == "gr":
+        return generalized_reflections(problem, operator.v_tol, inner[id(operator)], log)
+    if operator.type == "grr":
+        assert operator.elastic is not None and operator.inelastic is not None
+        c = operator.restitution
+        elastic = apply(operator.elastic, with_restitution(problem, 1.0), inner, log)
+        inelastic = apply(operator.inelastic, with_restitution(problem, 0.0), inner, log)
+        return (1.0 - c) * inelastic + c * elastic
+    if operator.type == "gauss_seidel":
+        return gauss_seidel(problem, operator.v_tol, log)
+    raise ValueError(f"unknown impact operator {operator.type!r}")
+
+
+def generalized_reflections(problem: ImpactProblem, v_tol: float, inner: InnerSolver,
+                            log: SolveLog, max_rounds: int = MAX_GR_ROUNDS) -> np.ndarray:
+    """Accumulated impulses of repeated LCPs over the contacts still approaching (see above)."""
+    velocity = problem.v_minus.copy()
+    total = np.zeros(problem.n_contacts)
+    G = problem.G
+    for rounds in range(max_rounds + 1):
+        approach = G.T @ velocity + problem.n_rel
+        active = np.flatnonzero(approach < -v_tol)
+        if active.size == 0:
+            log.gr_max_rounds = max(log.gr_max_rounds, rounds)
+            return total
+        if rounds == max_rounds:
+            break
+        sub = ImpactProblem.build(problem.name, G[:, active], problem.m_inv, velocity,
+                                  problem.restitution[active], problem.n_rel[active],
+                                  dofs_per_body=problem.dofs_per_body)
+        impulses = inner.solve(sub)
+        velocity = velocity + sub.M_inv_G @ impulses
+        total[active] += impulses
+    log.gr_max_rounds = max(log.gr_max_rounds, max_rounds)
+    log.unconverged += 1
+    return total
+
+
+def gauss_seidel(problem: ImpactProblem, v_tol: float, log: SolveLog,
+                 max_sweeps: int = MAX_GAUSS_SEIDEL_SWEEPS) -> np.ndarray:
+    """Pairwise sweeps over the contacts in order (see the module docstring)."""
+    G = problem.G
+    velocity = problem.v_minus.copy()
+    impulses = np.zeros(problem.n_contacts)
+    columns = [(G.indices[G.indptr[k]:G.indptr[k + 1]], G.data[G.indptr[k]:G.indptr[k + 1]])
+               for k in range(problem.n_contacts)]
+    for _ in range(max_sweeps):
+        changed = False
+        for k, (rows, values) in enumerate(columns):
+            approach = float(values @ velocity[rows]) + problem.n_rel[k]
+            if approach >= -v_tol:
+                continue
+            weighted = problem.m_inv[rows] * values
+            q_kk = float(values @ weighted)
+            if q_kk <= 0.0:
+                continue
+            step = -(1.0 + problem.restitution[k]) * approach / q_kk
+            velocity[rows] += weighted * step
+            impulses[k] += step
+            changed = True
+        if not changed:
+            return impulses
+    log.unconverged += 1
+    return impulses
