@@ -24,9 +24,17 @@ def run(args: argparse.Namespace) -> int:
         print_json({"solvers": rows})
         return 0
     width = max((len(f"{r['name']}/{r['formulation']}") for r in rows), default=10)
+    backend_width = max((len(r["backend"]) for r in rows), default=10)
+    version_width = max((len(r["version"]) for r in rows), default=10)
     for row in rows:
         key = f"{row['name']}/{row['formulation']}"
         state = "usable" if row["usable"] else f"unusable: {row['reason']}"
-        print(f"{key:<{width}}  {row['backend']:<10} {row['version']:<10} {state}")
-    print(f"{sum(r['usable'] for r in rows)} usable of {len(rows)}")
+        print(f"{key:<{width}}  {row['backend']:<{backend_width}}  "
+              f"{row['version']:<{version_width}}  {state}")
+    usable = [r for r in rows if r["usable"]]
+    formulations = sorted({r["formulation"] for r in usable})
+    per_formulation = ", ".join(
+        f"{formulation} {sum(r['formulation'] == formulation for r in usable)}"
+        for formulation in formulations)
+    print(f"{len(usable)} usable of {len(rows)} ({per_formulation})")
     return 0

@@ -37,6 +37,11 @@ def _gap(eps: float, scale: float) -> float:
     return eps * scale * scale
 
 
+def _conic_gap(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-12): ECOS poses the quadratic as a cone, where l errs by ~sqrt(gap)"""
+    return max(eps * eps, 1e-12)
+
+
 def _ktratio(eps: float, scale: float) -> float:
     """min(1e-6, eps)"""
     return min(1e-6, eps)
@@ -76,9 +81,9 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
               "time_limit": DEFAULT_TIME_LIMIT_S},
     "scs": {"eps_abs": _absolute, "eps_rel": _relative, "max_iters": ITERATIVE_MAX_ITER,
             "time_limit_secs": DEFAULT_TIME_LIMIT_S},
-    "ecos": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+    "ecos": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
              "max_iters": INTERIOR_MAX_ITER},
-    "ecos-reg": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+    "ecos-reg": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
                  "max_iters": INTERIOR_MAX_ITER, "regularization": _regularization},
     "cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
                "maxiters": INTERIOR_MAX_ITER},
@@ -109,7 +114,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
                     "time_limit": DEFAULT_TIME_LIMIT_S},
     "cvxpy-scs": {"eps_abs": _absolute, "eps_rel": _relative, "max_iters": ITERATIVE_MAX_ITER,
                   "time_limit_secs": DEFAULT_TIME_LIMIT_S},
-    "cvxpy-ecos": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+    "cvxpy-ecos": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
                    "max_iters": INTERIOR_MAX_ITER},
     "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
                      "max_iters": INTERIOR_MAX_ITER},

@@ -158,8 +158,10 @@ def _register_all() -> None:
             continue
         for formulation in FORMULATIONS:
             if solver in NLP_SOLVERS and formulation == "primal":
-                register_unusable(name, (formulation,), BACKEND,
-                                  "cvxpy's NLP path gives no constraint multipliers (no l)")
+                register(SolverSpec(name=name, formulation=formulation, backend=BACKEND,
+                                    solve=None, version=_version(solver),
+                                    reason="cvxpy's NLP path gives no constraint multipliers "
+                                    "(no l)"))
                 continue
             register(SolverSpec(name=name, formulation=formulation, backend=BACKEND,
                                 solve=make_solve(solver, formulation), version=_version(solver),

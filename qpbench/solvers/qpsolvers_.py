@@ -210,8 +210,10 @@ def _register_all() -> None:
             continue
         for formulation in FORMULATIONS:
             if solver in POSITIVE_DEFINITE_ONLY and formulation == "dual-factored":
-                register_unusable(solver, (formulation,), BACKEND,
-                                  f"{NOT_POSITIVE_DEFINITE} (P = diag(0, I) is singular)")
+                register(SolverSpec(name=solver, formulation=formulation, backend=BACKEND,
+                                    solve=None, version=_version(solver),
+                                    reason=f"{NOT_POSITIVE_DEFINITE} (P = diag(0, I) is "
+                                    "singular)"))
                 continue
             register(SolverSpec(name=solver, formulation=formulation, backend=BACKEND,
                                 solve=make_solve(solver, solver, formulation),
