@@ -1,11 +1,11 @@
 """The runner: every cell of the matrix solved in a worker process, whatever happens to it.
 
-Each cell goes to an :class:`IsolatedWorker`, a child process
-(``python -m qpbench.bench.worker``) that lives across cells and is replaced when
-it dies. A solver that segfaults or aborts kills only that process (status
-``crashed``); one that runs past the wall-clock limit is killed (``timeout``);
-one that exceeds the address-space cap gets MemoryError, or is killed by SIGKILL
-from the kernel (``out-of-memory``). Each becomes a row and the run goes on.
+Each cell goes to an :class:`IsolatedWorker`, a child process (see
+``qpbench.bench.worker``) that lives across cells and is replaced when it dies. A
+solver that segfaults or aborts kills only that process (status ``crashed``); one
+that runs past the wall-clock limit is killed (``timeout``); one that exceeds the
+address-space cap gets MemoryError, or is killed by SIGKILL from the kernel
+(``out-of-memory``). Each becomes a row and the run goes on.
 
 :func:`run` drives the whole matrix through an executor (serial, local processes or
 Dask) and writes rows to the resumable result store as they arrive.
@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
 import os
 import select
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import asdict
@@ -32,6 +34,7 @@ from tqdm import tqdm
 from qpbench.bench.settings import Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
+from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, resolve
 
 CRASHED = "crashed"
 TIMEOUT = "timeout"
@@ -51,71 +54,171 @@ class WorkerDied(Exception):
         super().__init__(f"worker exited with {returncode}")
 
 
-class IsolatedWorker:
-    """A child process that solves cells; restarted after a crash or a timeout."""
+_FORK_SERVER: Any = None
+_FORK_SERVER_LOCK = threading.Lock()
 
-    def __init__(self) -> None:
-        self.process: subprocess.Popen[bytes] | None = None
+
+def fork_server() -> Any:
+    """The multiprocessing context that forks workers from a server which has imported
+    qpbench's solver backends (and $QPBENCH_EXTRA_SOLVERS) once, so a new worker is ready in
+    milliseconds. Its numerical libraries are limited to one thread (SINGLE_THREAD_ENV)."""
+    global _FORK_SERVER
+    with _FORK_SERVER_LOCK:
+        if _FORK_SERVER is None:
+            for name, value in SINGLE_THREAD_ENV.items():
+                os.environ.setdefault(name, value)
+            context = multiprocessing.get_context("forkserver")
+            extra = [m.strip() for m in os.environ.get(EXTRA_SOLVERS_ENV, "").split(",")
+                     if m.strip()]
+            context.set_forkserver_preload(["qpbench.bench.worker", "qpbench.solvers", *extra])
+            _FORK_SERVER = context
+        return _FORK_SERVER
+
+
+def start_fork_server() -> None:
+    """Starts the fork server now, so its imports overlap with the caller's own set-up."""
+    if can_have_children():
+        from multiprocessing import forkserver
+
+        fork_server()
+        forkserver.ensure_running()
+
+
+def can_have_children() -> bool:
+    """False in a daemonic multiprocessing process (e.g. a Dask worker), which may not fork."""
+    return not multiprocessing.current_process().daemon
+
+
+class IsolatedWorker:
+    """A child process that solves cells; restarted after a crash or a timeout.
+
+    Forked from the fork server where possible; otherwise (``program=True`` or inside a
+    daemonic process) started as ``python -m qpbench.bench.worker``.
+    """
+
+    def __init__(self, program: bool | None = None) -> None:
+        self.program = (not can_have_children()) if program is None else program
+        self.process: Any = None  # subprocess.Popen or multiprocessing.Process
+        self.connection: Any = None  # multiprocessing Connection (forked worker)
         self._buffer = b""
         self._log: Any = None
 
     # --- process life --------------------------------------------------------------
     def start(self) -> None:
-        env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
-        self._log = tempfile.TemporaryFile()  # noqa: SIM115 (lives as long as the worker)
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "qpbench.bench.worker"],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
-            start_new_session=True,  # a Ctrl-C in the terminal reaches the runner only
-        )
-        self._buffer = b""
+        self._log = tempfile.NamedTemporaryFile(prefix="qpbench-worker-", suffix=".log")  # noqa: SIM115 (lives as long as the worker)
+        if self.program:
+            env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "qpbench.bench.worker"],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
+                start_new_session=True,  # a Ctrl-C in the terminal reaches the runner only
+            )
+            self._buffer = b""
+        else:
+            from qpbench.bench.worker import child_main
+
+            context = fork_server()
+            ours, theirs = context.Pipe(duplex=True)
+            self.process = context.Process(target=child_main, args=(theirs, self._log.name),
+                                           name="qpbench-worker", daemon=True)
+            self.process.start()
+            theirs.close()
+            self.connection = ours
         try:
             message = self._next_message(time.monotonic() + STARTUP_TIMEOUT_S)
         except WorkerDied as died:
+            tail = self.stderr_tail()
+            self.stop()
             raise QpbenchError(f"the worker process could not start ({died}): "
-                               f"{self.stderr_tail() or 'no message'}") from died
+                               f"{tail or 'no message'}") from died
         if message is None or message.get("event") != "ready":
             self.stop()
             raise QpbenchError("the worker process did not start within "
                                f"{STARTUP_TIMEOUT_S:.0f} s")
 
+    def alive(self) -> bool:
+        if self.process is None:
+            return False
+        if self.program:
+            return self.process.poll() is None
+        return self.process.is_alive()
+
+    def returncode(self) -> int | None:
+        """The exit code (negative: the signal) once the process has ended."""
+        if self.process is None:
+            return None
+        if self.program:
+            return self.process.wait()
+        self.process.join()
+        return self.process.exitcode
+
     def stop(self) -> None:
         """Kills the process (if running) and forgets it."""
         if self.process is not None:
-            if self.process.poll() is None:
+            if self.alive():
                 self.process.kill()
-            self.process.wait()
-            for stream in (self.process.stdin, self.process.stdout):
-                if stream is not None:
-                    stream.close()
+            if self.program:
+                self.process.wait()
+                for stream in (self.process.stdin, self.process.stdout):
+                    if stream is not None:
+                        stream.close()
+            else:
+                self.process.join()
+                self.process.close()
             self.process = None
+        if self.connection is not None:
+            self.connection.close()
+            self.connection = None
         if self._log is not None:
             self._log.close()
             self._log = None
 
     def close(self) -> None:
         """Asks the process to finish (end of input), then makes sure it is gone."""
-        if self.process is not None and self.process.stdin is not None:
+        if self.process is not None:
             try:
-                self.process.stdin.close()
-                self.process.wait(timeout=5)
+                if self.program and self.process.stdin is not None:
+                    self.process.stdin.close()
+                    self.process.wait(timeout=5)
+                elif self.connection is not None:
+                    self.connection.close()
+                    self.connection = None
+                    self.process.join(timeout=5)
             except (OSError, subprocess.TimeoutExpired):
                 pass
         self.stop()
 
     def stderr_tail(self, lines: int = 3) -> str:
-        """The last lines the process wrote to stderr (solver messages, fatal errors)."""
+        """The last lines the process wrote to its log (solver messages, fatal errors)."""
         if self._log is None:
             return ""
-        self._log.seek(0, os.SEEK_END)
-        size = self._log.tell()
-        self._log.seek(max(0, size - 4096))
-        text = self._log.read().decode("utf-8", "replace")
+        try:
+            with open(self._log.name, "rb") as stream:
+                stream.seek(0, os.SEEK_END)
+                stream.seek(max(0, stream.tell() - 4096))
+                text = stream.read().decode("utf-8", "replace")
+        except OSError:
+            return ""
         return " | ".join(line.strip() for line in text.strip().splitlines()[-lines:])
 
     # --- messages --------------------------------------------------------------------
+    def _send(self, message: dict[str, Any]) -> None:
+        if self.program:
+            assert self.process is not None and self.process.stdin is not None
+            self.process.stdin.write((json.dumps(message) + "\n").encode())
+            self.process.stdin.flush()
+        else:
+            self.connection.send(message)
+
     def _next_message(self, deadline: float) -> dict[str, Any] | None:
-        """The next JSON line from the process; None at the deadline; WorkerDied on exit."""
+        """The next message from the process; None at the deadline; WorkerDied on exit."""
+        if not self.program:
+            if not self.connection.poll(max(0.0, deadline - time.monotonic())):
+                return None
+            try:
+                return self.connection.recv()
+            except (EOFError, OSError) as error:
+                raise WorkerDied(self.returncode()) from error
         assert self.process is not None and self.process.stdout is not None
         descriptor = self.process.stdout.fileno()
         while b"\n" not in self._buffer:
@@ -127,22 +230,20 @@ class IsolatedWorker:
                 return None
             chunk = os.read(descriptor, 65536)
             if not chunk:
-                raise WorkerDied(self.process.wait())
+                raise WorkerDied(self.returncode())
             self._buffer += chunk
         line, self._buffer = self._buffer.split(b"\n", 1)
         return json.loads(line)
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
         """The row of ``cell``, from the worker or, when it failed, a row saying how."""
-        if self.process is None or self.process.poll() is not None:
+        if not self.alive():
             self.stop()
             self.start()
-        assert self.process is not None and self.process.stdin is not None
         request = {"cell": cell.as_dict(), "limits": asdict(limits)}
         started = time.monotonic()
         try:
-            self.process.stdin.write((json.dumps(request) + "\n").encode())
-            self.process.stdin.flush()
+            self._send(request)
             in_solve = False
             while True:
                 allowance = limits.timeout_s if in_solve else OUTSIDE_SOLVE_ALLOWANCE_S
@@ -163,8 +264,8 @@ class IsolatedWorker:
                     return row
                 elif event == "error":  # the cell could not be set up or judged
                     return failure_row(cell, ERROR, str(message.get("message"))[:500])
-        except (WorkerDied, BrokenPipeError) as error:
-            code = error.returncode if isinstance(error, WorkerDied) else self.process.poll()
+        except (WorkerDied, BrokenPipeError, ConnectionError) as error:
+            code = error.returncode if isinstance(error, WorkerDied) else self.returncode()
             tail = self.stderr_tail()
             self.stop()
             return failure_row(cell, *classify_death(code, tail))
@@ -209,12 +310,14 @@ def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
     }
 
 
-def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limits: Limits
-                 ) -> dict[str, Any]:
-    """Adds the cell key, the problem's summary and the limits to a row (worker or failure)."""
+def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limits: Limits,
+                 solver: dict[str, str] | None = None) -> dict[str, Any]:
+    """Adds the cell key, the problem's summary, the solver's backend and version (``solver``,
+    for rows of dead workers) and the limits to a row."""
     return {
         **summary,
         "problem_file": cell.problem_file,
+        **(solver or {}),
         **row,
         "problem": cell.problem,
         "solver": cell.solver,
@@ -268,11 +371,13 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}
     bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
                unit="solve", file=sys.stderr, dynamic_ncols=True)
+    solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
+                      for spec in resolve(list(settings.solvers))}
     writer = store.writer(batch_rows=batch_rows, batch_seconds=batch_seconds)
     try:
         for cell, row in executor.map(pending, settings.limits):
             writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
-                                    settings.limits))
+                                    settings.limits, solver_columns.get(cell.solver_key)))
             counts["run"] += 1
             bar.set_postfix_str(f"{cell.solver_key} {row.get('status', '?')}", refresh=False)
             bar.update(1)

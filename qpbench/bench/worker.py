@@ -1,10 +1,12 @@
 """The worker process: runs cells one at a time, inside its own process, for the runner.
 
-``python -m qpbench.bench.worker`` reads one JSON request per line on stdin and
-answers with JSON lines on the stdout it was started with (a solver that prints
-goes to stderr instead, so it cannot corrupt the answers). For each request it
-says ``begin`` before and ``end`` after every timed solver call, so the runner
-can enforce the wall-clock limit per solve, then sends the ``row``.
+A worker is forked by a multiprocessing fork server that has imported every solver
+backend once (:func:`child_main`, messages over a Pipe), or, where a process may not
+have children of its own (a daemonic Dask worker), started as the program
+``python -m qpbench.bench.worker`` (:func:`main`, JSON lines on stdin/stdout). Solver
+output goes to a log file or stderr, never into the messages. For each request it
+says ``begin`` before and ``end`` after every timed solver call, so the runner can
+enforce the wall-clock limit per solve, then sends the ``row``.
 
 The address space of the process is limited with ``resource.setrlimit`` (an
 allocation beyond it raises MemoryError, which becomes the status
@@ -21,12 +23,15 @@ import math
 import os
 import platform
 import resource
+import signal
 import socket
 import statistics
 import sys
 import time
 import zlib
-from typing import IO, Any
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any
 
 import numpy as np
 
@@ -131,7 +136,7 @@ def _finite(values: list[float]) -> list[float]:
 class CellSolver:
     """Runs cells in this process, keeping the last problem loaded (cells come problem-major)."""
 
-    def __init__(self, announce: IO[str] | None = None) -> None:
+    def __init__(self, announce: Callable[[dict[str, Any]], None] | None = None) -> None:
         self.announce = announce
         self._problem_file: str | None = None
         self._problem: ImpactProblem | None = None
@@ -142,8 +147,7 @@ class CellSolver:
 
     def _say(self, event: str, **fields: Any) -> None:
         if self.announce is not None:
-            self.announce.write(json.dumps({"event": event, **fields}) + "\n")
-            self.announce.flush()
+            self.announce({"event": event, **fields})
 
     def problem(self, path: str) -> ImpactProblem:
         if path != self._problem_file:
@@ -199,16 +203,14 @@ class CellSolver:
         return row
 
 
-def serve(requests: IO[str], answers: IO[str]) -> None:
-    """Answers each request line ``{"cell": ..., "limits": ...}`` with begin/end events and a row
-    (or ``{"event": "error", ...}`` if the cell could not even start, e.g. a bad problem file)."""
-    solver = CellSolver(announce=answers)
+def serve(receive: Callable[[], dict[str, Any] | None],
+          send: Callable[[dict[str, Any]], None]) -> None:
+    """Answers each request ``{"cell": ..., "limits": ...}`` (until ``receive`` gives None) with
+    begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up)."""
+    solver = CellSolver(announce=send)
     all_solvers()  # import every backend before the memory cap and before timing anything
     solver._say("ready", pid=os.getpid())
-    for line in requests:
-        if not line.strip():
-            continue
-        request = json.loads(line)
+    while (request := receive()) is not None:
         cell = Cell(**request["cell"])
         limits = Limits(**request["limits"])
         if not solver.memory_limit_mb and limits.memory_limit_mb:
@@ -224,11 +226,58 @@ def serve(requests: IO[str], answers: IO[str]) -> None:
         solver._say("row", row=row)
 
 
+def die_with_parent() -> None:
+    """Asks Linux to SIGKILL this process when the runner dies (even by kill -9), so no
+    orphaned worker keeps solving; a no-op elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        PR_SET_PDEATHSIG = 1
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the process that started this one is already gone
+        os._exit(1)
+
+
 def main() -> None:
-    """Entry point of the worker process: answers on a private copy of stdout."""
+    """Entry point of a worker started as a program: JSON lines on stdin and on a private copy
+    of stdout (stray solver output goes to stderr)."""
+    die_with_parent()
     answers = os.fdopen(os.dup(sys.stdout.fileno()), "w", encoding="utf-8")
-    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # stray solver output goes to stderr
-    serve(sys.stdin, answers)
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+
+    def receive() -> dict[str, Any] | None:
+        for line in sys.stdin:
+            if line.strip():
+                return json.loads(line)
+        return None
+
+    def send(message: dict[str, Any]) -> None:
+        answers.write(json.dumps(message) + "\n")
+        answers.flush()
+
+    serve(receive, send)
+
+
+def child_main(connection: Connection, log_path: str) -> None:
+    """Entry point of a worker forked by the multiprocessing fork server: messages on
+    ``connection``; stdout and stderr go to ``log_path``."""
+    log = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    os.dup2(log, 1)
+    os.dup2(log, 2)
+    die_with_parent()
+
+    def receive() -> dict[str, Any] | None:
+        try:
+            return connection.recv()
+        except (EOFError, OSError):
+            return None
+
+    serve(receive, connection.send)
 
 
 if __name__ == "__main__":

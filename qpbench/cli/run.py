@@ -59,6 +59,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if not args.executor.startswith(("dask://", "tcp://", "tls://")):
+        runner.start_fork_server()  # the workers' imports overlap with ours
     specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
     settings = RunSettings(
         solvers=tuple(spec.key for spec in specs),

@@ -1,0 +1,97 @@
+"""The report's figures as PNG files (matplotlib, Agg backend: no display needed)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from qpbench.bench.stats import performance_profile, solver_keys  # noqa: E402
+
+DPI = 110
+
+
+def slug(text: str) -> str:
+    """A file-name-safe form of ``text``."""
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "all"
+
+
+def _save(figure: plt.Figure, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".tmp-{path.name}")
+    figure.savefig(temporary, dpi=DPI, bbox_inches="tight", format="png")
+    plt.close(figure)
+    temporary.replace(path)
+    return path
+
+
+def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
+    """Achieved error against time across the accuracy sweep, one curve per solver/formulation:
+    each point is one level, at (median time_s, median v_error) over the family's problems
+    that returned an answer. Uses the residual where no problem has a verified reference."""
+    answered = frame[frame["residual"].notna() & frame["time_s"].notna()]
+    if answered.empty:
+        return None
+    error_column = "v_error" if answered["v_error"].notna().any() else "residual"
+    answered = answered.assign(key=solver_keys(answered))
+    figure, axes = plt.subplots(figsize=(6.4, 4.6))
+    floor = 1e-17
+    for key, group in answered.groupby("key"):
+        points = group.groupby("accuracy").agg(time=("time_s", "median"),
+                                               error=(error_column, "median"))
+        points = points.sort_index(ascending=False)
+        axes.plot(points["time"], np.maximum(points["error"], floor), marker="o", label=key)
+    axes.set_xscale("log")
+    axes.set_yscale("log")
+    axes.set_xlabel("median solver time per problem [s]")
+    axes.set_ylabel(f"median {error_column}" + (" (||v+ - v+_ref||_M / ||v-||_M)"
+                                                  if error_column == "v_error" else ""))
+    axes.set_title(f"Work-precision, family {family} (points: accuracy levels)")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7, loc="best")
+    return _save(figure, path)
+
+
+def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
+    """Dolan-More performance profile at one accuracy level: share of problems solved within
+    tau times the fastest solver's time."""
+    curves = performance_profile(frame)
+    if curves.empty or curves.shape[1] == 0:
+        return None
+    figure, axes = plt.subplots(figsize=(6.4, 4.6))
+    for key in curves.columns:
+        axes.step(curves.index, curves[key], where="post", label=key)
+    axes.set_xscale("log")
+    axes.set_ylim(0, 1.02)
+    axes.set_xlabel("tau (time / fastest time on the problem)")
+    axes.set_ylabel("share of problems solved within tau")
+    axes.set_title(f"Performance profile at accuracy {accuracy:.0e}")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7, loc="lower right")
+    return _save(figure, path)
+
+
+def success_by_level(summary: pd.DataFrame, path: Path) -> Path | None:
+    """Success rate of each solver/formulation at each accuracy level (grouped bars)."""
+    if summary.empty:
+        return None
+    table = summary.pivot(index="solver", columns="accuracy", values="success_rate")
+    table = table[sorted(table.columns, reverse=True)]
+    figure, axes = plt.subplots(figsize=(max(6.4, 0.45 * len(table) + 2), 4.2))
+    width = 0.8 / max(1, table.shape[1])
+    positions = np.arange(len(table))
+    for i, level in enumerate(table.columns):
+        axes.bar(positions + i * width, table[level], width=width, label=f"{level:.0e}")
+    axes.set_xticks(positions + width * (table.shape[1] - 1) / 2)
+    axes.set_xticklabels(table.index, rotation=60, ha="right", fontsize=7)
+    axes.set_ylim(0, 1.05)
+    axes.set_ylabel("success rate")
+    axes.set_title("Success rate by accuracy level")
+    axes.legend(title="accuracy", fontsize=7)
+    return _save(figure, path)

@@ -1,0 +1,324 @@
+"""The Markdown report of a results table (REPORT.md, with its PNG figures beside it).
+
+Sections: what was run; machine and version provenance; per accuracy level the success
+rate, shifted geometric mean time and residuals; formulations side by side;
+work-precision diagrams per family; Dolan-More profiles; the cost of accuracy; status
+honesty; warm against cold starts; the targets of our own solver; the accuracy-options
+table; and any extra sections other parts of qpbench left as JSON files (a
+``"markdown"`` key) in the results folder.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from qpbench.bench import plots, stats
+from qpbench.bench.results import ResultStore
+from qpbench.errors import InputError
+from qpbench.solvers import accuracy as accuracy_table
+
+HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
+                 "near-duplicate", "dump")
+OWN_BACKEND = "qpbench"
+ROBUST_SOLVER = "pi-robust"
+PROFILE_LEVELS = (1e-4, 1e-8)
+TARGET_LEVEL = 1e-8
+TARGET_V_ERROR = 1e-7
+TARGET_SPEEDUP = 3.0
+
+Formatter = Callable[[Any], str]
+
+
+# --- formatting ------------------------------------------------------------------------------
+def number(value: Any) -> str:
+    """Three significant digits; '-' for missing."""
+    if value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA:
+        return "-"
+    if isinstance(value, float | np.floating):
+        return "inf" if math.isinf(value) else f"{value:.3g}"
+    return str(value)
+
+
+def level(accuracy: float) -> str:
+    """An accuracy level as ``1e-08``."""
+    return f"{float(accuracy):.0e}"
+
+
+def percent(value: Any) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    return f"{100.0 * float(value):.1f}%"
+
+
+def markdown_table(frame: pd.DataFrame, formats: dict[str, Formatter] | None = None,
+                   index: bool = False) -> str:
+    """A GitHub Markdown table of ``frame`` (``formats``: column -> formatter)."""
+    formats = formats or {}
+    if index:
+        frame = frame.reset_index()
+    if frame.empty:
+        return "_(no rows)_\n"
+    header = "| " + " | ".join(str(column) for column in frame.columns) + " |"
+    rule = "|" + "|".join("---" for _ in frame.columns) + "|"
+    lines = [header, rule]
+    for _, row in frame.iterrows():
+        cells = [formats.get(column, number)(row[column]) for column in frame.columns]
+        lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _image(path: Path | None, folder: Path, alt: str) -> str:
+    if path is None:
+        return f"_(no data for {alt})_\n"
+    return f"![{alt}]({os.path.relpath(path, folder)})\n"
+
+
+# --- sections ----------------------------------------------------------------------------------
+def _overview(frame: pd.DataFrame, source: Path) -> str:
+    statuses = frame["status"].astype(str).value_counts()
+    lines = [
+        f"Results: `{source.name}`, {len(frame)} solves of {frame['problem'].nunique()} "
+        f"problems ({', '.join(sorted(frame['family'].dropna().astype(str).unique()))}) by "
+        f"{stats.solver_keys(frame).nunique()} solver/formulation pairs at accuracy levels "
+        f"{', '.join(level(a) for a in sorted(frame['accuracy'].unique(), reverse=True))}; "
+        f"modes {', '.join(sorted(frame['mode'].dropna().astype(str).unique()))}.",
+        "",
+        "Statuses: " + ", ".join(f"{status} {count}" for status, count in statuses.items()) + ".",
+        "",
+        "`solved` = finite impulses with qpbench's residual <= the accuracy level; a solver's own "
+        "status is recorded but never trusted. `crashed`, `timeout` and `out-of-memory` are "
+        "solves whose isolated worker process died, ran past the time limit or hit the memory "
+        "cap.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _provenance(frame: pd.DataFrame) -> str:
+    def values(column: str) -> str:
+        if column not in frame:
+            return "-"
+        found = sorted(frame[column].dropna().astype(str).unique())
+        return ", ".join(found) if found else "-"
+
+    overhead = frame["timer_overhead_s"].dropna() if "timer_overhead_s" in frame else []
+    rows = pd.DataFrame([
+        {"item": "qpbench", "value": values("qpbench_version")},
+        {"item": "Python", "value": values("python_version")},
+        {"item": "NumPy", "value": values("numpy_version")},
+        {"item": "platform", "value": values("platform")},
+        {"item": "CPU", "value": values("cpu_model")},
+        {"item": "hosts", "value": values("hostname")},
+        {"item": "dates (UTC)", "value": (f"{frame['date'].dropna().min()} .. "
+                                          f"{frame['date'].dropna().max()}")
+         if "date" in frame and frame["date"].notna().any() else "-"},
+        {"item": "time limit per solve [s]", "value": values("time_limit_s")},
+        {"item": "memory cap per worker [MiB]", "value": values("memory_limit_mb")},
+        {"item": "timed repeats (time_s = min)", "value": values("repeats_requested")},
+        {"item": "timer overhead (perf_counter back-to-back, min)",
+         "value": f"{np.median(overhead) * 1e9:.0f} ns" if len(overhead) else "-"},
+    ])
+    versions = (frame.assign(key=stats.solver_keys(frame))
+                .groupby("key")[["backend", "solver_version"]].first().reset_index()
+                .rename(columns={"key": "solver/formulation"}))
+    return (markdown_table(rows, {"value": str}) + "\nSolver versions:\n\n"
+            + markdown_table(versions, {c: str for c in versions.columns}))
+
+
+def _levels(summary: pd.DataFrame, shift: float) -> str:
+    parts = [
+        f"Shifted geometric mean (SGM) of time with shift {shift:.3g} s = "
+        f"{stats.SHIFT_FACTOR:g} x the median over problems and levels of the fastest "
+        "successful solve (the problems' own time scale); a failed solve is charged the time "
+        "limit.\n",
+    ]
+    for accuracy in sorted(summary["accuracy"].unique(), reverse=True):
+        table = summary[summary["accuracy"] == accuracy].drop(columns="accuracy")
+        table = table.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True])
+        parts.append(f"\n### Accuracy {level(accuracy)}\n\n" + markdown_table(
+            table, {"success_rate": percent}))
+    return "".join(parts)
+
+
+def _formulations(summary: pd.DataFrame) -> str:
+    split = summary["solver"].str.split("/", n=1, expand=True)
+    summary = summary.assign(name=split[0], formulation=split[1])
+    parts = []
+    for accuracy in sorted(summary["accuracy"].unique(), reverse=True):
+        at_level = summary[summary["accuracy"] == accuracy]
+        cells = at_level.assign(cell=[f"{percent(r)} / {number(t)} s" for r, t in
+                                      zip(at_level["success_rate"], at_level["sgm_time_s"],
+                                          strict=True)])
+        table = cells.pivot(index="name", columns="formulation", values="cell").fillna("")
+        parts.append(f"\n### Accuracy {level(accuracy)} (success rate / SGM time)\n\n"
+                     + markdown_table(table, {c: str for c in table.columns}, index=True)
+                     .replace("| name |", "| solver |", 1))
+    return "".join(parts)
+
+
+def _robust_targets(frame: pd.DataFrame, shift: float) -> str:
+    """The two targets of our own solver on the hard families at 1e-8 (met or not, with figures)."""
+    hard = frame[frame["family"].astype(str).isin(HARD_FAMILIES)
+                 & np.isclose(frame["accuracy"].astype(float), TARGET_LEVEL)]
+    robust = hard[hard["solver"].astype(str) == ROBUST_SOLVER]
+    if robust.empty:
+        return (f"_`{ROBUST_SOLVER}` has no solves at {TARGET_LEVEL:g} on the hard families "
+                "in these results._\n")
+    lines = []
+    success_rate = float(robust["success"].fillna(False).astype(bool).mean())
+    max_v_error = float(robust["v_error"].max()) if robust["v_error"].notna().any() else math.nan
+    met = success_rate == 1.0 and not max_v_error > TARGET_V_ERROR
+    per_family = (robust.groupby("family")["success"]
+                  .apply(lambda s: percent(s.fillna(False).astype(bool).mean())))
+    lines.append(f"1. `{ROBUST_SOLVER}` succeeds on {percent(success_rate)} of "
+                 f"{len(robust)} hard-family solves at {TARGET_LEVEL:g} (target 100%), max "
+                 f"v_error {number(max_v_error)} (target <= {TARGET_V_ERROR:g}): "
+                 f"**{'met' if met else 'not met'}**. Per family: "
+                 + ", ".join(f"{family} {rate}" for family, rate in per_family.items()) + ".")
+    hard = hard.assign(key=stats.solver_keys(hard), charged=stats.charged_times(hard))
+    problems = set(robust["problem"])
+    sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)
+           for key, group in hard[hard["problem"].isin(problems)].groupby("key")}
+    robust_key = min((k for k in sgm if k.split("/")[0] == ROBUST_SOLVER), key=sgm.get)
+    external = hard[hard["backend"].astype(str) != OWN_BACKEND]
+    external_keys = [k for k in sgm if k in set(external["key"])]
+    if not external_keys:
+        lines.append("2. No external backend has solves on the same problems: no ratio.")
+    else:
+        fastest = min(external_keys, key=sgm.get)
+        ratio = sgm[fastest] / sgm[robust_key]
+        lines.append(f"2. Fastest external backend `{fastest}`: SGM {number(sgm[fastest])} s; "
+                     f"`{robust_key}`: {number(sgm[robust_key])} s; ratio {ratio:.2f} "
+                     f"(target >= {TARGET_SPEEDUP:g}): "
+                     f"**{'met' if ratio >= TARGET_SPEEDUP else 'not met'}**.")
+    return "\n".join(lines) + "\n"
+
+
+def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
+    if set(frame["mode"].dropna().astype(str)) != {"cold", "warm"}:
+        return ""
+    frame = frame.assign(key=stats.solver_keys(frame), charged=stats.charged_times(frame))
+    rows = []
+    for (key, level), group in frame.groupby(["key", "accuracy"]):
+        cold = group[group["mode"] == "cold"]
+        warm = group[group["mode"] == "warm"]
+        if cold.empty or warm.empty:
+            continue
+        rows.append({
+            "solver": key, "accuracy": level,
+            "uses warm start": bool(warm["warm_start_used"].fillna(False).any()),
+            "SGM cold [s]": stats.shifted_geometric_mean(cold["charged"], shift),
+            "SGM warm [s]": stats.shifted_geometric_mean(warm["charged"], shift),
+            "success cold": percent(cold["success"].fillna(False).astype(bool).mean()),
+            "success warm": percent(warm["success"].fillna(False).astype(bool).mean()),
+        })
+    table = pd.DataFrame(rows)
+    sources = ", ".join(sorted(frame.loc[frame["mode"] == "warm", "warm_start_source"]
+                               .dropna().astype(str).unique()))
+    return ("\n## Warm against cold starts\n\nWarm starts come from the problem's previous "
+            "impulses where it has them (`previous`), else from its reference impulses "
+            "perturbed by 1% (`perturbed-reference`); used here: " + (sources or "-") + ".\n\n"
+            + markdown_table(table, {"success cold": str, "success warm": str}))
+
+
+def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
+    """(title, markdown) from every ``*.json`` with a ``"markdown"`` key in ``folders``."""
+    found: list[tuple[str, str]] = []
+    seen: set[Path] = set()
+    for folder in folders:
+        for path in sorted(folder.glob("*.json")):
+            if path.resolve() in seen:
+                continue
+            seen.add(path.resolve())
+            try:
+                content = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                continue
+            if isinstance(content, dict) and isinstance(content.get("markdown"), str):
+                title = str(content.get("title") or path.stem.replace("_", " ").capitalize())
+                found.append((title, content["markdown"].strip() + "\n"))
+    return found
+
+
+# --- the report -----------------------------------------------------------------------------
+def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
+                 budget_s: float | None = None) -> Path:
+    """Writes ``folder/REPORT.md`` (default: beside the results) and its PNGs; returns the path."""
+    results = Path(results)
+    if not results.exists() and not ResultStore(results).part_files():
+        raise InputError(str(results), "no such results file")
+    frame = ResultStore(results).read()
+    if frame.empty:
+        raise InputError(str(results), "the results table has no rows")
+    folder = Path(folder) if folder is not None else results.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    figures = folder / "figures"
+    main = frame[frame["mode"].astype(str) == "cold"]
+    if main.empty:
+        main = frame
+    shift = stats.time_scale_shift(main)
+    budget = budget_s if budget_s is not None else shift
+    summary = stats.level_summary(main, shift)
+
+    out: list[str] = ["# qpbench report\n\n", _overview(frame, results)]
+    out.append("\n## Machine and versions\n\n" + _provenance(frame))
+    out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
+    out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
+                             folder, "success rate by level"))
+    out.append("\n## Formulations side by side\n" + _formulations(summary))
+
+    out.append("\n## Work-precision diagrams\n\nEach curve is one solver/formulation; each "
+               "point one accuracy level at (median solver time, median v_error) over the "
+               "family's problems that returned an answer (v_error below 1e-17 is drawn at "
+               "1e-17; failed solves have no point, see the tables).\n")
+    for family in sorted(main["family"].dropna().astype(str).unique()):
+        path = plots.work_precision(main[main["family"] == family], family,
+                                    figures / f"work_precision_{plots.slug(family)}.png")
+        out.append(f"\n### Family {family}\n\n" + _image(path, folder, f"work-precision {family}"))
+
+    out.append("\n## Performance profiles\n\nDolan-More: the share of problems each "
+               "solver/formulation solves within tau times the fastest time on that problem "
+               "(failures never count).\n")
+    for accuracy in PROFILE_LEVELS:
+        at_level = main[np.isclose(main["accuracy"].astype(float), accuracy)]
+        if at_level.empty:
+            out.append(f"\n_(no solves at accuracy {level(accuracy)})_\n")
+            continue
+        path = plots.profile(at_level, accuracy, figures / f"profile_{level(accuracy)}.png")
+        out.append(f"\n### Accuracy {level(accuracy)}\n\n"
+                   + _image(path, folder, f"profile {level(accuracy)}"))
+
+    cost = stats.cost_of_accuracy(main, shift)
+    out.append("\n## What accuracy costs\n\nSGM time at each level and the ratio from each level "
+               "to the next tighter one (a ratio of 2 means the tighter level takes twice as "
+               "long).\n\n" + markdown_table(cost.reset_index().rename(columns={"index": "solver"}))
+               if not cost.empty else "")
+    within = stats.accuracy_within_budget(main, budget)
+    out.append(f"\nWithin a budget of {budget:.3g} s per solve (the SGM shift unless set with "
+               "--budget): the tightest level solved on at least 90% of problems, and the "
+               "median over problems of the best v_error reached.\n\n" + markdown_table(within))
+    out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
+               "qpbench's verdict (solves that returned an answer or a status).\n\n"
+               + markdown_table(stats.honesty(frame), {"honesty_rate": percent}))
+    out.append(_warm_cold(frame, shift))
+    out.append("\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
+               + _robust_targets(main, shift))
+    options = pd.DataFrame(accuracy_table.table_rows())
+    out.append("\n## Accuracy options\n\nHow each solver's own options follow from the level eps "
+               "(scale = max(||b||_inf, tiny)).\n\n"
+               + markdown_table(options, {c: str for c in options.columns}))
+    for title, markdown in extra_sections(dict.fromkeys([results.parent, folder])):
+        out.append(f"\n## {title}\n\n{markdown}")
+
+    report = folder / "REPORT.md"
+    temporary = report.with_name(".tmp-REPORT.md")
+    temporary.write_text("".join(out), encoding="utf-8")
+    temporary.replace(report)
+    return report

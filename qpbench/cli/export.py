@@ -1,0 +1,28 @@
+"""``qpbench export PROBLEMS... [--format parquet|mat] [--formulation dual|primal] -o PATH``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.bench.export import FORMATS, FORMULATIONS, export
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "export", help="write problems for other QP benchmarks (qpbenchmark Parquet, .mat)")
+    parser.add_argument("problems", nargs="+", help="problem files (.npz) or folders of them")
+    parser.add_argument("--format", choices=FORMATS, default="parquet",
+                        help="parquet: qpbenchmark's problem list (one file); mat: one .mat per "
+                             "problem in a folder (default: parquet)")
+    parser.add_argument("--formulation", choices=FORMULATIONS, default="dual",
+                        help="dual: P=Q, q=b, lb=0; primal: velocity-space QP (default: dual)")
+    parser.add_argument("-o", "--output", required=True,
+                        help="the .parquet file, or the folder for .mat files")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    count = export(args.problems, args.output, args.format, args.formulation)
+    print(f"qpbench export: {count} problems -> {args.output}", file=sys.stderr)
+    return 0
