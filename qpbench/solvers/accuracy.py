@@ -37,6 +37,17 @@ def _gap(eps: float, scale: float) -> float:
     return eps * scale * scale
 
 
+def _ipm_gap(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-15) * scale^2: an interior point leaves min(l_i, w_i) ~ sqrt(l_i w_i)
+    on a degenerate contact (l_i = w_i = 0), so its gap must be eps^2 for a residual eps"""
+    return max(eps * eps, 1e-15) * scale * scale
+
+
+def _ipm_gap_relative(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-15)"""
+    return max(eps * eps, 1e-15)
+
+
 def _conic_gap(eps: float, scale: float) -> float:
     """max(eps^2, 1e-12): ECOS poses the quadratic as a cone, where l errs by ~sqrt(gap)"""
     return max(eps * eps, 1e-12)
@@ -65,14 +76,14 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     # --- through qpsolvers -----------------------------------------------------
     "osqp": {"eps_abs": _absolute, "eps_rel": _relative, "polishing": True,
              "max_iter": ITERATIVE_MAX_ITER, "time_limit": DEFAULT_TIME_LIMIT_S},
-    "clarabel": {"tol_gap_abs": _gap, "tol_gap_rel": _relative, "tol_feas": _relative,
+    "clarabel": {"tol_gap_abs": _ipm_gap, "tol_gap_rel": _ipm_gap_relative, "tol_feas": _relative,
                  "tol_ktratio": _ktratio, "max_iter": INTERIOR_MAX_ITER,
                  "time_limit": DEFAULT_TIME_LIMIT_S},
     "proxqp": {"eps_abs": _absolute, "eps_rel": 0.0, "check_duality_gap": True,
                "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": 0.0,
                "max_iter": ITERATIVE_MAX_ITER},
     "piqp": {"eps_abs": _absolute, "eps_rel": _relative, "check_duality_gap": True,
-             "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": _relative,
+             "eps_duality_gap_abs": _ipm_gap, "eps_duality_gap_rel": _ipm_gap_relative,
              "max_iter": INTERIOR_MAX_ITER},
     "daqp": {"primal_tol": _absolute, "dual_tol": _absolute, "iter_limit": 100_000,
              "time_limit": DEFAULT_TIME_LIMIT_S},
@@ -85,26 +96,26 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
              "max_iters": INTERIOR_MAX_ITER},
     "ecos-reg": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
                  "max_iters": INTERIOR_MAX_ITER, "regularization": _regularization},
-    "cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
+    "cvxopt": {"abstol": _ipm_gap, "reltol": _ipm_gap_relative, "feastol": _relative,
                "maxiters": INTERIOR_MAX_ITER},
     "quadprog": {},  # an exact active-set method: no tolerance, no limit
     "quadprog-reg": {"regularization": _regularization},
     "qpalm": {"eps_abs": _absolute, "eps_rel": _relative, "max_iter": ITERATIVE_MAX_ITER,
               "time_limit": DEFAULT_TIME_LIMIT_S},
     # --- IPOPT through cyipopt, configured as SCISim's LCP0OperatorIpopt ----------
-    "ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
+    "ipopt": {"tol": _ipm_gap, "acceptable_iter": 0, "max_iter": 3000,
               "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
               "hessian_constant": "yes", "jac_c_constant": "yes", "jac_d_constant": "yes",
               "print_level": 0, "sb": "yes"},
     # --- through cvxpy (its own option names per solver) ----------------------------
     "cvxpy-osqp": {"eps_abs": _absolute, "eps_rel": _relative, "polishing": True,
                    "max_iter": ITERATIVE_MAX_ITER, "time_limit": DEFAULT_TIME_LIMIT_S},
-    "cvxpy-clarabel": {"tol_gap_abs": _gap, "tol_gap_rel": _relative, "tol_feas": _relative,
-                       "tol_ktratio": _ktratio, "max_iter": INTERIOR_MAX_ITER,
-                       "time_limit": DEFAULT_TIME_LIMIT_S},
+    "cvxpy-clarabel": {"tol_gap_abs": _ipm_gap, "tol_gap_rel": _ipm_gap_relative,
+                       "tol_feas": _relative, "tol_ktratio": _ktratio,
+                       "max_iter": INTERIOR_MAX_ITER, "time_limit": DEFAULT_TIME_LIMIT_S},
     "cvxpy-proxqp": {"eps_abs": _absolute, "eps_rel": 0.0, "max_iter": ITERATIVE_MAX_ITER},
     "cvxpy-piqp": {"eps_abs": _absolute, "eps_rel": _relative, "check_duality_gap": True,
-                   "eps_duality_gap_abs": _gap, "eps_duality_gap_rel": _relative,
+                   "eps_duality_gap_abs": _ipm_gap, "eps_duality_gap_rel": _ipm_gap_relative,
                    "max_iter": INTERIOR_MAX_ITER},
     "cvxpy-daqp": {"primal_tol": _absolute, "dual_tol": _absolute, "iter_limit": 100_000,
                    "time_limit": DEFAULT_TIME_LIMIT_S},
@@ -116,9 +127,10 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
                   "time_limit_secs": DEFAULT_TIME_LIMIT_S},
     "cvxpy-ecos": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
                    "max_iters": INTERIOR_MAX_ITER},
+    # cvxpy poses CVXOPT a cone program that fails outright below a gap of ~1e-10
     "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
                      "max_iters": INTERIOR_MAX_ITER},
-    "cvxpy-ipopt": {"tol": _absolute, "acceptable_iter": 0, "max_iter": 3000,
+    "cvxpy-ipopt": {"tol": _ipm_gap, "acceptable_iter": 0, "max_iter": 3000,
                     "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
                     "hessian_constant": "yes", "jac_c_constant": "yes",
                     "jac_d_constant": "yes", "print_level": 0, "sb": "yes"},
