@@ -21,6 +21,7 @@ COMMANDS = (
     "solvers",
     "import_dump",
     "generate",
+    "build_set",
     "solve",
     "simulate",
     "run",

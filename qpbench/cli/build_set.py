@@ -1,0 +1,23 @@
+"""``qpbench build-set SET.toml -o DIR``: the problem files of a problem set."""
+
+from __future__ import annotations
+
+import argparse
+
+from qpbench.problem import files, sets
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "build-set", help="write the problems of a set file (families, dumps, captured scenes)"
+    )
+    parser.add_argument("set_file", metavar="SET.toml", help="e.g. problems/default.toml")
+    parser.add_argument("-o", "--output", required=True, help="output folder")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    written = sets.build(args.set_file, args.output)
+    total = len(files.find([args.output]))
+    print(f"{len(written)} problems written, {total} in {args.output}")
+    return 0

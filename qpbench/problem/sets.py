@@ -1,0 +1,122 @@
+"""Problem sets: a TOML file naming families, dumps and scenes, built into problem files.
+
+```toml
+[families]                       # family -> sizes (default: the family's) and seeds per size
+grid = { sizes = [3, 5], count = 2, seed = 0 }
+
+[dumps]
+paths = ["dumps/*"]              # globs, relative to the set file
+
+[[scenes]]                       # simulate, capture every impact, keep at most max_problems
+path = "scenes/scisim/newtons_cradle.xml"
+steps = 2000                     # step cap (default: the scene's end time)
+solver = "clarabel"              # inner solver of the simulation (default: the scene's)
+max_problems = 5                 # evenly spread over the captured impacts
+```
+
+Every problem file gets a verified reference (qpbench.problem.reference). Building is
+incremental: a problem whose file exists is not made again.
+"""
+
+from __future__ import annotations
+
+import glob
+import sys
+import tempfile
+import tomllib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from qpbench.errors import InputError
+from qpbench.problem import files
+from qpbench.problem.dumps import import_dump
+from qpbench.problem.generate import FAMILIES, generate
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reference import attach_reference
+
+
+def read_set(path: str | Path) -> dict[str, Any]:
+    """The parsed set file; InputError names the file and the entry at fault."""
+    path = Path(path)
+    try:
+        definition = tomllib.loads(path.read_text())
+    except FileNotFoundError as error:
+        raise InputError(str(path), "no such set file") from error
+    except tomllib.TOMLDecodeError as error:
+        raise InputError(str(path), f"malformed TOML: {error}") from error
+    for family in definition.get("families", {}):
+        if family not in FAMILIES:
+            raise InputError(str(path), f"unknown family (known: {', '.join(FAMILIES)})",
+                             "families", family)
+    for index, scene in enumerate(definition.get("scenes", [])):
+        if "path" not in scene:
+            raise InputError(str(path), "missing", f"scenes[{index}]", "path")
+    return definition
+
+
+def _family_problems(definition: dict[str, Any], existing: set[str]) -> Iterator[ImpactProblem]:
+    for family, options in definition.get("families", {}).items():
+        sizes = options.get("sizes", [None])
+        for size in sizes:
+            for problem in generate(family, size=size, seed=int(options.get("seed", 0)),
+                                    count=int(options.get("count", 1))):
+                if problem.name not in existing:
+                    yield problem
+
+
+def _dump_problems(definition: dict[str, Any], root: Path, existing: set[str]
+                   ) -> Iterator[ImpactProblem]:
+    for pattern in definition.get("dumps", {}).get("paths", []):
+        for path in sorted(glob.glob(str(root / pattern))):
+            if Path(path).stem not in existing:
+                yield import_dump(path)
+
+
+def _scene_problems(definition: dict[str, Any], root: Path, existing: set[str]
+                    ) -> Iterator[ImpactProblem]:
+    from qpbench.scenes import load_scene
+    from qpbench.simulation.stepper import Simulator
+
+    for entry in definition.get("scenes", []):
+        scene_path = root / entry["path"]
+        with tempfile.TemporaryDirectory() as capture:
+            scene = load_scene(scene_path)
+            simulator = Simulator(scene, solver=entry.get("solver"), capture=capture)
+            simulator.run(end_time=entry.get("end_time"), max_steps=entry.get("steps"))
+            captured = files.find([capture])
+            keep = int(entry.get("max_problems", len(captured)))
+            if captured and keep < len(captured):
+                picks = np.unique(np.linspace(0, len(captured) - 1, keep).round().astype(int))
+                captured = [captured[i] for i in picks]
+            for path in captured:
+                problem = files.load(path)
+                if problem.name not in existing and problem.n_contacts > 0:
+                    yield problem
+
+
+def build(set_file: str | Path, output: str | Path) -> list[Path]:
+    """Writes every problem of the set to ``output`` (skipping those already there)."""
+    set_file, output = Path(set_file), Path(output)
+    definition = read_set(set_file)
+    root = set_file.parent
+    output.mkdir(parents=True, exist_ok=True)
+    existing = {path.stem for path in output.glob(f"*{files.SUFFIX}")}
+    written = []
+    sources = (
+        _family_problems(definition, existing),
+        _dump_problems(definition, root, existing),
+        _scene_problems(definition, root, existing),
+    )
+    for source in sources:
+        for problem in source:
+            attach_reference(problem)
+            if not problem.reference.verified:
+                print(f"qpbench build-set: {problem.name}: references disagree "
+                      f"({problem.reference.agreement:.1e}); v_error will not be computed",
+                      file=sys.stderr)
+            written.append(files.save(problem, output / problem.name))
+            existing.add(problem.name)
+    return written
