@@ -51,7 +51,13 @@ class StepEvent:
 
 @dataclass
 class SimulationResult:
-    """The summary ``qpbench simulate`` prints (DESIGN section 6) and a few more facts."""
+    """The summary ``qpbench simulate`` prints (DESIGN section 6) and a few more facts.
+
+    ``impacts`` counts the steps where some contact approaches (``b < 0``; the others have
+    l = 0 exactly); ``max_contacts`` the most contacts found in one step;
+    ``max_energy_gain`` the largest ``(KE+ - KE-) / KE-`` of one impact; ``momentum_drift``
+    is None unless only balls meet (no boundary, no kinematic body).
+    """
 
     scene: str
     steps: int = 0
@@ -270,8 +276,9 @@ class Simulator:
                                   "time": self.step_index * self.dt}
                 break
             if event.problem is not None:
-                result.impacts += 1
                 result.max_contacts = max(result.max_contacts, event.contacts.count)
+            if event.problem is not None and np.any(event.problem.b < 0):
+                result.impacts += 1
                 gain = metrics.energy_gain(event.problem, event.impulses)
                 if result.max_energy_gain is None or gain > result.max_energy_gain:
                     result.max_energy_gain = gain

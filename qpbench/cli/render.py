@@ -1,0 +1,42 @@
+"""``qpbench render SCENE -o FILE.png|FILE.gif [--end-time T] [--steps N] [--solver NAME]``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.cli.simulate import DEFAULT_STEPS
+from qpbench.scenes import load_scene
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("render", help="simulate a scene and draw it (png or gif)")
+    parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
+    parser.add_argument("-o", "--output", required=True, help="FILE.png or FILE.gif")
+    parser.add_argument("--end-time", type=float, default=None,
+                        help="simulated seconds (default: the scene's <end_time>)")
+    parser.add_argument("--steps", type=int, default=None, help="at most this many steps")
+    parser.add_argument("--solver", default=None, help="inner solver (default: the scene's)")
+    parser.add_argument("--frames", type=int, default=80, help="frames of a gif (80)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from qpbench.simulation.render import render  # matplotlib only when drawing
+
+    scene = load_scene(args.scene)
+    for warning in scene.warnings:
+        print(f"qpbench render: warning: {warning}", file=sys.stderr)
+    steps = args.steps
+    if scene.end_time is None and args.end_time is None and steps is None:
+        steps = DEFAULT_STEPS
+        print(f"qpbench render: note: {scene.path} has no <end_time>; drawing {DEFAULT_STEPS} "
+              "steps (use --end-time or --steps)", file=sys.stderr)
+    result = render(scene, args.output, args.end_time, steps, args.solver, args.frames)
+    for note in result.notes:
+        print(f"qpbench render: note: {note}", file=sys.stderr)
+    if result.failure is not None:
+        print(f"qpbench render: inner solve failed at step {result.failure['step']}: "
+              f"{result.failure['reason']}; drawn up to there", file=sys.stderr)
+    print(f"wrote {args.output}")
+    return 0 if result.failure is None else 1

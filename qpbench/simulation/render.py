@@ -1,0 +1,237 @@
+"""Pictures of a simulated scene (matplotlib, Agg backend): a PNG or an animated GIF.
+
+The PNG shows the planes, drums and balls at the end of the run, each ball's
+path, the start positions dashed, and the contact normals of the strongest impact
+event (the largest total impulse) as arrows coloured by impulse. The GIF shows the
+balls frame by frame with the contact normals of the latest impact.
+
+A contact normal is drawn at the contact point ``x_a - r_a n`` on ball a,
+pointing along n (the direction of the impulse on a).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
+
+from qpbench.errors import QpbenchError  # noqa: E402
+from qpbench.scenes.model import Scene  # noqa: E402
+from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent  # noqa: E402
+
+MAX_GIF_FRAMES = 80
+MAX_PATHS = 300
+SUFFIXES = (".png", ".gif")
+
+
+@dataclass
+class Impact:
+    """The contacts of one impact event, ready to draw."""
+
+    step: int
+    positions: np.ndarray  # (bodies, 2) at the start of the step
+    points: np.ndarray  # (n, 2) contact points on ball a
+    normals: np.ndarray  # (n, 2)
+    impulses: np.ndarray  # (n,)
+
+
+@dataclass
+class Recording:
+    """Positions every ``stride`` steps, the latest impact at each frame, the strongest one."""
+
+    stride: int
+    radii: np.ndarray
+    frames: list[np.ndarray] = field(default_factory=list)
+    frame_steps: list[int] = field(default_factory=list)
+    frame_impacts: list[Impact | None] = field(default_factory=list)
+    latest: Impact | None = None
+    strongest: Impact | None = None
+
+    def __call__(self, event: StepEvent) -> None:
+        if event.contacts.count and event.impulses.size:
+            a = event.contacts.body_a
+            points = event.positions[a] - self.radii[a, None] * event.contacts.normals
+            impact = Impact(event.step, event.positions.copy(), points, event.contacts.normals,
+                            np.abs(event.impulses))
+            self.latest = impact
+            if self.strongest is None or impact.impulses.sum() > self.strongest.impulses.sum():
+                self.strongest = impact
+        if event.step % self.stride == 0:
+            self.frames.append(event.positions.copy())
+            self.frame_steps.append(event.step)
+            self.frame_impacts.append(self.latest)
+
+
+def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
+                        solver: str | None, frames: int) -> tuple[SimulationResult, Recording]:
+    """Runs the scene, recording about ``frames`` frames."""
+    simulator = Simulator(scene, solver=solver)
+    total = simulator.step_count(end_time, steps)
+    recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii)
+    result = simulator.run(end_time=end_time, max_steps=steps, on_step=recording)
+    recording.frames.append(simulator.positions.copy())
+    recording.frame_steps.append(simulator.step_index)
+    recording.frame_impacts.append(recording.latest)
+    return result, recording
+
+
+def _limits(scene: Scene, recording: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper corners of the view: every recorded ball and every drum, padded."""
+    radii = scene.bodies.radii
+    corners = [np.zeros((0, 2))]
+    for positions in recording.frames:
+        corners += [positions - radii[:, None], positions + radii[:, None]]
+    corners += [scene.drum_centers - scene.drum_radii[:, None],
+                scene.drum_centers + scene.drum_radii[:, None]]
+    points = np.concatenate(corners)
+    if points.shape[0] == 0:
+        points = np.concatenate([scene.plane_points, np.zeros((1, 2))])
+    points = points[np.all(np.isfinite(points), axis=1)]
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    centre, half = 0.5 * (lower + upper), 0.5 * float(np.max(upper - lower)) * 1.15 + 1e-3
+    return centre - half, centre + half
+
+
+def _draw_boundaries(axes: plt.Axes, scene: Scene, lower: np.ndarray, upper: np.ndarray) -> None:
+    span = float(np.max(upper - lower)) * 4.0
+    for point, normal in zip(scene.plane_points, scene.plane_normals, strict=True):
+        tangent = np.array([-normal[1], normal[0]])
+        ends = np.stack([point - span * tangent, point + span * tangent])
+        axes.plot(ends[:, 0], ends[:, 1], color="0.2", linewidth=1.5)
+        shade = np.stack([ends[0], ends[1], ends[1] - 0.03 * span * normal,
+                          ends[0] - 0.03 * span * normal])
+        axes.fill(shade[:, 0], shade[:, 1], color="0.85", zorder=0)
+    for center, radius in zip(scene.drum_centers, scene.drum_radii, strict=True):
+        axes.add_patch(Circle(tuple(center), radius, fill=False, color="0.2", linewidth=1.5))
+
+
+def _draw_balls(axes: plt.Axes, scene: Scene, positions: np.ndarray, **style: object
+                ) -> PatchCollection:
+    patches = [Circle(tuple(x), r) for x, r in zip(positions, scene.bodies.radii, strict=True)]
+    collection = PatchCollection(patches, **style)
+    axes.add_collection(collection)
+    return collection
+
+
+def _draw_impact(axes: plt.Axes, scene: Scene, impact: Impact | None, norm: Normalize):
+    if impact is None or impact.points.shape[0] == 0:
+        return None
+    length = 1.2 * float(np.median(scene.bodies.radii))
+    return axes.quiver(impact.points[:, 0], impact.points[:, 1], impact.normals[:, 0],
+                       impact.normals[:, 1], impact.impulses, cmap="plasma", norm=norm,
+                       angles="xy", scale_units="xy", scale=1.0 / length, width=0.006,
+                       zorder=5)
+
+
+def _frame_axes(scene: Scene, recording: Recording, panels: int = 1
+                ) -> tuple[plt.Figure, list[plt.Axes], Normalize]:
+    lower, upper = _limits(scene, recording)
+    figure, grid = plt.subplots(1, panels, figsize=(6.4 * panels, 6.4), dpi=100, squeeze=False)
+    axes_list = list(grid[0])
+    for axes in axes_list:
+        axes.set_xlim(lower[0], upper[0])
+        axes.set_ylim(lower[1], upper[1])
+        axes.set_aspect("equal")
+        _draw_boundaries(axes, scene, lower, upper)
+    impulses = [impact.impulses for impact in recording.frame_impacts if impact is not None]
+    if recording.strongest is not None:
+        impulses.append(recording.strongest.impulses)
+    top = max((float(np.max(i)) for i in impulses if i.size), default=1.0)
+    return figure, axes_list, Normalize(vmin=0.0, vmax=top if top > 0 else 1.0)
+
+
+def render_png(scene: Scene, recording: Recording, result: SimulationResult, path: Path) -> None:
+    """Left: the strongest impact at its step, normals coloured by impulse. Right: the run."""
+    strongest = recording.strongest
+    figure, panels, norm = _frame_axes(scene, recording, 2 if strongest is not None else 1)
+    run_axes = panels[-1]
+    if scene.bodies.count <= MAX_PATHS and len(recording.frames) > 1:
+        paths = np.stack(recording.frames)  # (frames, bodies, 2)
+        for body in range(scene.bodies.count):
+            run_axes.plot(paths[:, body, 0], paths[:, body, 1], color="tab:blue", alpha=0.35,
+                          linewidth=0.8)
+    _draw_balls(run_axes, scene, recording.frames[0], facecolor="none", edgecolor="0.5",
+                linestyle="--", linewidth=0.8)
+    _draw_balls(run_axes, scene, recording.frames[-1], facecolor="tab:blue", alpha=0.45,
+                edgecolor="tab:blue")
+    run_axes.set_title(f"{scene.name}: {result.steps} steps, {result.impacts} impact steps, "
+                       f"t = {result.time:.4g} s\n(dashed: start; filled: end)", fontsize=10)
+    if strongest is not None:
+        impact_axes = panels[0]
+        _draw_balls(impact_axes, scene, strongest.positions, facecolor="tab:blue", alpha=0.35,
+                    edgecolor="tab:blue")
+        arrows = _draw_impact(impact_axes, scene, strongest, norm)
+        figure.colorbar(arrows, ax=impact_axes, shrink=0.8, label="impulse")
+        impact_axes.set_title(f"strongest impact: step {strongest.step}, t = "
+                              f"{strongest.step * float(scene.dt):.4g} s, "
+                              f"{strongest.points.shape[0]} contacts", fontsize=10)
+    figure.tight_layout()
+    _save(figure, path, lambda target: figure.savefig(target, format="png"))
+
+
+def render_gif(scene: Scene, recording: Recording, result: SimulationResult, path: Path) -> None:
+    figure, (axes,), norm = _frame_axes(scene, recording)
+    balls = _draw_balls(axes, scene, recording.frames[0], facecolor="tab:blue", alpha=0.6,
+                        edgecolor="tab:blue")
+    title = axes.set_title("", fontsize=10)
+    arrows: list[object] = []
+
+    def draw(frame: int) -> list[object]:
+        nonlocal balls
+        balls.remove()
+        balls = _draw_balls(axes, scene, recording.frames[frame], facecolor="tab:blue",
+                            alpha=0.6, edgecolor="tab:blue")
+        while arrows:
+            arrows.pop().remove()
+        quiver = _draw_impact(axes, scene, recording.frame_impacts[frame], norm)
+        if quiver is not None:
+            arrows.append(quiver)
+        title.set_text(f"{scene.name}: step {recording.frame_steps[frame]}, "
+                       f"t = {recording.frame_steps[frame] * float(scene.dt):.4g} s")
+        return [balls, title, *arrows]
+
+    animation = FuncAnimation(figure, draw, frames=len(recording.frames), blit=False)
+    _save(figure, path, lambda target: animation.save(target, writer=PillowWriter(fps=10)))
+
+
+def _save(figure: plt.Figure, path: Path, write) -> None:
+    """Writes through a temporary file in the same folder, then renames (no half files)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+    os.close(handle)
+    try:
+        write(tmp_name)
+        os.chmod(tmp_name, 0o644)
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    finally:
+        plt.close(figure)
+
+
+def render(scene: Scene, output: str | os.PathLike[str], end_time: float | None = None,
+           steps: int | None = None, solver: str | None = None,
+           frames: int = MAX_GIF_FRAMES) -> SimulationResult:
+    """Simulates ``scene`` and draws it to ``output`` (``.png`` or ``.gif``)."""
+    path = Path(output)
+    if path.suffix.lower() not in SUFFIXES:
+        raise QpbenchError(f"{path}: the output must end in .png or .gif")
+    result, recording = simulate_and_record(scene, end_time, steps, solver,
+                                            frames if path.suffix.lower() == ".gif" else 400)
+    if path.suffix.lower() == ".png":
+        render_png(scene, recording, result, path)
+    else:
+        render_gif(scene, recording, result, path)
+    return result
