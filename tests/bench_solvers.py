@@ -1,7 +1,9 @@
-"""Test-only solvers that misbehave on purpose, and tiny problems to run them on.
+"""Test-only solvers that misbehave on purpose.
 
 Imported by the registry when ``QPBENCH_EXTRA_SOLVERS=bench_solvers`` (with this folder
-on PYTHONPATH), so the runner's worker processes see them as well:
+on the path), so the runner's worker processes see them as well. Never import this
+module at the top of a test file: use :func:`registered` (a context manager) so the
+solvers leave the registry again and no other test ever runs them.
 
 * ``test-exact``: enumerates supports (n <= 12), an exact LCP solve for tiny problems;
 * ``test-slow``: test-exact after a 0.3 s pause (so a run can be killed mid-way);
@@ -13,39 +15,21 @@ on PYTHONPATH), so the runner's worker processes see them as well:
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
-import itertools
 import os
+import sys
 import time
-from pathlib import Path
+from collections.abc import Iterator
 
 import numpy as np
+from bench_problems import exact_impulses
 
-from qpbench.problem import files
-from qpbench.problem.impact import ImpactProblem, Reference
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import registry
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.registry import register
 
 BACKEND = "qpbench-tests"
-
-
-def exact_impulses(problem: ImpactProblem) -> np.ndarray:
-    """The least-norm l >= 0 with w = Q l + b >= 0 and l_i w_i = 0, found by trying supports."""
-    Q = problem.Q.toarray()
-    b = problem.b
-    n = problem.n_contacts
-    for size in range(n + 1):
-        for support in itertools.combinations(range(n), size):
-            index = list(support)
-            impulses = np.zeros(n)
-            if index:
-                impulses[index] = np.linalg.lstsq(Q[np.ix_(index, index)], -b[index],
-                                                  rcond=None)[0]
-            w = Q @ impulses + b
-            scale = max(1.0, float(np.max(np.abs(b))))
-            if impulses.min() >= -1e-12 * scale and w.min() >= -1e-12 * scale:
-                return np.maximum(impulses, 0.0)
-    raise ValueError("no support solves the LCP")
 
 
 def _exact(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None
@@ -89,38 +73,26 @@ def _greedy(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | No
 for _name, _solve in (("test-exact", _exact), ("test-slow", _slow), ("test-abort", _abort),
                       ("test-segfault", _segfault), ("test-hang", _hang),
                       ("test-greedy", _greedy)):
-    register(SolverSpec(name=_name, formulation="lcp", backend=BACKEND, solve=_solve,
-                        version="0", warm_start=False))
+    registry.register(SolverSpec(name=_name, formulation="lcp", backend=BACKEND, solve=_solve,
+                                 version="0", warm_start=False))
 
 
-# --- tiny problems ---------------------------------------------------------------------------
-def collinear_balls(name: str, count: int, restitution: float = 1.0) -> ImpactProblem:
-    """``count`` unit balls on the x axis at spacing 1 (radius 1, so each overlaps its two
-    neighbours on either side): contacts between all pairs closer than 2. The first ball moves
-    right at 1, the last left at 1; the reference is the exact LCP solution."""
-    positions = np.arange(count, dtype=float)
-    pairs = [(a, b) for a, b in itertools.combinations(range(count), 2)
-             if positions[b] - positions[a] < 2.0 + 1e-12]
-    G = np.zeros((2 * count, len(pairs)))
-    for k, (a, b) in enumerate(pairs):
-        normal = np.array([positions[a] - positions[b], 0.0])
-        normal /= np.linalg.norm(normal)
-        G[2 * a: 2 * a + 2, k] = normal
-        G[2 * b: 2 * b + 2, k] = -normal
-    v_minus = np.zeros(2 * count)
-    v_minus[0], v_minus[-2] = 1.0, -1.0
-    problem = ImpactProblem.build(name, G, np.ones(2 * count), v_minus, restitution,
-                                  family="k3" if count == 3 else "row", source="tests")
-    impulses = exact_impulses(problem)
-    v_plus = problem.v_plus(impulses)
-    problem.reference = Reference(v_plus=v_plus, impulses=impulses, method="enumeration",
-                                  v_plus_check=v_plus.copy(), check_method="enumeration",
-                                  agreement=0.0, tolerance=1e-9)
-    return problem
+@contextlib.contextmanager
+def registered() -> Iterator[None]:
+    """Within the block: the test solvers are registered here and, through
+    $QPBENCH_EXTRA_SOLVERS, in every worker process the runner starts."""
+    previous = os.environ.get(registry.EXTRA_SOLVERS_ENV)
+    os.environ[registry.EXTRA_SOLVERS_ENV] = __name__
+    registry.all_solvers()
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(registry.EXTRA_SOLVERS_ENV, None)
+        else:
+            os.environ[registry.EXTRA_SOLVERS_ENV] = previous
+        for key in [key for key, spec in registry._SOLVERS.items() if spec.backend == BACKEND]:
+            del registry._SOLVERS[key]
+        sys.modules.pop(__name__, None)
 
 
-def write_tiny_problems(folder: Path, count: int = 2) -> list[Path]:
-    """Saves ``count`` tiny problems (K3, then rows of 4, 5, ... balls) into ``folder``."""
-    problems = [collinear_balls(f"row{size}", size, restitution=0.5 if size % 2 else 1.0)
-                for size in range(3, 3 + count)]
-    return [files.save(problem, folder / problem.name) for problem in problems]

@@ -34,7 +34,6 @@ from tqdm import tqdm
 from qpbench.bench.settings import Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
-from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, resolve
 
 CRASHED = "crashed"
 TIMEOUT = "timeout"
@@ -43,6 +42,8 @@ ERROR = "error"
 STARTUP_TIMEOUT_S = 300.0
 # allowance for the parts of a cell that are not the solver call (loading the problem, judging)
 OUTSIDE_SOLVE_ALLOWANCE_S = 120.0
+EXTRA_SOLVERS_ENV = "QPBENCH_EXTRA_SOLVERS"  # as in qpbench.solvers.registry (not imported
+# here: this module stays light, so the fork server's imports overlap with the caller's)
 SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
@@ -60,17 +61,15 @@ _FORK_SERVER_LOCK = threading.Lock()
 
 def fork_server() -> Any:
     """The multiprocessing context that forks workers from a server which has imported
-    qpbench's solver backends (and $QPBENCH_EXTRA_SOLVERS) once, so a new worker is ready in
-    milliseconds. Its numerical libraries are limited to one thread (SINGLE_THREAD_ENV)."""
+    qpbench's solver backends once, so a new worker is ready in milliseconds. Its numerical
+    libraries are limited to one thread (SINGLE_THREAD_ENV)."""
     global _FORK_SERVER
     with _FORK_SERVER_LOCK:
         if _FORK_SERVER is None:
             for name, value in SINGLE_THREAD_ENV.items():
                 os.environ.setdefault(name, value)
             context = multiprocessing.get_context("forkserver")
-            extra = [m.strip() for m in os.environ.get(EXTRA_SOLVERS_ENV, "").split(",")
-                     if m.strip()]
-            context.set_forkserver_preload(["qpbench.bench.worker", "qpbench.solvers", *extra])
+            context.set_forkserver_preload(["qpbench.bench.worker", "qpbench.solvers"])
             _FORK_SERVER = context
         return _FORK_SERVER
 
@@ -119,8 +118,11 @@ class IsolatedWorker:
 
             context = fork_server()
             ours, theirs = context.Pipe(duplex=True)
-            self.process = context.Process(target=child_main, args=(theirs, self._log.name),
-                                           name="qpbench-worker", daemon=True)
+            # the fork server was started earlier: hand over what may have changed since
+            extra_solvers = os.environ.get(EXTRA_SOLVERS_ENV, "")
+            self.process = context.Process(
+                target=child_main, args=(theirs, self._log.name, extra_solvers, list(sys.path)),
+                name="qpbench-worker", daemon=True)
             self.process.start()
             theirs.close()
             self.connection = ours
@@ -359,6 +361,7 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     atomically renamed part file; at the end the parts are compacted into ``output``.
     """
     from qpbench.bench.results import ResultStore
+    from qpbench.solvers.registry import resolve
 
     store = ResultStore(Path(output))
     index = problem_index(problem_paths)

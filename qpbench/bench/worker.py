@@ -40,7 +40,7 @@ from qpbench.bench.settings import WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverSpec
-from qpbench.solvers.registry import all_solvers, resolve
+from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, all_solvers, resolve
 from qpbench.solvers.run import call_solver, solve_and_judge
 
 OUT_OF_MEMORY = "out-of-memory"
@@ -263,13 +263,20 @@ def main() -> None:
     serve(receive, send)
 
 
-def child_main(connection: Connection, log_path: str) -> None:
+def child_main(connection: Connection, log_path: str, extra_solvers: str = "",
+               search_path: list[str] | None = None) -> None:
     """Entry point of a worker forked by the multiprocessing fork server: messages on
-    ``connection``; stdout and stderr go to ``log_path``."""
+    ``connection``; stdout and stderr go to ``log_path``; the runner's current
+    $QPBENCH_EXTRA_SOLVERS and module search path are taken over."""
     log = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
     os.dup2(log, 1)
     os.dup2(log, 2)
     die_with_parent()
+    if extra_solvers:
+        os.environ[EXTRA_SOLVERS_ENV] = extra_solvers
+    else:
+        os.environ.pop(EXTRA_SOLVERS_ENV, None)
+    sys.path.extend(entry for entry in (search_path or []) if entry not in sys.path)
 
     def receive() -> dict[str, Any] | None:
         try:

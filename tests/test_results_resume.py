@@ -1,0 +1,108 @@
+"""Results survive kill -9: nothing written is lost, nothing is duplicated on resume."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from bench_problems import write_tiny_problems
+
+from qpbench.bench import runner
+from qpbench.bench.executors import SerialExecutor
+from qpbench.bench.results import ResultStore
+from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
+
+runner.start_fork_server()  # its imports overlap with this process's
+
+TESTS = Path(__file__).parent
+
+
+def _row(problem: str, accuracy: float, residual: float) -> dict[str, object]:
+    return {"problem": problem, "solver": "s", "formulation": "dual", "accuracy": accuracy,
+            "mode": "cold", "status": "solved", "success": True, "residual": residual}
+
+
+def test_parts_are_compacted_into_one_file_and_read_without_duplicates(tmp_path: Path) -> None:
+    store = ResultStore(tmp_path / "r.parquet")
+    store.write_part([_row("a", 1e-4, 1e-5), _row("a", 1e-8, 1e-9)])
+    store.write_part([_row("b", 1e-4, 2e-5)])
+    assert len(store.part_files()) == 2
+    assert store.finished_keys() == {("a", "s", "dual", 1e-4, "cold"),
+                                     ("a", "s", "dual", 1e-8, "cold"),
+                                     ("b", "s", "dual", 1e-4, "cold")}
+    kept_part = store.part_files()[0].read_bytes()
+    assert store.compact() == 3
+    assert store.part_files() == [] and store.path.exists()
+
+    # a kill -9 after the compacted file was renamed in but before the parts were deleted
+    # leaves a part whose rows are already in the main file: still no duplicate
+    store.parts.mkdir()
+    (store.parts / "part-00000000000000000001-1-abcdef01.parquet").write_bytes(kept_part)
+    (store.parts / ".tmp-half-written.parquet").write_bytes(b"PAR1 torn")  # ignored
+    frame = store.read()
+    assert len(frame) == 3
+    assert not frame.duplicated(subset=list(CELL_KEY)).any()
+    assert store.compact() == 3 and not store.parts.exists()
+
+
+def _matrix_command(problems: Path, output: Path) -> list[str]:
+    command = Path(sys.executable).with_name("qpbench")  # the console script beside python
+    return [str(command), "run", str(problems), "--solvers", "test-slow",
+            "--accuracy", "1e-4,1e-6,1e-8", "--batch", "1", "--no-progress", "-o", str(output)]
+
+
+@pytest.fixture
+def misbehaving_solvers() -> Iterator[None]:
+    with importlib.import_module("bench_solvers").registered():
+        yield
+
+
+def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupted_run(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    problems = tmp_path / "problems"
+    write_tiny_problems(problems, count=2)  # 2 problems x 3 levels = 6 cells of 0.3 s each
+    killed = tmp_path / "killed.parquet"
+    environment = {**os.environ, "QPBENCH_EXTRA_SOLVERS": "bench_solvers",
+                   "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen(_matrix_command(problems, killed), env=environment,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    store = ResultStore(killed)
+    deadline = time.monotonic() + 240
+    while len(store.part_files()) < 2 and time.monotonic() < deadline:
+        assert process.poll() is None, process.stderr.read().decode() if process.stderr else ""
+        time.sleep(0.05)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    process.stderr.close()
+    before = store.read()
+    assert 2 <= len(before) < 6, "the kill must land mid-way"
+    assert not killed.exists()  # never compacted: the parts are all there is
+
+    settings = RunSettings(solvers=("test-slow/lcp",), accuracies=(1e-4, 1e-6, 1e-8),
+                           limits=Limits(timeout_s=30))
+    counts = runner.run([str(problems)], settings, killed, SerialExecutor(), progress=False)
+    assert counts["skipped"] == len(before) and counts["run"] == 6 - len(before)
+    resumed = ResultStore(killed).read()
+
+    uninterrupted = tmp_path / "uninterrupted.parquet"
+    runner.run([str(problems)], settings, uninterrupted, SerialExecutor(), progress=False)
+    reference = ResultStore(uninterrupted).read()
+
+    key = list(CELL_KEY)
+    assert len(resumed) == 6 and not resumed.duplicated(subset=key).any()
+    compared = ["status", "success", "residual", "v_error"]
+    pd.testing.assert_frame_equal(resumed.sort_values(key)[key + compared].reset_index(drop=True),
+                                  reference.sort_values(key)[key + compared]
+                                  .reset_index(drop=True))
+    # the rows written before the kill were kept as they were, not solved again
+    kept = resumed.merge(before[key + ["date", "cell_wall_s"]], on=key, suffixes=("", "_before"))
+    assert len(kept) == len(before)
+    assert (kept["cell_wall_s"] == kept["cell_wall_s_before"]).all()

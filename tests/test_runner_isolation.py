@@ -1,0 +1,64 @@
+"""A solver that aborts, segfaults, hangs or eats memory becomes a row; the run goes on."""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from bench_problems import write_tiny_problems
+
+from qpbench.bench import runner
+from qpbench.bench.executors import SerialExecutor
+from qpbench.bench.results import ResultStore
+from qpbench.bench.settings import Limits, RunSettings
+
+runner.start_fork_server()  # its imports overlap with this process's
+
+
+@pytest.fixture
+def misbehaving_solvers() -> Iterator[None]:
+    with importlib.import_module("bench_solvers").registered():
+        yield
+
+
+def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    write_tiny_problems(tmp_path / "problems", count=1)  # K3 only
+    settings = RunSettings(
+        # the misbehaving ones first: the solvers after them must still run
+        solvers=("test-abort/lcp", "test-segfault/lcp", "test-hang/lcp", "test-greedy/lcp",
+                 "test-exact/lcp", "clarabel/dual"),
+        accuracies=(1e-8,),
+        limits=Limits(timeout_s=2.0, memory_limit_mb=3072),
+    )
+    output = tmp_path / "results.parquet"
+    counts = runner.run([str(tmp_path / "problems")], settings, output, SerialExecutor(),
+                        progress=False)
+    assert counts == {"cells": 6, "skipped": 0, "run": 6}
+
+    rows = ResultStore(output).read().set_index("solver")
+    assert rows.loc["test-abort", "status"] == "crashed"
+    assert "SIGABRT" in rows.loc["test-abort", "solver_status"]
+    assert rows.loc["test-segfault", "status"] == "crashed"
+    assert "SIGSEGV" in rows.loc["test-segfault", "solver_status"]
+    assert rows.loc["test-hang", "status"] == "timeout"
+    assert rows.loc["test-hang", "time_s"] == 2.0  # charged the limit it was killed at
+    assert rows.loc["test-greedy", "status"] == "out-of-memory"
+    for failed in ("test-abort", "test-segfault", "test-hang", "test-greedy"):
+        assert not rows.loc[failed, "success"]
+        assert rows.loc[failed, "problem"] == "row3"
+        assert rows.loc[failed, "family"] == "k3"  # the problem's summary is there too
+
+    exact = rows.loc["test-exact"]
+    assert exact["status"] == "solved" and exact["success"]
+    assert exact["residual"] <= 1e-12 and exact["v_error"] <= 1e-12
+    clarabel = rows.loc["clarabel"]
+    assert clarabel["status"] == "solved" and clarabel["residual"] <= 1e-8
+    assert clarabel["backend"] == "qpsolvers" and clarabel["solver_version"]
+    # provenance and timing columns of a finished solve
+    for column in ("qpbench_version", "python_version", "cpu_model", "hostname", "date"):
+        assert isinstance(exact[column], str) and exact[column]
+    assert 0 < exact["timer_overhead_s"] < 1e-3
+    assert exact["time_s"] <= exact["time_median_s"]
