@@ -31,7 +31,8 @@ def box_scene(n_balls: int, seed: int = 0, restitution: float = 1.0) -> Scene:
         raise ValueError("a box needs at least one ball")
     rng = np.random.default_rng(seed)
     side = math.ceil(math.sqrt(n_balls))
-    cells = np.stack(np.divmod(np.arange(n_balls), side), axis=1).astype(float)
+    rows, columns = np.divmod(np.arange(n_balls), side)
+    cells = np.stack([columns, rows], axis=1).astype(float)  # (x, y) lattice indices
     jitter = rng.uniform(-1.0, 1.0, size=(n_balls, 2)) * 0.5 * (BOX_SPACING - 2 * BOX_RADIUS)
     positions = (cells + 0.5) * BOX_SPACING + jitter
     angle = rng.uniform(0.0, 2.0 * math.pi, n_balls)
