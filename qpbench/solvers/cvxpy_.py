@@ -11,17 +11,20 @@
 cvxpy's compile time goes in ``setup_time_s``; ``solve_time_s`` is the rest of the call
 (the solver and unpacking its answer). IPOPT runs through cvxpy's NLP path
 (``nlp=True``) as ``cvxpy-ipopt``, started at the warm start when one is given.
+
+cvxpy takes seconds to import, so it is imported at the first solve; a solver is listed
+as usable when cvxpy and the solver's package are installed.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import warnings
 from collections.abc import Callable
 from importlib import metadata
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import cvxpy as cp
 import numpy as np
 
 from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
@@ -30,6 +33,9 @@ from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
 from qpbench.solvers.qpsolvers_ import c_stdout_silenced, problem_scale
 from qpbench.solvers.registry import register, register_unusable
+
+if TYPE_CHECKING:
+    import cvxpy as cp
 
 BACKEND = "cvxpy"
 # cvxpy solver name -> the package that provides it
@@ -49,6 +55,8 @@ class Model:
     """One formulation posed in cvxpy, with how to read the impulses and set a start."""
 
     def __init__(self, problem: ImpactProblem, formulation: str) -> None:
+        import cvxpy as cp
+
         self.formulation = formulation
         self.info: dict[str, Any] = {}
         n = problem.n_contacts
@@ -97,6 +105,8 @@ def make_solve(solver: str, formulation: str) -> Callable[..., SolverOutput]:
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
+        import cvxpy as cp
+
         scale = problem_scale(problem)
         options = accuracy.options_for(name, eps, scale)
         with Stopwatch() as build:
@@ -143,18 +153,21 @@ def _compile_time(problem: cp.Problem) -> float:
 
 
 def _version(solver: str) -> str:
-    try:
-        return f"{metadata.version(SOLVERS[solver])} (cvxpy {cp.__version__})"
-    except metadata.PackageNotFoundError:
-        return f"cvxpy {cp.__version__}"
+    return f"{metadata.version(SOLVERS[solver])} (cvxpy {metadata.version('cvxpy')})"
+
+
+def _installed(package: str) -> bool:
+    return importlib.util.find_spec(package) is not None
 
 
 def _register_all() -> None:
-    installed = set(cp.installed_solvers())
-    for solver in SOLVERS:
+    if not _installed("cvxpy"):
+        raise ImportError("No module named 'cvxpy'")
+    for solver, package in SOLVERS.items():
         name = qpbench_name(solver)
-        if solver not in installed:
-            register_unusable(name, FORMULATIONS, BACKEND, f"cvxpy has no '{solver}' installed")
+        if not _installed(package):
+            register_unusable(name, FORMULATIONS, BACKEND,
+                              f"cvxpy's {solver} needs the package '{package}'")
             continue
         for formulation in FORMULATIONS:
             if solver in NLP_SOLVERS and formulation == "primal":
