@@ -1,0 +1,79 @@
+"""The impact LCP as the solvers written here see it, and the output they share.
+
+``find l >= 0 with w = Q l + b >= 0 and l^T w = 0``. Every solver here stops on
+qpbench's own measure, ``residual(l) = ||min(D l, Q l + b)||_inf / scale`` with
+``D = diag(Q)`` and ``scale = max(||b||_inf, tiny)``, so that a solver's "converged"
+means what qpbench's verdict means.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench import __version__
+from qpbench.metrics import TINY
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.base import SolverOutput
+
+BACKEND = "qpbench"
+FORMULATION = "lcp"
+VERSION = __version__
+
+
+@dataclass
+class Lcp:
+    """Q (CSR, for fast products), b, D = diag(Q) and the residual's scale of one problem."""
+
+    Q: sp.csr_matrix
+    b: np.ndarray
+    diag: np.ndarray
+    scale: float
+
+    @classmethod
+    def of(cls, problem: ImpactProblem) -> Lcp:
+        Q = sp.csr_matrix(problem.Q)
+        b = np.asarray(problem.b, dtype=float)
+        scale = max(float(np.max(np.abs(b), initial=0.0)), TINY)
+        return cls(Q=Q, b=b, diag=np.asarray(problem.diag_Q, dtype=float), scale=scale)
+
+    @property
+    def n(self) -> int:
+        return int(self.b.shape[0])
+
+    @property
+    def safe_diag(self) -> np.ndarray:
+        """D with zero entries (contacts that move nothing) replaced by 1, for divisions."""
+        return np.where(self.diag > 0.0, self.diag, 1.0)
+
+    def w(self, impulses: np.ndarray) -> np.ndarray:
+        """w = Q l + b."""
+        return self.Q @ impulses + self.b
+
+    def residual_of(self, impulses: np.ndarray, w: np.ndarray) -> float:
+        """||min(D l, w)||_inf / scale for a w already computed."""
+        if impulses.size == 0:
+            return 0.0
+        return float(np.max(np.abs(np.minimum(self.diag * impulses, w)))) / self.scale
+
+    def residual(self, impulses: np.ndarray) -> float:
+        """||min(D l, Q l + b)||_inf / scale (qpbench's residual)."""
+        return self.residual_of(impulses, self.w(impulses))
+
+    def start(self, warm_start: np.ndarray | None) -> np.ndarray:
+        """The warm start clipped to l >= 0 when it has the right size and is finite, else 0."""
+        if warm_start is not None:
+            warm = np.asarray(warm_start, dtype=float).ravel()
+            if warm.shape == (self.n,) and np.all(np.isfinite(warm)):
+                return np.maximum(warm, 0.0)
+        return np.zeros(self.n)
+
+
+def output(impulses: np.ndarray | None, converged: bool, status: str, iterations: int,
+           solve_time_s: float, setup_time_s: float, **info: object) -> SolverOutput:
+    """A SolverOutput whose claim is the algorithm's own convergence test."""
+    return SolverOutput(impulses=impulses, status=status, claimed_success=bool(converged),
+                        solve_time_s=solve_time_s, setup_time_s=setup_time_s,
+                        iterations=int(iterations), info=dict(info))

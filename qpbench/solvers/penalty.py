@@ -1,0 +1,71 @@
+"""The research's penalty method for the impact LCP.
+
+Source: the research report in ``shared/background`` (``LCPOperatorPenalty``, after
+W. Zhang's report); penalty methods for LCPs: Wang and Huang, "A power penalty
+method for linear complementarity problems", Oper. Res. Lett. 36(2), 2008 (power 1).
+Repeat: ``P = diag(l_i < 0)``, solve ``(Q + kappa P) l = -b``, until qpbench's
+``residual(l) <= tol``; failure when P repeats without converging or at
+``max_iters``. The linear solve is a minimum-norm least-squares solve (dense) up to
+``dense_limit`` contacts and a sparse LU above, which fails, and says so, when the
+system is singular (the first one, ``Q l = -b``, is whenever Q is).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.registry import register
+
+NAME = "penalty"
+
+
+def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
+            ) -> tuple[np.ndarray | None, bool, str, int]:
+    """(l, converged, status, linear solves)."""
+    n = lcp.n
+    impulses = np.zeros(n)
+    if lcp.residual(impulses) <= tol:
+        return impulses, True, "converged", 0
+    dense = lcp.Q.toarray() if n <= dense_limit else None
+    penalized = np.zeros(n, dtype=bool)
+    seen: set[bytes] = set()
+    for iteration in range(1, max_iters + 1):
+        seen.add(np.packbits(penalized).tobytes())
+        shift = kappa * lcp.safe_diag * penalized
+        if dense is not None:
+            system = dense + np.diag(shift)
+            impulses = np.linalg.lstsq(system, -lcp.b, rcond=None)[0]
+        else:
+            try:
+                impulses = spla.splu(sp.csc_matrix(lcp.Q + sp.diags(shift))).solve(-lcp.b)
+            except RuntimeError as error:
+                return None, False, f"singular penalty system: {error}", iteration
+        if not np.all(np.isfinite(impulses)):
+            return impulses, False, "diverged: non-finite impulses", iteration
+        if lcp.residual(impulses) <= tol:
+            return impulses, True, "converged", iteration
+        penalized = impulses < 0.0
+        if np.packbits(penalized).tobytes() in seen:
+            return impulses, False, "penalized set repeated above tolerance", iteration
+    return impulses, False, f"max_iters ({max_iters}) reached", max_iters
+
+
+def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
+          ) -> SolverOutput:
+    with Stopwatch() as setup:
+        lcp = Lcp.of(problem)
+        options = accuracy.options_for(NAME, eps, lcp.scale)
+    with Stopwatch() as clock:
+        impulses, converged, status, iterations = penalty(lcp, **options)
+    return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed)
+
+
+register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
+                    version=VERSION, warm_start=False,
+                    description="penalty method (Q + kappa P) l = -b, kappa ~ 1e9"))

@@ -1,0 +1,99 @@
+"""Projected Gauss-Seidel, the game-engine standard for contact impulses.
+
+Source: Cryer, "The solution of a quadratic programming problem using systematic
+overrelaxation", SIAM J. Control 9(3), 1971 (without overrelaxation here); linear
+convergence for the dual of a strictly convex QP: Luo and Tseng, "On the convergence
+of the coordinate descent method for convex differentiable minimization", JOTA 72,
+1992. One update per contact, ``l_i <- max(0, l_i - (Q l + b)_i / Q_ii)``.
+
+Sweep order (recorded in the output's info): contacts are coloured greedily on the
+graph of Q (two contacts conflict when they share a body, i.e. Q_ij != 0), and a
+sweep visits the colours in order. Contacts of one colour do not interact, so
+updating a colour at once in numpy is exactly Gauss-Seidel in that order. The
+residual is checked every ``check_every`` sweeps; at most ``max_sweeps``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.registry import register
+
+NAME = "pgs"
+
+
+def greedy_colours(Q: sp.csr_matrix) -> np.ndarray:
+    """Colour of each contact: the smallest colour unused by its neighbours (Q_ij != 0),
+    contacts taken in index order."""
+    n = Q.shape[0]
+    colour = np.full(n, -1, dtype=np.int64)
+    indptr, indices = Q.indptr, Q.indices
+    for i in range(n):
+        taken = set(colour[indices[indptr[i]:indptr[i + 1]]].tolist())
+        c = 0
+        while c in taken:
+            c += 1
+        colour[i] = c
+    return colour
+
+
+class Sweep:
+    """The colour classes of a problem and the rows of Q for each, ready for sweeping."""
+
+    def __init__(self, lcp: Lcp) -> None:
+        movable = lcp.diag > 0.0  # a contact with Q_ii = 0 moves nothing and stays at 0
+        self.colour = greedy_colours(lcp.Q)
+        self.classes: list[tuple[np.ndarray, sp.csr_matrix, np.ndarray, np.ndarray]] = []
+        for c in range(int(self.colour.max(initial=-1)) + 1):
+            index = np.flatnonzero((self.colour == c) & movable)
+            if index.size:
+                self.classes.append((index, lcp.Q[index], lcp.b[index], lcp.diag[index]))
+
+    def __call__(self, impulses: np.ndarray) -> None:
+        """One Gauss-Seidel sweep in place."""
+        for index, rows, b, diag in self.classes:
+            w = rows @ impulses + b
+            impulses[index] = np.maximum(0.0, impulses[index] - w / diag)
+
+
+def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
+        check_every: int) -> tuple[np.ndarray, bool, str, int]:
+    """(l, converged, status, sweeps)."""
+    impulses = start.copy()
+    if lcp.residual(impulses) <= tol:
+        return impulses, True, "converged", 0
+    sweeps = 0
+    while sweeps < max_sweeps:
+        for _ in range(min(check_every, max_sweeps - sweeps)):
+            sweep(impulses)
+            sweeps += 1
+        if not np.all(np.isfinite(impulses)):
+            return impulses, False, "diverged: non-finite impulses", sweeps
+        if lcp.residual(impulses) <= tol:
+            return impulses, True, "converged", sweeps
+    return impulses, False, f"max_sweeps ({max_sweeps}) reached", sweeps
+
+
+def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
+          ) -> SolverOutput:
+    with Stopwatch() as setup:
+        lcp = Lcp.of(problem)
+        options = accuracy.options_for(NAME, eps, lcp.scale)
+        sweep = Sweep(lcp)
+        start = lcp.start(warm_start)
+    with Stopwatch() as clock:
+        impulses, converged, status, sweeps = pgs(lcp, sweep, start, options["tol"],
+                                                  options["max_sweeps"], options["check_every"])
+    return output(impulses, converged, status, sweeps, clock.elapsed, setup.elapsed,
+                  order="greedy colouring of the contact graph, colours in increasing order",
+                  colours=len(sweep.classes))
+
+
+register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
+                    version=VERSION, warm_start=True,
+                    description="projected Gauss-Seidel, colour-ordered sweeps"))

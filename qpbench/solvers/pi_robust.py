@@ -1,0 +1,201 @@
+"""pi-robust: policy iteration made to converge on singular Q.
+
+Plain policy iteration is Newton's method on ``min(D l, Q l + b) = 0`` (D = diag Q):
+it cycles, and its policy systems are singular when Q is. pi-robust keeps the
+policy-iteration step (solve the policy's block, switch every infeasible contact)
+and adds three published safeguards:
+
+1. Proximal point (Rockafellar, "Monotone operators and the proximal point
+   algorithm", SIAM J. Control Optim. 14(5), 1976). Each outer step solves the LCP
+   with the positive definite ``H = Q + rho D`` and ``q = b - rho D z`` around the
+   prox centre z, then moves z to its solution. The LCP of a monotone Q is the
+   optimality condition of a convex QP, so the centres converge to a solution of
+   the original LCP; no policy block ``H_FF`` is singular. At a subproblem's
+   solution qpbench's residual is ``rho ||D (l - z)||_inf / scale`` on the
+   active contacts. The null space of Q (where l is not unique and v+ does not
+   change) is left alone. rho falls by ``rho_decrease`` when ``stall_steps`` prox
+   steps in a row fail to cut the residual by ``stall_ratio``.
+2. Block principal pivoting with a finite backup rule (Judice and Pires,
+   Comput. Oper. Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011)
+   for each inner LCP: the policy-iteration exchange of every infeasible contact
+   while their number falls, at most ``backup_steps`` full exchanges that do not
+   reduce it, then Murty's single exchange of the largest infeasible index, which
+   terminates for any P-matrix (H is positive definite). No cycling.
+3. Factorization reuse: once the policy settles, further prox steps reuse the
+   Cholesky factor of ``H_FF`` (dense LAPACK up to ``dense_limit`` contacts, sparse
+   SuperLU above), so refining l costs triangular solves only.
+
+Stops when qpbench's ``residual(l) <= tol`` on the clipped ``l >= 0``. Lemke's
+method (``lemke_limit`` contacts at most) is the fallback when the budget of
+``max_iters`` linear solves runs out; without convergence it reports failure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.registry import register
+
+NAME = "pi-robust"
+
+
+class BlockSolver:
+    """Solves ``(Q_FF + rho D_F) x = r`` for a policy F, keeping the last ``keep`` factors."""
+
+    def __init__(self, lcp: Lcp, dense: bool, keep: int = 2) -> None:
+        self.lcp = lcp
+        self.dense = dense
+        self.Q_dense = lcp.Q.toarray() if dense else None
+        self.Q_csc = None if dense else sp.csc_matrix(lcp.Q)
+        self.keep = keep
+        self.cache: dict[tuple[bytes, float], object] = {}
+        self.factorizations = 0
+
+    def solve(self, policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray
+              ) -> np.ndarray:
+        """x_F for the policy (boolean ``policy``, its indices ``index``); raises LinAlgError
+        when the block cannot be factored."""
+        key = (np.packbits(policy).tobytes(), rho)
+        factor = self.cache.pop(key, None)
+        if factor is None:
+            factor = self._factor(index, rho)
+            self.factorizations += 1
+        self.cache[key] = factor  # the most recently used last
+        while len(self.cache) > self.keep:
+            self.cache.pop(next(iter(self.cache)))
+        if self.dense:
+            return la.cho_solve(factor, rhs, check_finite=False)
+        return factor.solve(rhs)
+
+    def _factor(self, index: np.ndarray, rho: float) -> object:
+        shift = rho * self.lcp.safe_diag[index]
+        if self.dense:
+            block = self.Q_dense[np.ix_(index, index)]
+            block[np.diag_indices_from(block)] += shift
+            return la.cho_factor(block, lower=True, check_finite=False)
+        block = self.Q_csc[:, index][index, :] + sp.diags(shift)
+        try:
+            return spla.splu(sp.csc_matrix(block), permc_spec="MMD_AT_PLUS_A",
+                             diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError as error:  # an exactly singular factor
+            raise np.linalg.LinAlgError(str(error)) from error
+
+
+def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray,
+               tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int
+               ) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    """Block principal pivoting on LCP(Q + rho D, q) from ``policy``:
+    (x, final policy, linear solves, solved)."""
+    shift = rho * lcp.safe_diag
+    best = lcp.n + 1
+    backup = backup_steps
+    solves = 0
+    x = np.zeros(lcp.n)
+    while solves < budget:
+        index = np.flatnonzero(policy)
+        x = np.zeros(lcp.n)
+        if index.size:
+            x[index] = blocks.solve(policy, index, rho, -q[index])
+        solves += 1
+        y = lcp.Q @ x + shift * x + q
+        infeasible = (policy & (x < -tol_l)) | (~policy & (y < -tol_w))
+        count = int(np.count_nonzero(infeasible))
+        if count == 0:
+            return x, policy, solves, True
+        policy = policy.copy()
+        if count < best:
+            best, backup = count, backup_steps
+            policy ^= infeasible
+        elif backup > 0:
+            backup -= 1
+            policy ^= infeasible
+        else:
+            last = int(np.flatnonzero(infeasible)[-1])
+            policy[last] = not policy[last]
+    return x, policy, solves, False
+
+
+def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, tol: float, rho: float,
+              rho_min: float, rho_decrease: float, stall_ratio: float, stall_steps: int,
+              backup_steps: int, max_iters: int, lemke_limit: int
+              ) -> tuple[np.ndarray, bool, str, int, dict]:
+    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
+    centre = start
+    w = lcp.w(centre)
+    res = lcp.residual_of(centre, w)
+    if res <= tol:
+        return centre, True, "converged", 0, {"rho": rho, "prox_steps": 0}
+    policy = w <= lcp.diag * centre
+    tol_l = 0.1 * tol * lcp.scale / lcp.safe_diag
+    tol_w = 0.1 * tol * lcp.scale
+    solves = outer = stalls = 0
+    best, best_res = centre, res
+    status = f"max_iters ({max_iters}) reached"
+
+    def info() -> dict:
+        return {"rho": rho, "prox_steps": outer, "factorizations": blocks.factorizations,
+                "best_residual": best_res}
+
+    while solves < max_iters:
+        q = lcp.b - rho * lcp.safe_diag * centre
+        try:
+            x, policy, used, solved = _inner_lcp(lcp, blocks, policy, rho, q, tol_l, tol_w,
+                                                 backup_steps, max_iters - solves)
+        except np.linalg.LinAlgError:
+            status = "block factorization failed"
+            rho /= rho_decrease
+            if rho > 1.0:
+                break
+            continue
+        solves += used
+        outer += 1
+        centre = np.maximum(x, 0.0)
+        previous, res = res, lcp.residual(centre)
+        if res < best_res:
+            best, best_res = centre, res
+        if res <= tol:
+            return centre, True, "converged", solves, info()
+        if not solved:
+            status = "inner pivoting out of budget"
+            break
+        stalls = stalls + 1 if res > stall_ratio * previous else 0
+        if stalls >= stall_steps:
+            stalls = 0
+            if rho * rho_decrease < rho_min:
+                status = "prox steps stalled at rho_min"
+                break
+            rho *= rho_decrease
+    result = info()
+    if lcp.n <= lemke_limit:
+        from qpbench.solvers.lemke import lemke
+
+        impulses, converged, lemke_status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
+        result["fallback"] = f"lemke: {lemke_status}"
+        if converged:
+            return impulses, True, f"converged by lemke fallback ({status})", solves + pivots, \
+                result
+    return best, False, status, solves, result
+
+
+def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
+          ) -> SolverOutput:
+    with Stopwatch() as setup:
+        lcp = Lcp.of(problem)
+        options = accuracy.options_for(NAME, eps, lcp.scale)
+        blocks = BlockSolver(lcp, dense=lcp.n <= options.pop("dense_limit"))
+        start = lcp.start(warm_start)
+    with Stopwatch() as clock:
+        impulses, converged, status, iterations, info = pi_robust(lcp, blocks, start, **options)
+    return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)
+
+
+register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
+                    version=VERSION, warm_start=True,
+                    description="proximal policy iteration, block pivoting, Lemke fallback"))

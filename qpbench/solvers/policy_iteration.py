@@ -1,0 +1,102 @@
+"""Policy iteration (Howard's algorithm) on the impact LCP, as the earlier research had it.
+
+Source: Bokanowski, Maroso, Zidani, "Some convergence results for Howard's
+algorithm", SIAM J. Numer. Anal. 47(4), 2009; the research report in
+``shared/background`` (``LCPOperatorPI`` and ``policy_iter_v2``). Policy iteration
+is Newton's method on ``min(D l, Q l + b) = 0``:
+
+* policy ``P = {i : (Q l + b)_i < D_i l_i}`` (from l = 0: the approaching contacts);
+* value: solve ``(P Q P + I - P) l = -P b``, i.e. ``Q_PP l_P = -b_P`` and ``l_i = 0``
+  outside P, by conjugate gradients from zero as the research did (so l is a
+  function of the policy alone and a repeated policy is a proven cycle);
+* stop when ``residual(l) <= tol`` or after ``max_iters`` policies.
+
+``pi`` reports failure when a policy repeats (it would cycle forever) or at
+max_iters. ``pi-v2`` jumps to a random policy (seeded) whenever a policy repeats.
+Both converge for M-matrices (the theorem's monotone case) and can fail on the
+singular Q of overlapping balls: they say so instead of returning a wrong answer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.registry import register
+
+
+def policy_of(lcp: Lcp, impulses: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The policy P = {i : w_i < D_i l_i} as a boolean mask."""
+    return w < lcp.diag * impulses
+
+
+def policy_value(lcp: Lcp, policy: np.ndarray, cg_rtol: float, cg_max_iters: int) -> np.ndarray:
+    """l with ``Q_PP l_P = -b_P`` (conjugate gradients from zero) and ``l_i = 0`` outside P."""
+    impulses = np.zeros(lcp.n)
+    index = np.flatnonzero(policy)
+    if index.size == 0:
+        return impulses
+    block = lcp.Q[index][:, index]
+    rhs = -lcp.b[index]
+    solution, _info = spla.cg(block, rhs, rtol=cg_rtol, atol=0.0, maxiter=cg_max_iters)
+    impulses[index] = solution
+    return impulses
+
+
+def policy_iteration(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, cg_rtol: float,
+                     cg_max_iters: int, rng: np.random.Generator | None = None
+                     ) -> tuple[np.ndarray, bool, str, int]:
+    """(l, converged, status, policies solved). ``rng`` given: on a repeated policy jump to a
+    random one (pi-v2); ``rng`` None: a repeated policy ends the run as ``cycled`` (pi)."""
+    impulses = start
+    w = lcp.w(impulses)
+    if lcp.residual_of(impulses, w) <= tol:
+        return impulses, True, "converged", 0
+    seen: set[bytes] = set()
+    for iteration in range(1, max_iters + 1):
+        policy = policy_of(lcp, impulses, w)
+        key = np.packbits(policy).tobytes()
+        if key in seen:
+            if rng is None:
+                return impulses, False, f"cycled: policy repeated at iteration {iteration}", \
+                    iteration - 1
+            while key in seen and len(seen) < 2 ** min(lcp.n, 62):
+                policy = rng.random(lcp.n) < 0.5
+                key = np.packbits(policy).tobytes()
+        seen.add(key)
+        impulses = policy_value(lcp, policy, cg_rtol, cg_max_iters)
+        if not np.all(np.isfinite(impulses)):
+            return impulses, False, "diverged: non-finite impulses", iteration
+        w = lcp.w(impulses)
+        if lcp.residual_of(impulses, w) <= tol:
+            return impulses, True, "converged", iteration
+    return impulses, False, f"max_iters ({max_iters}) reached", max_iters
+
+
+def _solver(name: str, randomize: bool):
+    def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
+              ) -> SolverOutput:
+        with Stopwatch() as setup:
+            lcp = Lcp.of(problem)
+            options = accuracy.options_for(name, eps, lcp.scale)
+            start = lcp.start(warm_start)
+            rng = np.random.default_rng(options["seed"]) if randomize else None
+        with Stopwatch() as clock:
+            impulses, converged, status, iterations = policy_iteration(
+                lcp, start, options["tol"], options["max_iters"], options["cg_rtol"],
+                options["cg_max_iters"], rng)
+        return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed)
+
+    return solve
+
+
+register(SolverSpec(name="pi", formulation=FORMULATION, backend=BACKEND,
+                    solve=_solver("pi", randomize=False), version=VERSION, warm_start=True,
+                    description="policy iteration (Howard), CG inner solves; fails on a cycle"))
+register(SolverSpec(name="pi-v2", formulation=FORMULATION, backend=BACKEND,
+                    solve=_solver("pi-v2", randomize=True), version=VERSION, warm_start=True,
+                    description="policy iteration, random seeded policy when one repeats"))

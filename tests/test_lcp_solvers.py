@@ -1,0 +1,107 @@
+"""The LCP solvers written here (pi, pi-v2, pi-robust, pgs, lemke, penalty, apgd), judged by
+qpbench's own metrics on the hard families and on known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from qpbench import metrics
+from qpbench.problem.generate import generate
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reference import attach_reference
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import solve_and_judge
+
+HARD_CASES = [("k3", 3), ("k4", 4), ("k4-middle", 5), ("grid", 3), ("grid", 5), ("grid", 7),
+              ("grid", 10), ("cradle", 50), ("mass-ratio", 5), ("near-duplicate", 4)]
+
+
+def hard_problem(family: str, size: int, seed: int) -> ImpactProblem:
+    return attach_reference(generate(family, size, seed=seed)[0])
+
+
+def cradle_of_three() -> ImpactProblem:
+    """Three touching unit balls in a row, the first moving at v = 1: G has two columns."""
+    G = np.array([[-1.0, 0.0], [0.0, 0.0], [1.0, -1.0], [0.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
+    return ImpactProblem.build("cradle-3", G, np.ones(6), [1.0, 0, 0, 0, 0, 0], 1.0)
+
+
+def k3_collinear() -> ImpactProblem:
+    """Balls at x = -1/2, 0, 1/2 (radius 1) with v- = (1, 0, -1): contacts (0,1), (0,2), (1,2);
+    Q = [[2,1,-1],[1,2,1],[-1,1,2]] is singular and every solution gives v+ = (-1, 0, 1)."""
+    G = np.zeros((6, 3))
+    for column, (a, b) in enumerate(((0, 1), (0, 2), (1, 2))):
+        G[2 * a, column], G[2 * b, column] = -1.0, 1.0  # n_ab = (x_a - x_b)/|.| = (-1, 0)
+    return ImpactProblem.build("k3", G, np.ones(6), [1.0, 0, 0, 0, -1.0, 0], 1.0)
+
+
+@pytest.mark.parametrize(("family", "size"), HARD_CASES)
+@pytest.mark.parametrize(("solver", "eps"), [("pi-robust", 1e-8), ("lemke", 1e-8),
+                                             ("pgs", 1e-6)])
+def test_converges_on_the_hard_families(solver: str, eps: float, family: str, size: int) -> None:
+    for seed in (0, 1):
+        problem = hard_problem(family, size, seed)
+        row, _ = solve_and_judge(get(solver), problem, eps)
+        assert row["success"], f"{solver} on {problem.name}: {row['solver_status']}"
+        assert row["claimed_success"]
+        assert row["residual"] <= eps
+        assert problem.reference is not None and problem.reference.verified
+        assert row["v_error"] <= (1e-7 if eps <= 1e-8 else 1e-3)
+
+
+@pytest.mark.parametrize("solver", ["pi-robust", "lemke", "pgs", "pi", "pi-v2", "penalty",
+                                    "apgd"])
+def test_known_answers(solver: str) -> None:
+    cradle = cradle_of_three()
+    row, output = solve_and_judge(get(solver), cradle, 1e-8)
+    assert row["success"], row["solver_status"]
+    np.testing.assert_allclose(cradle.v_plus(output.impulses)[0::2], [-1 / 3, 2 / 3, 2 / 3],
+                               atol=1e-6)
+    k3 = k3_collinear()
+    row, output = solve_and_judge(get(solver), k3, 1e-8)
+    if row["success"]:  # pi and penalty may fail on the singular Q, but never claim falsely
+        np.testing.assert_allclose(k3.v_plus(output.impulses)[0::2], [-1.0, 0.0, 1.0], atol=1e-6)
+    assert row["claimed_success"] == row["success"]
+
+
+@pytest.mark.parametrize(("solver", "eps"), [("pi", 1e-8), ("pi-v2", 1e-8), ("penalty", 1e-8),
+                                             ("lemke", 1e-8), ("pi-robust", 1e-8),
+                                             ("apgd", 1e-6), ("pgs", 1e-6)])
+def test_claims_success_only_when_qpbench_agrees(solver: str, eps: float) -> None:
+    """A claimed success must pass qpbench's residual test: no wrong answer sold as right."""
+    problems = [generate("grid", 10, seed=1)[0], generate("mass-ratio", 5, seed=0)[0],
+                generate("near-duplicate", 4, seed=2)[0]]
+    failures = 0
+    for problem in problems:
+        row, output = solve_and_judge(get(solver), problem, eps)
+        assert output.claimed_success == row["success"], (problem.name, row["solver_status"])
+        failures += not row["success"]
+    if solver == "pi":
+        assert failures >= 1, "plain policy iteration is known to fail on 10 x 10 grids"
+
+
+def test_pi_reports_a_cycle_or_max_iters_on_a_hard_grid() -> None:
+    problem = generate("grid", 10, seed=1)[0]
+    row, output = solve_and_judge(get("pi"), problem, 1e-8)
+    assert not output.claimed_success
+    assert output.status.startswith(("cycled", "max_iters", "diverged"))
+    assert metrics.residual(problem, output.impulses) > 1e-8
+
+
+def test_warm_start_from_the_solution_takes_no_linear_solve() -> None:
+    problem = generate("grid", 7, seed=2)[0]
+    _, first = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    row, again = solve_and_judge(get("pi-robust"), problem, 1e-8, warm_start=first.impulses)
+    assert row["success"] and again.iterations == 0
+
+
+def test_lemke_declines_above_its_size_limit_and_says_so() -> None:
+    from qpbench.solvers import accuracy
+
+    limit = accuracy.OPTIONS["lemke"]["max_contacts"]
+    problem = generate("box", 2 * limit, seed=0)[0]
+    assert problem.n_contacts > limit
+    row, output = solve_and_judge(get("lemke"), problem, 1e-8)
+    assert not output.claimed_success and output.status.startswith("declined")
+    assert row["status"] == "failed"
