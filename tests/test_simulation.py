@@ -1,0 +1,260 @@
+"""The simulator: textbook impacts, the shared scenes, capture, failures and the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qpbench.cli import main
+from qpbench.errors import QpbenchError
+from qpbench.problem import files
+from qpbench.scenes import load_scene, parse_scene
+from qpbench.scenes.solver_names import FALLBACK
+from qpbench.simulation import stepper
+from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
+from qpbench.simulation.stepper import Simulator
+from qpbench.solvers import registry
+from qpbench.solvers.base import SolverOutput, SolverSpec
+
+SCENES = Path(__file__).resolve().parents[1] / "problems" / "scenes"
+SOLVER = "clarabel/dual"
+TOLERANCE = 1e-6
+
+
+def ball2d(balls: str, operator: str = "lcp", cor: float = 1.0, dt: str = "0.01",
+           extra: str = "") -> str:
+    """A ball2d scene text with the given <ball> lines and impact operator."""
+    if operator == "grr":
+        impact = (f'<impact_operator type="grr" CoR="{cor}" cache_impulses="0">'
+                  '<elastic_operator type="gr" CoR="1" v_tol="1e-9"><solver name="ipopt"/>'
+                  '</elastic_operator><inelastic_operator type="lcp" CoR="0">'
+                  '<solver name="ipopt"/></inelastic_operator></impact_operator>')
+    elif operator == "gauss_seidel":
+        impact = f'<impact_operator type="gauss_seidel" CoR="{cor}" v_tol="1e-12"/>'
+    else:
+        impact = (f'<impact_operator type="{operator}" CoR="{cor}" v_tol="1e-9" '
+                  'cache_impulses="0"><solver name="ipopt"/></impact_operator>')
+    return (f'<ball2d_scene><integrator type="verlet" dt="{dt}"/>{impact}{extra}{balls}'
+            "</ball2d_scene>")
+
+
+def run(text: str, end_time: float | None = None, steps: int | None = None,
+        solver: str = SOLVER) -> stepper.SimulationResult:
+    result = Simulator(parse_scene(text, "test.xml"), solver=solver).run(end_time, steps)
+    assert result.failure is None, result.failure
+    return result
+
+
+HEAD_ON = ('<ball x="-1" y="0" vx="1" vy="0" m="1" r="0.5" fixed="0"/>'
+           '<ball x="1" y="0" vx="-0.5" vy="0" m="1" r="0.5" fixed="0"/>')
+
+
+@pytest.mark.parametrize("operator", ["lcp", "gr", "grr", "gauss_seidel"])
+def test_two_equal_balls_with_c_1_swap_velocities(operator: str) -> None:
+    result = run(ball2d(HEAD_ON, operator), end_time=2.0)
+    assert result.impacts == 1
+    assert np.allclose(result.v_final, [[-0.5, 0.0], [1.0, 0.0]], atol=TOLERANCE)
+    assert result.momentum_drift < 1e-12
+
+
+def test_grr_with_c_half_halves_the_relative_velocity() -> None:
+    result = run(ball2d(HEAD_ON, "grr", cor=0.5), end_time=2.0)
+    relative_before, relative_after = -1.5, result.v_final[1, 0] - result.v_final[0, 0]
+    assert relative_after == pytest.approx(-0.5 * relative_before, abs=TOLERANCE)
+    assert result.v_final[:, 0].sum() == pytest.approx(0.5, abs=1e-12)
+
+
+CRADLE = SCENES / "scisim" / "newtons_cradle.xml"
+
+
+def test_newtons_cradle_with_gr_gives_the_last_ball_all_the_momentum() -> None:
+    result = Simulator(load_scene(CRADLE), solver=SOLVER).run(end_time=1.0)
+    assert np.allclose(result.v_final, [[0, 0], [0, 0], [2, 0]], atol=TOLERANCE)
+    assert result.momentum_drift < 1e-12
+    assert result.energy_final == pytest.approx(result.energy_initial, rel=TOLERANCE)
+
+
+def test_newtons_cradle_with_lcp_gives_minus_a_third_two_thirds_two_thirds() -> None:
+    text = CRADLE.read_text().replace('type="gr"', 'type="lcp"')
+    result = run(text, end_time=1.0)
+    assert np.allclose(result.v_final[:, 0], [-2 / 3, 4 / 3, 4 / 3], atol=TOLERANCE)
+    assert result.max_energy_gain <= TOLERANCE
+
+
+def test_newtons_cradle_with_gauss_seidel_sweeps_like_gr() -> None:
+    text = CRADLE.read_text().replace(
+        '<impact_operator type="gr" CoR="1.0" v_tol="1.0e-9" cache_impulses="0">',
+        '<impact_operator type="gauss_seidel" CoR="1.0" v_tol="1.0e-9">')
+    result = run(text, end_time=1.0)
+    assert np.allclose(result.v_final[:, 0], [0, 0, 2], atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("operator", ["lcp", "gr"])
+def test_a_ball_hitting_a_plane_at_45_degrees_with_c_half(operator: str) -> None:
+    text = ball2d('<ball x="0" y="0.6" vx="1" vy="-1" m="2" r="0.5" fixed="0"/>', operator,
+                  cor=0.5, extra='<static_plane x="0 0" n="0 1"/>')
+    result = run(text, steps=50)
+    assert result.impacts == 1
+    assert np.allclose(result.v_final, [[1.0, 0.5]], atol=TOLERANCE)
+
+
+def test_a_rigid_circle_bounces_without_its_spin_changing() -> None:
+    text = (SCENES / "scisim" / "horizontal_plane_collision.xml").read_text().replace(
+        'omega="0.0"', 'omega="3.0"')
+    scene = parse_scene(text, "spin.xml")
+    simulator = Simulator(scene, solver=SOLVER)
+    result = simulator.run(end_time=2.0)
+    assert np.allclose(result.v_final, [[0.0, 2.0]], atol=TOLERANCE)
+    assert simulator.omega[0] == 3.0
+    assert simulator.theta[0] == pytest.approx(3.0 * 2.0)
+
+
+def test_a_ball_inside_a_drum_reflects_and_stays_inside() -> None:
+    text = ball2d('<ball x="0" y="0" vx="3" vy="1" m="1" r="0.5" fixed="0"/>', "gr",
+                  extra='<static_drum x="0" y="0" r="2"/>')
+    result = run(text, end_time=4.0)
+    assert result.impacts >= 3
+    assert np.hypot(*result.x_final[0]) <= 2 - 0.5 + 3 * 0.01 * np.hypot(3, 1)
+    assert np.hypot(*result.v_final[0]) == pytest.approx(np.hypot(3, 1), rel=TOLERANCE)
+    assert result.momentum_drift is None
+
+
+def test_a_ball_bounces_off_a_fixed_ball_which_does_not_move() -> None:
+    text = ball2d('<ball x="-1" y="0" vx="1" vy="0" m="1" r="0.5" fixed="0"/>'
+                  '<ball x="0.5" y="0" vx="0" vy="0" m="1" r="0.5" fixed="1"/>', "lcp")
+    result = run(text, end_time=1.0)
+    assert np.allclose(result.v_final, [[-1, 0], [0, 0]], atol=TOLERANCE)
+    assert np.allclose(result.x_final[1], [0.5, 0.0])
+
+
+def test_continuous_detection_catches_a_ball_that_would_pass_through() -> None:
+    result = run((SCENES / "scisim" / "ball_ball_ccd_00.xml").read_text(), end_time=3.0)
+    assert result.impacts == 1
+    assert np.allclose(result.v_final, [[0, 0], [2.2, 0]], atol=TOLERANCE)
+
+
+def test_without_an_impact_operator_balls_pass_through_each_other() -> None:
+    text = ('<ball2d_scene><integrator type="verlet" dt="0.01"/>' + HEAD_ON + "</ball2d_scene>")
+    result = run(text, end_time=2.0)
+    assert result.impacts == 0 and result.max_contacts == 0
+    assert np.allclose(result.v_final, [[1, 0], [-0.5, 0]])
+
+
+def test_free_fall_under_verlet_is_exact() -> None:
+    text = ball2d('<ball x="0" y="10" vx="1" vy="0" m="1" r="0.5" fixed="0"/>',
+                  extra='<gravity fx="0" fy="-9.81"/>', dt="1/64")
+    result = run(text, end_time=1.0)
+    assert np.allclose(result.x_final, [[1.0, 10 - 9.81 / 2]], atol=1e-12)
+    assert result.energy_final == pytest.approx(result.energy_initial, rel=1e-12)
+
+
+def test_the_broad_phase_finds_every_overlapping_box() -> None:
+    rng = np.random.default_rng(7)
+    for count in (2, 30, 400):
+        x0 = rng.uniform(0, 10, (count, 2))
+        x1 = x0 + rng.normal(0, 0.2, (count, 2))
+        radii = rng.uniform(0.05, 0.6, count)
+        lower, upper = swept_boxes(x0, x1, radii)
+        overlap = np.all((lower[:, None] <= upper[None]) & (lower[None] <= upper[:, None]), axis=2)
+        expected = {(i, j) for i, j in zip(*np.nonzero(overlap), strict=True) if i < j}
+        found = {tuple(pair) for pair in candidate_pairs(lower, upper).tolist()}
+        assert found == expected
+
+
+SCENE_STEP_CAPS = {"balls_in_box_1000": 15, "balls_in_box_100": 100, "newtons_cradle": 800,
+                   "balls_bouncing_on_wedge_apgd": 400}
+
+
+@pytest.mark.parametrize("path", sorted(SCENES.rglob("*.xml")), ids=lambda p: p.stem)
+def test_every_shared_scene_simulates_without_energy_gain(path: Path) -> None:
+    scene = load_scene(path)
+    result = Simulator(scene, solver=SOLVER).run(
+        end_time=scene.end_time or 2.0, max_steps=SCENE_STEP_CAPS.get(scene.name, 300))
+    assert result.failure is None, result.failure
+    assert result.steps > 0
+    assert result.max_energy_gain is None or result.max_energy_gain <= TOLERANCE
+    assert result.energy_final <= result.energy_initial + TOLERANCE * abs(result.energy_initial)
+    if scene.balls_alone:
+        assert result.momentum_drift < 1e-9
+    assert np.all(np.isfinite(result.x_final))
+
+
+def test_captured_problems_carry_their_scene_step_and_time(tmp_path: Path) -> None:
+    scene = load_scene(SCENES / "ura" / "K3.xml")
+    result = Simulator(scene, solver=SOLVER, capture=tmp_path).run(max_steps=5)
+    paths = sorted(tmp_path.glob("*.npz"))
+    assert result.captured == len(paths) == 1
+    problem = files.load(paths[0])
+    step = problem.metadata["step"]
+    assert paths[0].name == f"K3_step{step:06d}.npz" and problem.name == paths[0].stem
+    assert step == 4 and problem.metadata["time"] == pytest.approx(0.4)  # dt = 0.1
+    assert problem.family == "scene:K3" and problem.dofs_per_body == 3
+    assert problem.metadata["scene"] == str(SCENES / "ura" / "K3.xml")
+    assert problem.G.shape == (9, 3) and np.all(problem.m_inv[2::3] > 0)
+    assert np.allclose(problem.G[2::3].toarray(), 0.0)  # rotation never touched
+    # ball-ball columns: +n and -n, so impulses conserve momentum whatever they are
+    assert np.allclose(problem.G[0::3].sum(axis=0), 0) and np.allclose(problem.G[1::3].sum(0), 0)
+    assert np.allclose(problem.Q.toarray(), problem.Q.toarray().T)
+
+
+def test_a_failed_inner_solve_stops_the_run_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    def no_answer(problem, accuracy, warm_start=None) -> SolverOutput:
+        return SolverOutput(impulses=np.full(problem.n_contacts, np.nan), status="solved",
+                            claimed_success=True, solve_time_s=0.0)
+
+    registry.all_solvers()
+    spec = SolverSpec(name="test-nan", formulation="dual", backend="test", solve=no_answer)
+    monkeypatch.setitem(registry._SOLVERS, spec.key, spec)
+    result = Simulator(load_scene(SCENES / "ura" / "K3.xml"), solver="test-nan").run(
+        max_steps=10)
+    assert result.failure is not None and result.failure["reason"] == "no finite answer"
+    assert result.failure["step"] == 4 and result.steps == 4  # the first impact, then stop
+    assert result.as_dict()["success"] is False
+
+
+def test_an_unusable_scene_solver_falls_back_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    real_get = stepper.get
+
+    def only_fallback(name: str) -> SolverSpec:
+        if name != FALLBACK:
+            raise QpbenchError(f"solver '{name}' is not usable here: test")
+        return real_get(name)
+
+    monkeypatch.setattr(stepper, "get", only_fallback)
+    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"))
+    assert [inner.spec.key for inner in simulator.inner.values()] == [FALLBACK]
+    assert len(simulator.notes) == 1 and "'ipopt'" in simulator.notes[0]
+
+
+def test_simulate_json_has_the_design_keys(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    code = main(["simulate", str(SCENES / "scisim" / "two_balls.xml"), "--end-time", "2",
+                 "--solver", SOLVER, "--capture", str(tmp_path), "--json"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("steps", "impacts", "max_contacts", "energy_initial", "energy_final",
+                "max_energy_gain", "momentum_drift", "wall_s", "captured", "x_final", "v_final"):
+        assert key in out
+    assert out["steps"] == 20 and out["impacts"] == 1 and out["captured"] == 1
+    assert len(out["x_final"]) == 2 and len(out["v_final"][0]) == 2
+    assert math.isclose(out["energy_final"], out["energy_initial"], rel_tol=TOLERANCE)
+
+
+def test_simulate_without_end_time_caps_the_steps(capsys: pytest.CaptureFixture) -> None:
+    assert main(["simulate", str(SCENES / "ura" / "K3.xml"), "--solver", SOLVER,
+                 "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["steps"] == 1000
+    assert "no <end_time>" in captured.err
+
+
+def test_scaling_writes_ratio_and_markdown(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    output = tmp_path / "scaling.json"
+    assert main(["scaling", "--sizes", "50,200", "--steps", "2", "-o", str(output)]) == 0
+    report = json.loads(output.read_text())
+    assert [row["balls"] for row in report["rows"]] == [50, 200]
+    assert report["ratio"] > 0 and "| 200 |" in report["markdown"]
+    assert all(row["success"] for row in report["rows"])
