@@ -42,3 +42,15 @@ def test_every_usable_backend_has_a_row_in_the_accuracy_table(
 def test_regularization_is_a_named_variant_not_a_silent_option() -> None:
     regularized = {name for name, row in accuracy.OPTIONS.items() if "regularization" in row}
     assert regularized == {"quadprog-reg", "ecos-reg"}
+
+
+def test_c_level_output_is_silenced_and_stdout_restored(
+        capfd: pytest.CaptureFixture[str]) -> None:
+    import os
+
+    from qpbench.solvers.qpsolvers_ import c_stdout_silenced
+
+    with c_stdout_silenced(), c_stdout_silenced():
+        os.write(1, b"from C\n")
+    os.write(1, b"after\n")
+    assert capfd.readouterr().out == "after\n"
