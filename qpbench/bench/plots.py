@@ -15,6 +15,21 @@ import pandas as pd  # noqa: E402
 from qpbench.bench.stats import performance_profile, solver_keys  # noqa: E402
 
 DPI = 110
+LINE_STYLES = ("-", "--", ":", "-.")
+
+
+def style(index: int) -> dict[str, str]:
+    """Colour and line style of curve ``index``: ten colours, then the next line style."""
+    return {"color": f"C{index % 10}", "linestyle": LINE_STYLES[(index // 10) % 4]}
+
+
+def _legend(axes: plt.Axes, curves: int) -> None:
+    """Inside the plot for a few curves, beside it for many."""
+    if curves <= 10:
+        axes.legend(fontsize=7, loc="best")
+    else:
+        axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                    ncol=1 + curves // 30)
 
 
 def slug(text: str) -> str:
@@ -42,11 +57,13 @@ def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
     answered = answered.assign(key=solver_keys(answered))
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
     floor = 1e-17
-    for key, group in answered.groupby("key"):
+    groups = list(answered.groupby("key"))
+    for index, (key, group) in enumerate(groups):
         points = group.groupby("accuracy").agg(time=("time_s", "median"),
                                                error=(error_column, "median"))
         points = points.sort_index(ascending=False)
-        axes.plot(points["time"], np.maximum(points["error"], floor), marker="o", label=key)
+        axes.plot(points["time"], np.maximum(points["error"], floor), marker="o", label=key,
+                  markersize=4, **style(index))
     axes.set_xscale("log")
     axes.set_yscale("log")
     axes.set_xlabel("median solver time per problem [s]")
@@ -54,7 +71,7 @@ def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
                                                   if error_column == "v_error" else ""))
     axes.set_title(f"Work-precision, family {family} (points: accuracy levels)")
     axes.grid(True, which="both", alpha=0.3)
-    axes.legend(fontsize=7, loc="best")
+    _legend(axes, len(groups))
     return _save(figure, path)
 
 
@@ -65,15 +82,15 @@ def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
     if curves.empty or curves.shape[1] == 0:
         return None
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
-    for key in curves.columns:
-        axes.step(curves.index, curves[key], where="post", label=key)
+    for index, key in enumerate(curves.columns):
+        axes.step(curves.index, curves[key], where="post", label=key, **style(index))
     axes.set_xscale("log")
     axes.set_ylim(0, 1.02)
     axes.set_xlabel("tau (time / fastest time on the problem)")
     axes.set_ylabel("share of problems solved within tau")
     axes.set_title(f"Performance profile at accuracy {accuracy:.0e}")
     axes.grid(True, which="both", alpha=0.3)
-    axes.legend(fontsize=7, loc="lower right")
+    _legend(axes, curves.shape[1])
     return _save(figure, path)
 
 

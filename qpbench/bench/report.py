@@ -52,6 +52,10 @@ def level(accuracy: float) -> str:
     return f"{float(accuracy):.0e}"
 
 
+def _maybe_level(value: Any) -> str:
+    return "-" if value is None or pd.isna(value) else level(value)
+
+
 def percent(value: Any) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
@@ -206,26 +210,27 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
         return ""
     frame = frame.assign(key=stats.solver_keys(frame), charged=stats.charged_times(frame))
     rows = []
-    for (key, level), group in frame.groupby(["key", "accuracy"]):
+    for (key, accuracy), group in frame.groupby(["key", "accuracy"]):
         cold = group[group["mode"] == "cold"]
         warm = group[group["mode"] == "warm"]
         if cold.empty or warm.empty:
             continue
         rows.append({
-            "solver": key, "accuracy": level,
+            "solver": key, "accuracy": accuracy,
             "uses warm start": bool(warm["warm_start_used"].fillna(False).any()),
             "SGM cold [s]": stats.shifted_geometric_mean(cold["charged"], shift),
             "SGM warm [s]": stats.shifted_geometric_mean(warm["charged"], shift),
             "success cold": percent(cold["success"].fillna(False).astype(bool).mean()),
             "success warm": percent(warm["success"].fillna(False).astype(bool).mean()),
         })
-    table = pd.DataFrame(rows)
+    table = pd.DataFrame(rows).sort_values(["solver", "accuracy"], ascending=[True, False])
     sources = ", ".join(sorted(frame.loc[frame["mode"] == "warm", "warm_start_source"]
                                .dropna().astype(str).unique()))
     return ("\n## Warm against cold starts\n\nWarm starts come from the problem's previous "
             "impulses where it has them (`previous`), else from its reference impulses "
             "perturbed by 1% (`perturbed-reference`); used here: " + (sources or "-") + ".\n\n"
-            + markdown_table(table, {"success cold": str, "success warm": str}))
+            + markdown_table(table, {"success cold": str, "success warm": str,
+                                     "accuracy": level}))
 
 
 def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
@@ -303,7 +308,8 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     within = stats.accuracy_within_budget(main, budget)
     out.append(f"\nWithin a budget of {budget:.3g} s per solve (the SGM shift unless set with "
                "--budget): the tightest level solved on at least 90% of problems, and the "
-               "median over problems of the best v_error reached.\n\n" + markdown_table(within))
+               "median over problems of the best v_error reached.\n\n"
+               + markdown_table(within, {"tightest_level": _maybe_level}))
     out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
                "qpbench's verdict (solves that returned an answer or a status).\n\n"
                + markdown_table(stats.honesty(frame), {"honesty_rate": percent}))

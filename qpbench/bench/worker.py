@@ -247,6 +247,7 @@ def main() -> None:
     """Entry point of a worker started as a program: JSON lines on stdin and on a private copy
     of stdout (stray solver output goes to stderr)."""
     die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the runner's to handle
     answers = os.fdopen(os.dup(sys.stdout.fileno()), "w", encoding="utf-8")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
 
@@ -272,6 +273,7 @@ def child_main(connection: Connection, log_path: str, extra_solvers: str = "",
     os.dup2(log, 1)
     os.dup2(log, 2)
     die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the runner's to handle
     if extra_solvers:
         os.environ[EXTRA_SOLVERS_ENV] = extra_solvers
     else:
