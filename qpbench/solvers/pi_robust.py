@@ -41,6 +41,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.lcp_interior import NormalMatrix, interior_point
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
@@ -122,32 +123,24 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
     return x, policy, solves, False
 
 
-def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, tol: float, rho: float,
-              rho_min: float, rho_decrease: float, stall_ratio: float, stall_steps: int,
-              backup_steps: int, max_iters: int, lemke_limit: int
-              ) -> tuple[np.ndarray, bool, str, int, dict]:
-    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
-    centre = start
-    w = lcp.w(centre)
-    res = lcp.residual_of(centre, w)
-    if res <= tol:
-        return centre, True, "converged", 0, {"rho": rho, "prox_steps": 0}
-    policy = w <= lcp.diag * centre
+def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
+                           policy: np.ndarray, tol: float, rho: float, rho_min: float,
+                           rho_decrease: float, stall_ratio: float, stall_steps: int,
+                           backup_steps: int, budget: int
+                           ) -> tuple[np.ndarray, bool, str, int, float]:
+    """Prox steps from ``centre`` and ``policy`` within ``budget`` linear solves:
+    (best l, converged, status, solves, best residual)."""
     tol_l = 0.1 * tol * lcp.scale / lcp.safe_diag
     tol_w = 0.1 * tol * lcp.scale
-    solves = outer = stalls = 0
+    res = lcp.residual(centre)
     best, best_res = centre, res
-    status = f"max_iters ({max_iters}) reached"
-
-    def info() -> dict:
-        return {"rho": rho, "prox_steps": outer, "factorizations": blocks.factorizations,
-                "best_residual": best_res}
-
-    while solves < max_iters:
+    solves = stalls = 0
+    status = f"policy iteration budget ({budget} solves) spent"
+    while solves < budget:
         q = lcp.b - rho * lcp.safe_diag * centre
         try:
             x, policy, used, solved = _inner_lcp(lcp, blocks, policy, rho, q, tol_l, tol_w,
-                                                 backup_steps, max_iters - solves)
+                                                 backup_steps, budget - solves)
         except np.linalg.LinAlgError:
             status = "block factorization failed"
             rho /= rho_decrease
@@ -155,15 +148,13 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, tol: float, rho:
                 break
             continue
         solves += used
-        outer += 1
         centre = np.maximum(x, 0.0)
         previous, res = res, lcp.residual(centre)
         if res < best_res:
             best, best_res = centre, res
         if res <= tol:
-            return centre, True, "converged", solves, info()
+            return centre, True, "converged", solves, res
         if not solved:
-            status = "inner pivoting out of budget"
             break
         stalls = stalls + 1 if res > stall_ratio * previous else 0
         if stalls >= stall_steps:
@@ -172,16 +163,53 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, tol: float, rho:
                 status = "prox steps stalled at rho_min"
                 break
             rho *= rho_decrease
-    result = info()
+    return best, False, status, solves, best_res
+
+
+def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.ndarray,
+              tol: float, rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
+              stall_steps: int, backup_steps: int, pi_budget: int, finish_budget: int,
+              finish_below: float, ipm_iters: int, lemke_limit: int
+              ) -> tuple[np.ndarray, bool, str, int, dict]:
+    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
+    w = lcp.w(start)
+    if lcp.residual_of(start, w) <= tol:
+        return start, True, "converged", 0, {"path": "start"}
+    settings = {"tol": tol, "rho": rho, "rho_min": rho_min, "rho_decrease": rho_decrease,
+                "stall_ratio": stall_ratio, "stall_steps": stall_steps,
+                "backup_steps": backup_steps}
+    impulses, converged, status, solves, best_res = _prox_policy_iteration(
+        lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
+    if converged:
+        return impulses, True, "converged", solves, {
+            "path": "policy iteration", "factorizations": blocks.factorizations}
+    finishing_solves = [0]
+
+    def finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
+        result, done, _, used, _ = _prox_policy_iteration(
+            lcp, blocks, candidate, candidate_w < lcp.diag * candidate, budget=finish_budget,
+            **settings)
+        finishing_solves[0] += used
+        return result if done else None
+
+    try:
+        impulses, converged, iterations, _ = interior_point(lcp, normal, tol, ipm_iters, finish,
+                                                            finish_below)
+    except np.linalg.LinAlgError as error:
+        converged, iterations, status = False, 0, f"interior point failed: {error}"
+    solves += iterations + finishing_solves[0]
+    info = {"path": "interior point + policy iteration", "first_status": status,
+            "interior_iterations": iterations, "factorizations": blocks.factorizations}
+    if converged:
+        return impulses, True, "converged", solves, info
     if lcp.n <= lemke_limit:
         from qpbench.solvers.lemke import lemke
 
         impulses, converged, lemke_status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
-        result["fallback"] = f"lemke: {lemke_status}"
+        info["path"] = f"lemke fallback: {lemke_status}"
         if converged:
-            return impulses, True, f"converged by lemke fallback ({status})", solves + pivots, \
-                result
-    return best, False, status, solves, result
+            return impulses, True, "converged by lemke fallback", solves + pivots, info
+    return impulses, False, "interior point did not converge", solves, info
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
@@ -189,10 +217,13 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
     with Stopwatch() as setup:
         lcp = Lcp.of(problem)
         options = accuracy.options_for(NAME, eps, lcp.scale)
-        blocks = BlockSolver(lcp, dense=lcp.n <= options.pop("dense_limit"))
+        dense = lcp.n <= options.pop("dense_limit")
+        blocks = BlockSolver(lcp, dense)
+        normal = NormalMatrix(lcp, dense)
         start = lcp.start(warm_start)
     with Stopwatch() as clock:
-        impulses, converged, status, iterations, info = pi_robust(lcp, blocks, start, **options)
+        impulses, converged, status, iterations, info = pi_robust(lcp, blocks, normal, start,
+                                                                  **options)
     return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)
 
 

@@ -1,0 +1,103 @@
+"""A primal-dual interior point for the monotone impact LCP: pi-robust's safe path.
+
+Source: Mehrotra, "On the implementation of a primal-dual interior point method",
+SIAM J. Optim. 2(4), 1992 (predictor-corrector); for LCPs: Wright, "Primal-Dual
+Interior-Point Methods", SIAM 1997, chapter 8. Iterates keep ``l, w > 0`` and drive
+``r = Q l + b - w`` and ``mu = l^T w / n`` to zero. Each step solves
+``(Q + W L^-1) dl = rhs`` twice with one Cholesky factor (positive definite for
+l, w > 0 even when Q is singular), then ``dw = Q dl + r``; one common step length
+(0.99 of the way to the boundary) keeps ``r`` shrinking by ``1 - alpha``.
+
+It does not polish: the caller (pi-robust) hands each iterate, once close, to its
+policy iteration, which ends on an exact active set.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from qpbench.solvers.lcp import Lcp
+
+
+def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
+    """The largest alpha <= 1 with value + alpha * change >= 0."""
+    shrinking = change < 0.0
+    if not np.any(shrinking):
+        return 1.0
+    return float(min(1.0, np.min(-value[shrinking] / change[shrinking])))
+
+
+class NormalMatrix:
+    """Factors ``Q + diag(d)`` (dense Cholesky or sparse SuperLU) and solves with it."""
+
+    def __init__(self, lcp: Lcp, dense: bool) -> None:
+        self.dense = dense
+        self.Q_dense = lcp.Q.toarray() if dense else None
+        self.Q_csc = None if dense else sp.csc_matrix(lcp.Q)
+        self.factor: object = None
+
+    def factorize(self, diagonal: np.ndarray) -> None:
+        if self.dense:
+            matrix = self.Q_dense.copy()
+            matrix[np.diag_indices_from(matrix)] += diagonal
+            self.factor = la.cho_factor(matrix, lower=True, check_finite=False)
+        else:
+            matrix = sp.csc_matrix(self.Q_csc + sp.diags(diagonal))
+            try:
+                self.factor = spla.splu(matrix, permc_spec="MMD_AT_PLUS_A",
+                                        diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            except RuntimeError as error:
+                raise np.linalg.LinAlgError(str(error)) from error
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self.dense:
+            return la.cho_solve(self.factor, rhs, check_finite=False)
+        return self.factor.solve(rhs)
+
+
+def interior_point(lcp: Lcp, normal: NormalMatrix, tol: float, max_iters: int,
+                   try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
+                   finish_below: float) -> tuple[np.ndarray, bool, int, int]:
+    """(l, converged, interior iterations, finishing solves). ``try_finish(l, w)`` is called on
+    every iterate whose residual is below ``finish_below`` and returns a converged l or None."""
+    n = lcp.n
+    diag = lcp.safe_diag
+    impulses = np.full(n, lcp.scale) / diag
+    slack = np.maximum(lcp.w(impulses), lcp.scale)
+    floor = 1e-14 * diag
+    best = impulses
+    for iteration in range(1, max_iters + 1):
+        infeasibility = lcp.Q @ impulses + lcp.b - slack
+        mu = float(impulses @ slack) / n
+        true_w = infeasibility + slack
+        res = lcp.residual_of(impulses, true_w)
+        best = impulses
+        if res <= tol:
+            return impulses, True, iteration - 1, 0
+        if res <= finish_below:
+            finished = try_finish(impulses, true_w)
+            if finished is not None:
+                return finished, True, iteration - 1, 1
+        normal.factorize(np.maximum(slack / impulses, floor))
+        # predictor (affine scaling)
+        dl = normal.solve(-slack - infeasibility)
+        dw = lcp.Q @ dl + infeasibility
+        alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+        mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
+        sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
+        # corrector
+        rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
+        dl = normal.solve(rhs)
+        dw = lcp.Q @ dl + infeasibility
+        alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
+                                    _step_to_boundary(slack, dw)))
+        impulses = np.maximum(impulses + alpha * dl, 1e-300)
+        slack = np.maximum(slack + alpha * dw, 1e-300)
+        if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
+            break
+    return best, False, max_iters, 0
