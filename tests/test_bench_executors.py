@@ -14,6 +14,7 @@ from qpbench.bench import runner
 from qpbench.bench.executors import DaskExecutor, ProcessExecutor, SerialExecutor, make_executor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
+from qpbench.cli import main
 from qpbench.errors import QpbenchError
 
 runner.start_fork_server()  # its imports overlap with this process's
@@ -57,7 +58,13 @@ def test_processes_and_dask_give_the_rows_of_a_serial_run(
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                   protocol="tcp", host="127.0.0.1",
                                   dashboard_address=None) as cluster:
-        dask = _rows(problems, tmp_path / "dask.parquet", DaskExecutor(cluster.scheduler_address))
+        address = cluster.scheduler_address.replace("tcp://", "dask://")
+        code = main(["run", str(problems), "--solvers", ",".join(SETTINGS.solvers),
+                     "--accuracy", "1e-4,1e-8", "--timeout", "30", "--executor", address,
+                     "--no-progress", "-o", str(tmp_path / "dask.parquet")])
+    assert code == 0
+    dask = ResultStore(tmp_path / "dask.parquet").read()
+    dask = dask.sort_values(list(CELL_KEY))[list(CELL_KEY) + COMPARED].reset_index(drop=True)
     pd.testing.assert_frame_equal(dask, serial)
 
 

@@ -10,7 +10,7 @@ import argparse
 import sys
 
 from qpbench.bench import runner
-from qpbench.bench.executors import make_executor
+from qpbench.bench.executors import DaskExecutor, make_executor
 from qpbench.bench.settings import (
     DEFAULT_ACCURACIES,
     DEFAULT_MEMORY_LIMIT_MB,
@@ -59,8 +59,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.executor.startswith(("dask://", "tcp://", "tls://")):
-        runner.start_fork_server()  # the workers' imports overlap with ours
     specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
     settings = RunSettings(
         solvers=tuple(spec.key for spec in specs),
@@ -70,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
                       repeats=args.repeats),
     )
     executor = make_executor(args.executor, args.workers)
+    if not isinstance(executor, DaskExecutor):
+        runner.start_fork_server()  # its imports overlap with reading the problems
     counts = runner.run(args.problems, settings, args.output, executor,
                         progress=not args.no_progress, batch_rows=args.batch)
     print(f"qpbench run: {counts['cells']} cells, {counts['skipped']} already done, "

@@ -1,0 +1,47 @@
+"""``qpbench run`` input errors: one line on stderr, exit 2, no results file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from bench_problems import write_tiny_problems
+
+from qpbench.cli import main
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    (["--solvers", "no-such-solver"], "unknown solver 'no-such-solver'"),
+    (["--accuracy", "1e-4,tight"], "'tight' is not a number"),
+    (["--mode", "lukewarm"], "unknown mode 'lukewarm'"),
+    (["--timeout", "0"], "--timeout must be positive"),
+    (["--executor", "mpi"], "unknown executor 'mpi'"),
+])
+def test_bad_run_options_are_one_line_errors(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], arguments: list[str],
+        message: str) -> None:
+    write_tiny_problems(tmp_path / "problems", count=1)
+    output = tmp_path / "results.parquet"
+    code = main(["run", str(tmp_path / "problems"), *arguments, "-o", str(output)])
+    error = capsys.readouterr().err
+    assert code == 2
+    assert message in error and error.count("\n") == 1
+    assert not output.exists()
+
+
+def test_a_missing_problem_folder_names_it(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", str(tmp_path / "nowhere"), "--solvers", "clarabel", "-o",
+                 str(tmp_path / "r.parquet")])
+    error = capsys.readouterr().err
+    assert code == 2 and "nowhere" in error and "no such problem file or folder" in error
+
+
+def test_duplicate_problem_names_are_refused(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    write_tiny_problems(tmp_path / "a", count=1)
+    write_tiny_problems(tmp_path / "b", count=1)
+    code = main(["run", str(tmp_path / "a"), str(tmp_path / "b"), "--solvers", "clarabel",
+                 "-o", str(tmp_path / "r.parquet")])
+    error = capsys.readouterr().err
+    assert code == 2 and "problem name 'row3' is also used by" in error
