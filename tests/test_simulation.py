@@ -258,3 +258,16 @@ def test_scaling_writes_ratio_and_markdown(tmp_path: Path, capsys: pytest.Captur
     assert [row["balls"] for row in report["rows"]] == [50, 200]
     assert report["ratio"] > 0 and "| 200 |" in report["markdown"]
     assert all(row["success"] for row in report["rows"])
+
+
+def test_an_end_time_in_decimal_gives_the_exact_step_count() -> None:
+    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"), solver=SOLVER)
+    assert simulator.step_count(1.1, None) == 11  # 1.1 / 0.1, not 12 from 1.1's binary value
+    assert simulator.step_count(None, 7) == 7 and simulator.step_count(1.1, 5) == 5
+
+
+def test_cached_impulses_warm_start_and_give_the_same_answer() -> None:
+    text = ball2d(HEAD_ON).replace('cache_impulses="0"', 'cache_impulses="1"')
+    assert parse_scene(text, "cached.xml").impact.cache_impulses
+    result = run(text, end_time=2.0)
+    assert np.allclose(result.v_final, [[-0.5, 0.0], [1.0, 0.0]], atol=TOLERANCE)

@@ -249,7 +249,12 @@ class Simulator:
     # --- a run -------------------------------------------------------------------------
     def step_count(self, end_time: float | Fraction | None, max_steps: int | None) -> int:
         """Steps to reach ``end_time`` (or the scene's), capped by ``max_steps``."""
-        end = self.scene.end_time if end_time is None else Fraction(end_time)
+        if end_time is None:
+            end = self.scene.end_time
+        elif isinstance(end_time, float):  # the decimal the user typed, not its binary value
+            end = Fraction(repr(end_time))
+        else:
+            end = Fraction(end_time)
         if end is None and max_steps is None:
             raise QpbenchError(f"{self.scene.path}: the scene has no <end_time>; give "
                                "--end-time or --steps")
