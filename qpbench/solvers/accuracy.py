@@ -4,7 +4,15 @@ qpbench's accuracy level eps is a bound on its own residual,
 ``||min(D l, Q l + b)||_inf / scale`` with ``scale = max(||b||_inf, tiny)``.
 Backends use absolute tolerances on their own residuals, so each row maps
 ``(eps, scale)`` to that backend's options. A value is either a constant or a
-function ``f(eps, scale)``. This module is the only place solver options are set.
+function ``f(eps, scale)`` whose docstring's first line says how it follows from eps
+(the report prints it). This module is the only place solver options are set.
+
+Rules the rows follow: feasibility and stationarity tolerances are ``eps * scale``
+(velocities); a duality gap is ``eps * scale^2`` for first-order methods, but
+``eps^2 * scale^2`` for interior points, because on a degenerate contact
+(``l_i = w_i = 0``) they stop with ``min(l_i, w_i) ~ sqrt(l_i w_i)``; IPOPT's
+acceptable-level exit is off so that its "success" means its tolerance; every
+regularization is a named ``*-reg`` variant with its delta here.
 """
 
 from __future__ import annotations
@@ -33,13 +41,19 @@ def _inner_tolerance(eps: float, scale: float) -> float:
 
 
 def _gap(eps: float, scale: float) -> float:
-    """eps * scale^2: an absolute duality gap l^T w (velocity^2 when diag(Q) ~ 1)."""
+    """eps * scale^2
+
+    An absolute duality gap l^T w (velocity^2 when diag(Q) ~ 1).
+    """
     return eps * scale * scale
 
 
 def _ipm_gap(eps: float, scale: float) -> float:
-    """max(eps^2, 1e-15) * scale^2: an interior point leaves min(l_i, w_i) ~ sqrt(l_i w_i)
-    on a degenerate contact (l_i = w_i = 0), so its gap must be eps^2 for a residual eps"""
+    """max(eps^2, 1e-15) * scale^2
+
+    An interior point leaves min(l_i, w_i) ~ sqrt(l_i w_i) on a degenerate contact
+    (l_i = w_i = 0), so its gap must be eps^2 for a residual eps.
+    """
     return max(eps * eps, 1e-15) * scale * scale
 
 
@@ -49,7 +63,11 @@ def _ipm_gap_relative(eps: float, scale: float) -> float:
 
 
 def _conic_gap(eps: float, scale: float) -> float:
-    """max(eps^2, 1e-12): ECOS poses the quadratic as a cone, where l errs by ~sqrt(gap)"""
+    """max(eps^2, 1e-12)
+
+    ECOS poses the quadratic as a second-order cone, where l errs by ~sqrt(gap); below
+    1e-12 it stops at "close to optimal".
+    """
     return max(eps * eps, 1e-12)
 
 
@@ -59,12 +77,20 @@ def _ktratio(eps: float, scale: float) -> float:
 
 
 def _regularization(eps: float, scale: float) -> float:
-    """0.1 * eps: delta / max(diag Q) of a *-reg variant (it solves Q + delta I)"""
+    """0.1 * eps * max(diag Q)
+
+    The delta of a ``*-reg`` variant, which solves Q + delta I (the backend multiplies
+    this value by max(diag Q)).
+    """
     return 0.1 * eps
 
 
 def _highs_reg(eps: float, scale: float) -> float:
-    """0.1 * eps: HiGHS's own Hessian regularization of its QP solver (default 1e-7)"""
+    """0.1 * eps
+
+    HiGHS's own Hessian regularization of its QP solver (default 1e-7, which alone
+    stops it near a residual of 1e-7).
+    """
     return 0.1 * eps
 
 
