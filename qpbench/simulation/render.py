@@ -87,13 +87,13 @@ def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
 
 
 def _limits(scene: Scene, recording: Recording) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper corners of the view: every recorded ball and every drum, padded."""
+    """Lower and upper corners of the view: recorded balls, drums and plane anchors, padded."""
     radii = scene.bodies.radii
     corners = [np.zeros((0, 2))]
     for positions in recording.frames:
         corners += [positions - radii[:, None], positions + radii[:, None]]
     corners += [scene.drum_centers - scene.drum_radii[:, None],
-                scene.drum_centers + scene.drum_radii[:, None]]
+                scene.drum_centers + scene.drum_radii[:, None], scene.plane_points]
     points = np.concatenate(corners)
     if points.shape[0] == 0:
         points = np.concatenate([scene.plane_points, np.zeros((1, 2))])
