@@ -151,9 +151,8 @@ def generalized_reflections(problem: ImpactProblem, v_tol: float, inner: InnerSo
         sub = ImpactProblem.build(problem.name, G[:, active], problem.m_inv, velocity,
                                   problem.restitution[active], problem.n_rel[active],
                                   dofs_per_body=problem.dofs_per_body)
-        impulses = inner.solve(sub)
-        velocity = velocity + sub.M_inv_G @ impulses
-        total[active] += impulses
+        total[active] += inner.solve(sub)
+        velocity = problem.v_plus(total)  # from v- each round, so increments do not drift
     log.gr_max_rounds = max(log.gr_max_rounds, max_rounds)
     log.unconverged += 1
     return total

@@ -217,6 +217,8 @@ class Simulator:
         problem = None
         if scene.impact is not None and scene.bodies.count:
             found = self.find_contacts(x0, x1)
+        if not found.count:
+            self._cache.clear()  # as SCISim: a step without contacts forgets cached impulses
         if found.count:
             problem = self.impact_problem(found)
             if self.capture is not None and np.any(problem.b < 0):  # b >= 0: l = 0, no impact
