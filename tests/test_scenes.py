@@ -86,10 +86,10 @@ def test_sobogus_with_mu_zero_is_a_frictionless_lcp_with_its_cor() -> None:
 
 def test_unknown_elements_and_attributes_are_accepted_with_one_warning() -> None:
     text = TWO_BALLS.replace("<ball ", '<ball colour="red" ', 1).replace(
-        "</ball2d_scene>", '<planar_portal x="0"/><planar_portal x="1"/></ball2d_scene>')
+        "</ball2d_scene>", '<sound a="0"/><sound a="1"/></ball2d_scene>')
     scene = parse_scene(text, "extra.xml")
     assert len(scene.warnings) == 1
-    assert "<planar_portal>" in scene.warnings[0] and "<ball> 'colour'" in scene.warnings[0]
+    assert "<sound>" in scene.warnings[0] and "<ball> 'colour'" in scene.warnings[0]
 
 
 def test_a_scripting_callback_is_never_run(tmp_path: Path) -> None:
@@ -135,6 +135,14 @@ BAD_SCENES = [
                        '  </impact_operator>',
                        '<sobogus_friction_solver mu="0.5" CoR="1"/>'),
      UnsupportedError, "not supported: friction"),
+    (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
+                       'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="1"/></ball2d_scene>'),
+     UnsupportedError, "not supported: periodic boundaries"),
+    (TWO_BALLS.replace('<impact_operator type="lcp" CoR="1.0" v_tol="1.0e-9" cache_impulses="0">'
+                       '\n    <solver name="policy_iteration" max_iters="100" tol="1e-8"/>\n'
+                       '  </impact_operator>',
+                       '<sobogus_friction_solver mu="0" CoR="0" staggering="stabilized"/>'),
+     UnsupportedError, "attribute 'staggering': not supported"),
 ]
 
 

@@ -63,6 +63,12 @@ _KNOWN: dict[str, dict[str, frozenset[str] | None]] = {
 _OPERATOR_CHILDREN = frozenset({"solver", "elastic_operator", "inelastic_operator"})
 _SINGLETONS = ("integrator", "impact_operator", "end_time")
 _FRICTION_SOLVERS = ("sobogus_friction_solver", "staggered_projections_friction_solver")
+_PORTALS = ("planar_portal", "lees_edwards_portal")
+
+
+def _child_tags(root: Element) -> set[str]:
+    """Tags of the root's children."""
+    return {child.tag for child in root if isinstance(child.tag, str)}
 
 
 class _Reader:
@@ -215,6 +221,11 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
             continue
         reader.note_unknown(child, known[child.tag])
         children.setdefault(child.tag, []).append(child)
+    for tag in _PORTALS:
+        if tag in _child_tags(root):
+            raise UnsupportedError(f"{path}: <{tag}>: not supported: periodic boundaries "
+                                   "(a portal turns two planes into one; simulating them as "
+                                   "walls would be wrong)")
     for tag in _SINGLETONS:
         if len(children.get(tag, [])) > 1:
             raise InputError(path, f"appears {len(children[tag])} times; a scene has one",
@@ -374,23 +385,29 @@ def _frictionless(reader: _Reader, element: Element) -> ImpactOperator:
                                f"friction (mu = {mu:g} > 0); qpbench simulates frictionless "
                                "impact only")
     restitution = reader.number(element, "CoR", check="unit")
+    staggering = element.get("staggering", "geometric").strip()
+    if staggering != "geometric":
+        raise UnsupportedError(f"{reader.path}: <{element.tag}> attribute 'staggering': not "
+                               f"supported: {staggering!r} (qpbench steps with SCISim's "
+                               "geometric splitting only)")
     return ImpactOperator(type="lcp", restitution=restitution, v_tol=0.0,
                           cache_impulses=_cache_impulses(reader, element),
                           declared_by=element.tag)
 
 
 def _cache_impulses(reader: _Reader, element: Element) -> bool:
-    """``cache_impulses``: 0/1 (impact operators) or none/constraint/full (friction solvers)."""
+    """``cache_impulses``: 0/1 (impact operators) or none/normal/normal_and_friction (friction
+    solvers; without friction both of the latter cache the normal impulses)."""
     raw = element.get("cache_impulses")
     if raw is None:
         return False
     value = raw.strip()
     if value in ("0", "none"):
         return False
-    if value in ("1", "constraint", "full"):
+    if value in ("1", "normal", "normal_and_friction"):
         return True
-    raise reader.error(element, "cache_impulses", f"must be 0, 1, none, constraint or full, "
-                                                  f"got {raw!r}")
+    raise reader.error(element, "cache_impulses", "must be 0, 1, none, normal or "
+                                                  f"normal_and_friction, got {raw!r}")
 
 
 def _operator(reader: _Reader, element: Element, restitution: float | None) -> ImpactOperator:
