@@ -105,3 +105,12 @@ def test_lemke_declines_above_its_size_limit_and_says_so() -> None:
     row, output = solve_and_judge(get("lemke"), problem, 1e-8)
     assert not output.claimed_success and output.status.startswith("declined")
     assert row["status"] == "failed"
+
+
+@pytest.mark.parametrize(("family", "size"), [("grid", 20), ("box", 1000), ("mass-ratio", 10)])
+def test_pi_robust_on_larger_problems(family: str, size: int) -> None:
+    """20 x 20 grids need the interior-point path; boxes of 1,000 balls the sparse one."""
+    problem = generate(family, size, seed=3)[0]
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert row["success"] and output.claimed_success, row["solver_status"]
+    assert row["residual"] <= 1e-8

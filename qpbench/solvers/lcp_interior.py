@@ -33,9 +33,11 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 class NormalMatrix:
-    """Factors ``Q + diag(d)`` (dense Cholesky or sparse SuperLU) and solves with it."""
+    """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky or sparse SuperLU) and solves
+    with it; keeps the scaled LCP and its scaling ``root``."""
 
-    def __init__(self, lcp: Lcp, dense: bool) -> None:
+    def __init__(self, lcp: Lcp, root: np.ndarray, dense: bool) -> None:
+        self.lcp, self.root = lcp, root
         self.dense = dense
         self.Q_dense = lcp.Q.toarray() if dense else None
         self.Q_csc = None if dense else sp.csc_matrix(lcp.Q)
@@ -60,40 +62,51 @@ class NormalMatrix:
         return self.factor.solve(rhs)
 
 
-def interior_point(lcp: Lcp, normal: NormalMatrix, tol: float, max_iters: int,
+def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
+    """(the LCP in l~ = D^1/2 l, i.e. (S Q S, S b) with S = D^-1/2, unit diagonal; and S)."""
+    root = 1.0 / np.sqrt(lcp.safe_diag)
+    Q = sp.csr_matrix(sp.diags(root) @ lcp.Q @ sp.diags(root))
+    b = lcp.b * root
+    scale = max(float(np.max(np.abs(b), initial=0.0)), 1e-300)
+    return Lcp(Q=Q, b=b, diag=np.ones(lcp.n), scale=scale), root
+
+
+def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix, tol: float,
+                   max_iters: int,
                    try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
                    finish_below: float) -> tuple[np.ndarray, bool, int, int]:
-    """(l, converged, interior iterations, finishing solves). ``try_finish(l, w)`` is called on
-    every iterate whose residual is below ``finish_below`` and returns a converged l or None."""
-    n = lcp.n
-    diag = lcp.safe_diag
-    impulses = np.full(n, lcp.scale) / diag
-    slack = np.maximum(lcp.w(impulses), lcp.scale)
-    floor = 1e-14 * diag
-    best = impulses
+    """(l, converged, interior iterations, finishing solves), iterating on the Jacobi-scaled
+    LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``; ``normal`` factors its matrices) and
+    judging by the original ``lcp``. ``try_finish(l, w)`` is called on every iterate whose
+    residual is below ``finish_below`` and returns a converged l or None."""
+    n = scaled.n
+    impulses = np.full(n, scaled.scale)
+    slack = np.maximum(scaled.w(impulses), scaled.scale)
+    floor = 1e-14
+    best = impulses * root
     for iteration in range(1, max_iters + 1):
-        infeasibility = lcp.Q @ impulses + lcp.b - slack
+        infeasibility = scaled.Q @ impulses + scaled.b - slack
         mu = float(impulses @ slack) / n
-        true_w = infeasibility + slack
-        res = lcp.residual_of(impulses, true_w)
-        best = impulses
+        original_l, original_w = impulses * root, (infeasibility + slack) / root
+        res = lcp.residual_of(original_l, original_w)
+        best = original_l
         if res <= tol:
-            return impulses, True, iteration - 1, 0
+            return original_l, True, iteration - 1, 0
         if res <= finish_below:
-            finished = try_finish(impulses, true_w)
+            finished = try_finish(original_l, original_w)
             if finished is not None:
                 return finished, True, iteration - 1, 1
         normal.factorize(np.maximum(slack / impulses, floor))
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
-        dw = lcp.Q @ dl + infeasibility
+        dw = scaled.Q @ dl + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
         mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
-        dw = lcp.Q @ dl + infeasibility
+        dw = scaled.Q @ dl + infeasibility
         alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
                                     _step_to_boundary(slack, dw)))
         impulses = np.maximum(impulses + alpha * dl, 1e-300)

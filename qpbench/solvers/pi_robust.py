@@ -41,7 +41,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
-from qpbench.solvers.lcp_interior import NormalMatrix, interior_point
+from qpbench.solvers.lcp_interior import NormalMatrix, interior_point, jacobi_scaled
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
@@ -193,8 +193,8 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.nda
         return result if done else None
 
     try:
-        impulses, converged, iterations, _ = interior_point(lcp, normal, tol, ipm_iters, finish,
-                                                            finish_below)
+        impulses, converged, iterations, _ = interior_point(
+            lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below)
     except np.linalg.LinAlgError as error:
         converged, iterations, status = False, 0, f"interior point failed: {error}"
     solves += iterations + finishing_solves[0]
@@ -219,7 +219,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
         options = accuracy.options_for(NAME, eps, lcp.scale)
         dense = lcp.n <= options.pop("dense_limit")
         blocks = BlockSolver(lcp, dense)
-        normal = NormalMatrix(lcp, dense)
+        normal = NormalMatrix(*jacobi_scaled(lcp), dense)
         start = lcp.start(warm_start)
     with Stopwatch() as clock:
         impulses, converged, status, iterations, info = pi_robust(lcp, blocks, normal, start,
