@@ -57,6 +57,24 @@ def _ipm_gap(eps: float, scale: float) -> float:
     return max(eps * eps, 1e-15) * scale * scale
 
 
+def _ipopt_tol(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-16) * scale^2
+
+    As ``_ipm_gap`` (IPOPT's tol bounds its complementarity l_i z_i), with the floor
+    IPOPT still reaches in double precision.
+    """
+    return max(eps * eps, 1e-16) * scale * scale
+
+
+def _bound_relax(eps: float, scale: float) -> float:
+    """min(1e-8, 0.01 * eps)
+
+    IPOPT relaxes every bound by this relative amount (default 1e-8), which alone
+    leaves a residual near 1e-8.
+    """
+    return min(1e-8, 0.01 * eps)
+
+
 def _ipm_gap_relative(eps: float, scale: float) -> float:
     """max(eps^2, 1e-15)"""
     return max(eps * eps, 1e-15)
@@ -129,8 +147,8 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "qpalm": {"eps_abs": _absolute, "eps_rel": _relative, "max_iter": ITERATIVE_MAX_ITER,
               "time_limit": DEFAULT_TIME_LIMIT_S},
     # --- IPOPT through cyipopt, configured as SCISim's LCP0OperatorIpopt ----------
-    "ipopt": {"tol": _ipm_gap, "acceptable_iter": 0, "max_iter": 3000,
-              "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
+    "ipopt": {"tol": _ipopt_tol, "bound_relax_factor": _bound_relax, "acceptable_iter": 0,
+              "max_iter": 3000, "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
               "hessian_constant": "yes", "jac_c_constant": "yes", "jac_d_constant": "yes",
               "print_level": 0, "sb": "yes"},
     # --- through cvxpy (its own option names per solver) ----------------------------
@@ -156,7 +174,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     # cvxpy poses CVXOPT a cone program that fails outright below a gap of ~1e-10
     "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
                      "max_iters": INTERIOR_MAX_ITER},
-    "cvxpy-ipopt": {"tol": _ipm_gap, "acceptable_iter": 0, "max_iter": 3000,
+    "cvxpy-ipopt": {"tol": _ipopt_tol, "acceptable_iter": 0, "max_iter": 3000,
                     "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
                     "hessian_constant": "yes", "jac_c_constant": "yes",
                     "jac_d_constant": "yes", "print_level": 0, "sb": "yes"},

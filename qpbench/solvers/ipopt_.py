@@ -8,9 +8,11 @@
   ``mult_g <= 0`` and stationarity reads ``M (v - v-) = -A^T mult_g``: ``l = -mult_g``.
 
 Options come from the accuracy table (``hessian_constant``, ``jac_c_constant``,
-``jac_d_constant``, ``linear_solver mumps``, ``tol``). The start is l = 0 (v = v- in the
-primal) or the warm start. ``claimed_success`` is IPOPT's status 0, "Solve_Succeeded";
-acceptable-level termination is switched off in the table.
+``jac_d_constant``, ``linear_solver mumps``, ``tol``), plus ``bound_relax_factor``: IPOPT's
+default relaxes bounds by 1e-8, which alone caps the residual near 1e-8, so the table
+tightens it with the level. The start is l = 0 (v = v- in the primal) or the warm start.
+``claimed_success`` is IPOPT's status 0, "Solve_Succeeded"; acceptable-level termination
+is switched off in the table.
 """
 
 from __future__ import annotations
