@@ -13,6 +13,7 @@ Dask) and writes rows to the resumable result store as they arrive.
 
 from __future__ import annotations
 
+import datetime
 import json
 import math
 import multiprocessing
@@ -66,21 +67,33 @@ def fork_server() -> Any:
     global _FORK_SERVER
     with _FORK_SERVER_LOCK:
         if _FORK_SERVER is None:
-            for name, value in SINGLE_THREAD_ENV.items():
-                os.environ.setdefault(name, value)
             context = multiprocessing.get_context("forkserver")
             context.set_forkserver_preload(["qpbench.bench.worker", "qpbench.solvers"])
             _FORK_SERVER = context
+        _ensure_running()
         return _FORK_SERVER
+
+
+def _ensure_running() -> None:
+    """(Re)starts the fork server process, with SINGLE_THREAD_ENV in its environment only."""
+    from multiprocessing import forkserver
+
+    saved = {name: os.environ.get(name) for name in SINGLE_THREAD_ENV}
+    os.environ.update(SINGLE_THREAD_ENV)
+    try:
+        forkserver.ensure_running()
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def start_fork_server() -> None:
     """Starts the fork server now, so its imports overlap with the caller's own set-up."""
     if can_have_children():
-        from multiprocessing import forkserver
-
         fork_server()
-        forkserver.ensure_running()
 
 
 def can_have_children() -> bool:
@@ -106,7 +119,9 @@ class IsolatedWorker:
     def start(self) -> None:
         self._log = tempfile.NamedTemporaryFile(prefix="qpbench-worker-", suffix=".log")  # noqa: SIM115 (lives as long as the worker)
         if self.program:
-            env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1"}
+            search_path = os.pathsep.join(entry for entry in sys.path if entry)
+            env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1",
+                   "PYTHONPATH": search_path}  # the modules this process can import
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "qpbench.bench.worker"],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
@@ -309,6 +324,7 @@ def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
         "time_s": time_s,
         "time_median_s": time_s,
         "repeats": 0,
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
 
 
