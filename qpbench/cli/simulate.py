@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from qpbench.cli.output import print_json
+from qpbench.errors import InputError, QpbenchError
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import DEFAULT_ACCURACY, Simulator
 
@@ -38,12 +40,11 @@ def run(args: argparse.Namespace) -> int:
     for warning in scene.warnings:
         print(f"qpbench simulate: warning: {warning}", file=sys.stderr)
     if args.steps is not None and args.steps < 0:
-        parser_error = "--steps must be >= 0"
-        print(f"qpbench simulate: {parser_error}", file=sys.stderr)
-        return 2
+        raise QpbenchError("--steps must be >= 0")
     if args.end_time is not None and not args.end_time >= 0:
-        print("qpbench simulate: --end-time must be >= 0", file=sys.stderr)
-        return 2
+        raise QpbenchError("--end-time must be >= 0")
+    if args.capture is not None and Path(args.capture).exists() and not Path(args.capture).is_dir():
+        raise InputError(args.capture, "--capture needs a folder, this is a file")
     steps = args.steps
     if scene.end_time is None and args.end_time is None and steps is None:
         steps = DEFAULT_STEPS
