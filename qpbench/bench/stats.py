@@ -57,8 +57,9 @@ def shifted_geometric_mean(times: Sequence[float] | np.ndarray, shift: float) ->
 
 
 def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
-    """Per (accuracy, solver/formulation): solves, success rate, SGM of charged time, median and
-    max residual, counts of crashed / timeout / out-of-memory rows."""
+    """Per (accuracy, solver/formulation): solves, success rate, SGM of charged time, median
+    set-up time (conversions outside the timed call), median and max residual, max v_error,
+    counts of crashed / timeout / out-of-memory rows."""
     frame = frame.assign(key=solver_keys(frame), charged=charged_times(frame))
     rows = []
     for (accuracy, key), group in frame.groupby(["accuracy", "key"], sort=True):
@@ -69,8 +70,11 @@ def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
             "solves": len(group),
             "success_rate": float(group["success"].fillna(False).astype(bool).mean()),
             "sgm_time_s": shifted_geometric_mean(group["charged"], shift),
+            "median_setup_s": float(group["setup_time_s"].median())
+            if "setup_time_s" in group else math.nan,
             "median_residual": float(group["residual"].median()),
             "max_residual": float(group["residual"].max()),
+            "max_v_error": float(group["v_error"].max()),
             "crashed": int((status == "crashed").sum()),
             "timeout": int((status == "timeout").sum()),
             "out_of_memory": int((status == "out-of-memory").sum()),
