@@ -7,7 +7,8 @@ One step from (x0, v0) with step h:
 2. find the contacts (ball-ball over the step, planes and drums at x1), only if
    the scene has an impact operator and only the kinds of boundary it has;
 3. if there are any, pose the impact problem on the start-of-step velocity v0
-   (one :class:`~qpbench.problem.impact.ImpactProblem`, captured if asked),
+   (one :class:`~qpbench.problem.impact.ImpactProblem`; written to the capture folder
+   when some contact approaches, ``b < 0``, since otherwise l = 0 exactly),
    let the impact operator find l, and re-integrate from x0 with
    ``v0 + M^-1 G l``.
 """
