@@ -19,6 +19,7 @@ from qpbench.bench import runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
+from qpbench.errors import QpbenchError
 
 runner.start_fork_server()  # its imports overlap with this process's
 
@@ -106,3 +107,14 @@ def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupt
     kept = resumed.merge(before[key + ["date", "cell_wall_s"]], on=key, suffixes=("", "_before"))
     assert len(kept) == len(before)
     assert (kept["cell_wall_s"] == kept["cell_wall_s_before"]).all()
+
+
+def test_a_second_run_on_the_same_results_is_refused_while_the_first_writes(
+        tmp_path: Path) -> None:
+    write_tiny_problems(tmp_path / "problems", count=1)
+    store = ResultStore(tmp_path / "r.parquet")
+    settings = RunSettings(solvers=("clarabel/dual",), accuracies=(1e-8,))
+    with store.exclusive(), pytest.raises(QpbenchError, match="another qpbench run is writing"):
+        runner.run([str(tmp_path / "problems")], settings, store.path, SerialExecutor(),
+                   progress=False)
+    assert not store.path.exists() and store.part_files() == []

@@ -15,14 +15,14 @@ import contextlib
 import os
 import time
 import uuid
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from qpbench.bench.settings import CELL_KEY
-from qpbench.errors import InputError
+from qpbench.errors import InputError, QpbenchError
 
 # column order of the table, with the dtype each column is stored as
 FLOAT_COLUMNS = (
@@ -99,6 +99,25 @@ class ResultStore:
         self.path = Path(path)
         self.parts = self.path.with_name(self.path.name + ".parts")
 
+    @contextlib.contextmanager
+    def exclusive(self) -> Iterator[None]:
+        """Holds ``FILE.parquet.lock`` (flock) for one writing run; a second run on the same file
+        is refused. The kernel releases the lock when the process dies, even by kill -9."""
+        import fcntl
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        lock = self.path.with_name(self.path.name + ".lock")
+        with open(lock, "a") as handle:
+            try:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as error:
+                raise QpbenchError(f"{self.path}: another qpbench run is writing these results "
+                                   f"(lock {lock.name})") from error
+            try:
+                yield
+            finally:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
     def part_files(self) -> list[Path]:
         if not self.parts.is_dir():
             return []
@@ -156,6 +175,8 @@ class ResultStore:
                           self.path)
         for part in parts:
             part.unlink(missing_ok=True)
+        for leftover in self.path.parent.glob(f".tmp-*-{self.path.name}"):
+            leftover.unlink(missing_ok=True)  # a write that a kill interrupted
         if self.parts.is_dir():
             for leftover in self.parts.glob(".tmp-*"):
                 leftover.unlink(missing_ok=True)

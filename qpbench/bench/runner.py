@@ -384,27 +384,28 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     if not index:
         raise QpbenchError("no problem files found in " + ", ".join(problem_paths))
     matrix = cells(index, list(settings.solvers), settings)
-    done = store.finished_keys()
-    pending = [cell for cell in matrix if cell.key not in done]
-    problem_summaries = summaries(sorted({cell.problem_file for cell in pending}))
-    counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}
-    bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
-               unit="solve", file=sys.stderr, dynamic_ncols=True)
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
                       for spec in resolve(list(settings.solvers))}
-    writer = store.writer(batch_rows=batch_rows, batch_seconds=batch_seconds)
-    try:
-        for cell, row in executor.map(pending, settings.limits):
-            writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
-                                    settings.limits, solver_columns.get(cell.solver_key)))
-            counts["run"] += 1
-            bar.set_postfix_str(f"{cell.solver_key} {row.get('status', '?')}", refresh=False)
-            bar.update(1)
-        writer.flush()
-    finally:
-        writer.flush()
-        bar.close()
-    store.compact()
+    with store.exclusive():
+        done = store.finished_keys()
+        pending = [cell for cell in matrix if cell.key not in done]
+        problem_summaries = summaries(sorted({cell.problem_file for cell in pending}))
+        counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}
+        bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
+                   unit="solve", file=sys.stderr, dynamic_ncols=True)
+        writer = store.writer(batch_rows=batch_rows, batch_seconds=batch_seconds)
+        try:
+            for cell, row in executor.map(pending, settings.limits):
+                writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
+                                        settings.limits, solver_columns.get(cell.solver_key)))
+                counts["run"] += 1
+                bar.set_postfix_str(f"{cell.solver_key} {row.get('status', '?')}",
+                                    refresh=False)
+                bar.update(1)
+        finally:
+            writer.flush()  # also on Ctrl-C or an error: every finished row is kept
+            bar.close()
+        store.compact()
     return counts
 
 
