@@ -39,7 +39,7 @@ def apgd(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, check_every: i
          ) -> tuple[np.ndarray, bool, str, int]:
     """(l, converged, status, iterations)."""
     x = start.copy()
-    if lcp.residual(x) <= tol:
+    if lcp.converged(x, tol):
         return x, True, "converged", 0
     step = 1.0 / (gershgorin_scaled(lcp) * lcp.safe_diag)
     y = x.copy()
@@ -58,10 +58,11 @@ def apgd(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, check_every: i
         if iteration % check_every == 0:
             if not np.all(np.isfinite(x)):
                 return x, False, "diverged: non-finite impulses", iteration
-            if lcp.residual(x) <= tol:
+            if lcp.converged(x, tol):
                 return x, True, "converged", iteration
-    return x, lcp.residual(x) <= tol, (
-        "converged" if lcp.residual(x) <= tol else f"max_iters ({max_iters}) reached"), max_iters
+    converged = lcp.converged(x, tol)
+    return x, converged, "converged" if converged else f"max_iters ({max_iters}) reached", \
+        max_iters
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None

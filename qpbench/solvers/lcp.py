@@ -9,11 +9,12 @@ means what qpbench's verdict means.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 
-from qpbench import __version__
+from qpbench import __version__, metrics
 from qpbench.metrics import TINY
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput
@@ -25,32 +26,46 @@ VERSION = __version__
 
 @dataclass
 class Lcp:
-    """Q (CSR, for fast products), b, D = diag(Q) and the residual's scale of one problem."""
+    """Q (CSR), b, D = diag(Q) and the residual's scale of one problem; ``op`` is Q for
+    products: a dense array on small problems (no sparse overhead), else Q itself."""
 
     Q: sp.csr_matrix
     b: np.ndarray
     diag: np.ndarray
     scale: float
+    op: np.ndarray | sp.csr_matrix | None = None
+    problem: ImpactProblem | None = None
+
+    def __post_init__(self) -> None:
+        if self.op is None:
+            self.op = self.Q
 
     @classmethod
-    def of(cls, problem: ImpactProblem) -> Lcp:
+    def of(cls, problem: ImpactProblem, dense_limit: int = 0) -> Lcp:
+        """The LCP of ``problem``; ``op`` dense when it has at most ``dense_limit`` contacts."""
         Q = sp.csr_matrix(problem.Q)
         b = np.asarray(problem.b, dtype=float)
         scale = max(float(np.max(np.abs(b), initial=0.0)), TINY)
-        return cls(Q=Q, b=b, diag=np.asarray(problem.diag_Q, dtype=float), scale=scale)
+        op = Q.toarray() if Q.shape[0] <= dense_limit else Q
+        return cls(Q=Q, b=b, diag=np.asarray(problem.diag_Q, dtype=float), scale=scale, op=op,
+                   problem=problem)
+
+    @property
+    def dense(self) -> bool:
+        return isinstance(self.op, np.ndarray)
 
     @property
     def n(self) -> int:
         return int(self.b.shape[0])
 
-    @property
+    @cached_property
     def safe_diag(self) -> np.ndarray:
         """D with zero entries (contacts that move nothing) replaced by 1, for divisions."""
         return np.where(self.diag > 0.0, self.diag, 1.0)
 
     def w(self, impulses: np.ndarray) -> np.ndarray:
         """w = Q l + b."""
-        return self.Q @ impulses + self.b
+        return self.op @ impulses + self.b
 
     def residual_of(self, impulses: np.ndarray, w: np.ndarray) -> float:
         """||min(D l, w)||_inf / scale for a w already computed."""
@@ -61,6 +76,17 @@ class Lcp:
     def residual(self, impulses: np.ndarray) -> float:
         """||min(D l, Q l + b)||_inf / scale (qpbench's residual)."""
         return self.residual_of(impulses, self.w(impulses))
+
+    def converged(self, impulses: np.ndarray, tol: float, w: np.ndarray | None = None) -> bool:
+        """residual(l) <= tol, confirmed by qpbench's own ``metrics.residual`` (the same formula
+        with qpbench's products, whose rounding can differ near 1e-8 on extreme mass ratios),
+        so that a solver's "converged" is exactly qpbench's verdict."""
+        fast = self.residual_of(impulses, self.w(impulses) if w is None else w)
+        if fast > tol:
+            return False
+        if self.problem is None:
+            return True
+        return bool(metrics.residual(self.problem, impulses) <= tol)
 
     def start(self, warm_start: np.ndarray | None) -> np.ndarray:
         """The warm start clipped to l >= 0 when it has the right size and is finite, else 0."""

@@ -36,11 +36,11 @@ class NormalMatrix:
     """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky or sparse SuperLU) and solves
     with it; keeps the scaled LCP and its scaling ``root``."""
 
-    def __init__(self, lcp: Lcp, root: np.ndarray, dense: bool) -> None:
+    def __init__(self, lcp: Lcp, root: np.ndarray) -> None:
         self.lcp, self.root = lcp, root
-        self.dense = dense
-        self.Q_dense = lcp.Q.toarray() if dense else None
-        self.Q_csc = None if dense else sp.csc_matrix(lcp.Q)
+        self.dense = lcp.dense
+        self.Q_dense = lcp.op if self.dense else None
+        self.Q_csc = None if self.dense else sp.csc_matrix(lcp.Q)
         self.factor: object = None
 
     def factorize(self, diagonal: np.ndarray) -> None:
@@ -66,9 +66,10 @@ def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
     """(the LCP in l~ = D^1/2 l, i.e. (S Q S, S b) with S = D^-1/2, unit diagonal; and S)."""
     root = 1.0 / np.sqrt(lcp.safe_diag)
     Q = sp.csr_matrix(sp.diags(root) @ lcp.Q @ sp.diags(root))
+    op = lcp.op * root[:, None] * root[None, :] if lcp.dense else Q
     b = lcp.b * root
     scale = max(float(np.max(np.abs(b), initial=0.0)), 1e-300)
-    return Lcp(Q=Q, b=b, diag=np.ones(lcp.n), scale=scale), root
+    return Lcp(Q=Q, b=b, diag=np.ones(lcp.n), scale=scale, op=op), root
 
 
 def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix, tol: float,
@@ -83,14 +84,15 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
     impulses = np.full(n, scaled.scale)
     slack = np.maximum(scaled.w(impulses), scaled.scale)
     floor = 1e-14
-    best = impulses * root
+    best, best_res = impulses * root, np.inf
     for iteration in range(1, max_iters + 1):
-        infeasibility = scaled.Q @ impulses + scaled.b - slack
+        infeasibility = scaled.op @ impulses + scaled.b - slack
         mu = float(impulses @ slack) / n
         original_l, original_w = impulses * root, (infeasibility + slack) / root
         res = lcp.residual_of(original_l, original_w)
-        best = original_l
-        if res <= tol:
+        if res < best_res:
+            best, best_res = original_l, res
+        if res <= tol and lcp.converged(original_l, tol):
             return original_l, True, iteration - 1, 0
         if res <= finish_below:
             finished = try_finish(original_l, original_w)
@@ -99,14 +101,14 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
         normal.factorize(np.maximum(slack / impulses, floor))
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
-        dw = scaled.Q @ dl + infeasibility
+        dw = scaled.op @ dl + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
         mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
-        dw = scaled.Q @ dl + infeasibility
+        dw = scaled.op @ dl + infeasibility
         alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
                                     _step_to_boundary(slack, dw)))
         impulses = np.maximum(impulses + alpha * dl, 1e-300)

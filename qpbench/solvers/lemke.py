@@ -94,7 +94,7 @@ def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str,
     in_z = (basis >= n) & (basis < 2 * n)
     impulses[basis[in_z] - n] = np.maximum(rhs[in_z], 0.0) * root[basis[in_z] - n]
     impulses = _polish(lcp, impulses, basis[in_z] - n, Q, root)
-    converged = status == "converged" and lcp.residual(impulses) <= tol
+    converged = status == "converged" and lcp.converged(impulses, tol)
     if status == "converged" and not converged:
         status = "pivoting ended above tolerance"
     return impulses, converged, status, pivots

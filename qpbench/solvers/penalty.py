@@ -30,7 +30,7 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
     """(l, converged, status, linear solves)."""
     n = lcp.n
     impulses = np.zeros(n)
-    if lcp.residual(impulses) <= tol:
+    if lcp.converged(impulses, tol):
         return impulses, True, "converged", 0
     dense = lcp.Q.toarray() if n <= dense_limit else None
     penalized = np.zeros(n, dtype=bool)
@@ -48,7 +48,7 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
                 return None, False, f"singular penalty system: {error}", iteration
         if not np.all(np.isfinite(impulses)):
             return impulses, False, "diverged: non-finite impulses", iteration
-        if lcp.residual(impulses) <= tol:
+        if lcp.converged(impulses, tol):
             return impulses, True, "converged", iteration
         penalized = impulses < 0.0
         if np.packbits(penalized).tobytes() in seen:

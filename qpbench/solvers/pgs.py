@@ -65,7 +65,7 @@ def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
         check_every: int) -> tuple[np.ndarray, bool, str, int]:
     """(l, converged, status, sweeps)."""
     impulses = start.copy()
-    if lcp.residual(impulses) <= tol:
+    if lcp.converged(impulses, tol):
         return impulses, True, "converged", 0
     sweeps = 0
     while sweeps < max_sweeps:
@@ -74,7 +74,7 @@ def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
             sweeps += 1
         if not np.all(np.isfinite(impulses)):
             return impulses, False, "diverged: non-finite impulses", sweeps
-        if lcp.residual(impulses) <= tol:
+        if lcp.converged(impulses, tol):
             return impulses, True, "converged", sweeps
     return impulses, False, f"max_sweeps ({max_sweeps}) reached", sweeps
 

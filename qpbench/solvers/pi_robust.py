@@ -50,11 +50,12 @@ NAME = "pi-robust"
 class BlockSolver:
     """Solves ``(Q_FF + rho D_F) x = r`` for a policy F, keeping the last ``keep`` factors."""
 
-    def __init__(self, lcp: Lcp, dense: bool, keep: int = 2) -> None:
+    def __init__(self, lcp: Lcp, keep: int = 2, small: int = 64) -> None:
         self.lcp = lcp
-        self.dense = dense
-        self.Q_dense = lcp.Q.toarray() if dense else None
-        self.Q_csc = None if dense else sp.csc_matrix(lcp.Q)
+        self.dense = lcp.dense
+        self.small = small  # blocks up to this size are solved by LU each time (cheapest)
+        self.Q_dense = lcp.op if self.dense else None
+        self.Q_csc = None if self.dense else sp.csc_matrix(lcp.Q)
         self.keep = keep
         self.cache: dict[tuple[bytes, float], object] = {}
         self.factorizations = 0
@@ -71,6 +72,8 @@ class BlockSolver:
         self.cache[key] = factor  # the most recently used last
         while len(self.cache) > self.keep:
             self.cache.pop(next(iter(self.cache)))
+        if isinstance(factor, np.ndarray):
+            return np.linalg.solve(factor, rhs)
         if self.dense:
             return la.cho_solve(factor, rhs, check_finite=False)
         return factor.solve(rhs)
@@ -80,6 +83,8 @@ class BlockSolver:
         if self.dense:
             block = self.Q_dense[np.ix_(index, index)]
             block[np.diag_indices_from(block)] += shift
+            if index.size <= self.small:
+                return block
             return la.cho_factor(block, lower=True, check_finite=False)
         block = self.Q_csc[:, index][index, :] + sp.diags(shift)
         try:
@@ -105,7 +110,7 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
         if index.size:
             x[index] = blocks.solve(policy, index, rho, -q[index])
         solves += 1
-        y = lcp.Q @ x + shift * x + q
+        y = lcp.op @ x + shift * x + q
         infeasible = (policy & (x < -tol_l)) | (~policy & (y < -tol_w))
         count = int(np.count_nonzero(infeasible))
         if count == 0:
@@ -152,7 +157,7 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
         previous, res = res, lcp.residual(centre)
         if res < best_res:
             best, best_res = centre, res
-        if res <= tol:
+        if res <= tol and lcp.converged(centre, tol):
             return centre, True, "converged", solves, res
         if not solved:
             break
@@ -166,20 +171,21 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
     return best, False, status, solves, best_res
 
 
-def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.ndarray,
+def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               tol: float, rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
               stall_steps: int, backup_steps: int, pi_budget: int, finish_budget: int,
               finish_below: float, ipm_iters: int, lemke_limit: int
               ) -> tuple[np.ndarray, bool, str, int, dict]:
     """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
     w = lcp.w(start)
-    if lcp.residual_of(start, w) <= tol:
+    if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
     settings = {"tol": tol, "rho": rho, "rho_min": rho_min, "rho_decrease": rho_decrease,
                 "stall_ratio": stall_ratio, "stall_steps": stall_steps,
                 "backup_steps": backup_steps}
-    impulses, converged, status, solves, best_res = _prox_policy_iteration(
+    first, converged, status, solves, best_res = _prox_policy_iteration(
         lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
+    impulses = first
     if converged:
         return impulses, True, "converged", solves, {
             "path": "policy iteration", "factorizations": blocks.factorizations}
@@ -193,6 +199,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.nda
         return result if done else None
 
     try:
+        normal = NormalMatrix(*jacobi_scaled(lcp))
         impulses, converged, iterations, _ = interior_point(
             lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below)
     except np.linalg.LinAlgError as error:
@@ -202,6 +209,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.nda
             "interior_iterations": iterations, "factorizations": blocks.factorizations}
     if converged:
         return impulses, True, "converged", solves, info
+    candidates = [impulses, first]
     if lcp.n <= lemke_limit:
         from qpbench.solvers.lemke import lemke
 
@@ -209,21 +217,22 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, normal: NormalMatrix, start: np.nda
         info["path"] = f"lemke fallback: {lemke_status}"
         if converged:
             return impulses, True, "converged by lemke fallback", solves + pivots, info
-    return impulses, False, "interior point did not converge", solves, info
+        candidates.append(impulses)
+    best = min(candidates, key=lcp.residual)
+    return best, False, "interior point did not converge", solves, info
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
     with Stopwatch() as setup:
-        lcp = Lcp.of(problem)
+        options = accuracy.options_for(NAME, eps, 1.0)
+        lcp = Lcp.of(problem, dense_limit=options.pop("dense_limit"))
         options = accuracy.options_for(NAME, eps, lcp.scale)
-        dense = lcp.n <= options.pop("dense_limit")
-        blocks = BlockSolver(lcp, dense)
-        normal = NormalMatrix(*jacobi_scaled(lcp), dense)
+        options.pop("dense_limit")
+        blocks = BlockSolver(lcp)
         start = lcp.start(warm_start)
     with Stopwatch() as clock:
-        impulses, converged, status, iterations, info = pi_robust(lcp, blocks, normal, start,
-                                                                  **options)
+        impulses, converged, status, iterations, info = pi_robust(lcp, blocks, start, **options)
     return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)
 
 

@@ -54,7 +54,7 @@ def policy_iteration(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, cg
     random one (pi-v2); ``rng`` None: a repeated policy ends the run as ``cycled`` (pi)."""
     impulses = start
     w = lcp.w(impulses)
-    if lcp.residual_of(impulses, w) <= tol:
+    if lcp.converged(impulses, tol, w):
         return impulses, True, "converged", 0
     seen: set[bytes] = set()
     for iteration in range(1, max_iters + 1):
@@ -72,7 +72,7 @@ def policy_iteration(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, cg
         if not np.all(np.isfinite(impulses)):
             return impulses, False, "diverged: non-finite impulses", iteration
         w = lcp.w(impulses)
-        if lcp.residual_of(impulses, w) <= tol:
+        if lcp.converged(impulses, tol, w):
             return impulses, True, "converged", iteration
     return impulses, False, f"max_iters ({max_iters}) reached", max_iters
 
