@@ -184,7 +184,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "pi-v2": {"tol": _relative, "max_iters": 200, "cg_rtol": _inner_tolerance,
               "cg_max_iters": 2_000, "seed": 0},
     "pi-robust": {"tol": _relative, "rho": 1e-8, "rho_min": 1e-14, "rho_decrease": 0.01,
-                  "stall_ratio": 0.5, "stall_steps": 3, "backup_steps": 3, "pi_budget": 30,
+                  "stall_ratio": 0.5, "stall_steps": 3, "backup_steps": 3, "pi_budget": 10,
                   "finish_budget": 8, "finish_below": 1e-3, "ipm_iters": 80,
                   "dense_limit": 300, "lemke_limit": 400},
     "pgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
