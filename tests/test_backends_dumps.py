@@ -20,9 +20,10 @@ DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 DUMP_FILES = sorted(DUMPS.glob("*")) if DUMPS.is_dir() else []
 SPECS = [spec for spec in all_solvers() if spec.backend in ("qpsolvers", "cvxpy", "cyipopt")]
 ACCURACY = 1e-8
+# cvxpy's cone program for CVXOPT fails outright ("Solver 'CVXOPT' failed") below ~1e-4
+ACCURACY_FOR = {"cvxpy-cvxopt": 1e-4}
 V_TOLERANCE = 1e-5
-# cvxpy hands CVXOPT a cone program that stops near 1e-5 (see the accuracy table)
-LOOSE = {"cvxpy-cvxopt": 1e-3}
+LOOSE = {"cvxpy-cvxopt": 1e-3}  # its level is 1e-4 (above)
 # HiGHS 1.15 answers l = 0, "optimal", on a QP with bounds and no rows when Q is singular
 KNOWN_WRONG = {"highs/dual": "HiGHS returns l = 0 as optimal on a singular bounds-only QP"}
 
@@ -41,7 +42,7 @@ def test_backend_matches_the_reference_on_a_dump(spec: SolverSpec, path: Path) -
     if not spec.usable:
         pytest.skip(f"{spec.key}: {spec.reason}")
     problem = dump_problem(path)
-    row, output = solve_and_judge(spec, problem, ACCURACY)
+    row, output = solve_and_judge(spec, problem, ACCURACY_FOR.get(spec.name, ACCURACY))
     singular = problem.rank_deficiency > 0
     if spec.name in POSITIVE_DEFINITE_ONLY and spec.formulation == "dual" and singular:
         assert output.status == NOT_POSITIVE_DEFINITE

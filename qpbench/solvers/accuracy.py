@@ -89,6 +89,20 @@ def _conic_gap(eps: float, scale: float) -> float:
     return max(eps * eps, 1e-12)
 
 
+def _cvxopt_cone_gap(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-10) * scale^2
+
+    cvxpy poses CVXOPT a cone program (the quadratic as a cone, so l errs by ~sqrt(gap))
+    that fails outright below a gap of about 1e-10.
+    """
+    return max(eps * eps, 1e-10) * scale * scale
+
+
+def _cvxopt_cone_gap_relative(eps: float, scale: float) -> float:
+    """max(eps^2, 1e-10)"""
+    return max(eps * eps, 1e-10)
+
+
 def _ktratio(eps: float, scale: float) -> float:
     """min(1e-6, eps)"""
     return min(1e-6, eps)
@@ -171,9 +185,8 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
                   "time_limit_secs": DEFAULT_TIME_LIMIT_S},
     "cvxpy-ecos": {"abstol": _conic_gap, "reltol": _conic_gap, "feastol": _relative,
                    "max_iters": INTERIOR_MAX_ITER},
-    # cvxpy poses CVXOPT a cone program that fails outright below a gap of ~1e-10
-    "cvxpy-cvxopt": {"abstol": _gap, "reltol": _relative, "feastol": _relative,
-                     "max_iters": INTERIOR_MAX_ITER},
+    "cvxpy-cvxopt": {"abstol": _cvxopt_cone_gap, "reltol": _cvxopt_cone_gap_relative,
+                     "feastol": _relative, "max_iters": INTERIOR_MAX_ITER},
     "cvxpy-ipopt": {"tol": _ipopt_tol, "acceptable_iter": 0, "max_iter": 3000,
                     "max_cpu_time": DEFAULT_TIME_LIMIT_S, "linear_solver": "mumps",
                     "hessian_constant": "yes", "jac_c_constant": "yes",
