@@ -35,14 +35,20 @@ EXIT_INPUT_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _module_name(command: str) -> str:
+    return command.replace("-", "_")
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser; with ``only``, just that subcommand's module is imported (the
+    solver backends, pandas and matplotlib load only for the commands that use them)."""
     parser = argparse.ArgumentParser(
         prog="qpbench",
         description="Formulations and solvers for the impulses of simultaneous 2D ball impacts.",
     )
     parser.add_argument("--version", action="version", version=f"qpbench {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in COMMANDS:
+    for name in COMMANDS if only is None else (only,):
         try:
             module = importlib.import_module(f"qpbench.cli.{name}")
         except ModuleNotFoundError as error:
@@ -53,8 +59,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _chosen_command(argv: Sequence[str]) -> str | None:
+    """The subcommand's module name when argv names a known one first, else None."""
+    for argument in argv:
+        if argument.startswith("-"):
+            return None
+        return _module_name(argument) if _module_name(argument) in COMMANDS else None
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(only=_chosen_command(argv))
     args = parser.parse_args(argv)
     try:
         return int(args.handler(args) or 0)
