@@ -52,7 +52,8 @@ def test_report_has_every_section_and_its_figures_exist(results: Path, tmp_path:
     report = write_report(results, tmp_path / "out")
     text = report.read_text()
     for heading in ("## Machine and versions", "## Per accuracy level", "### Accuracy 1e-06",
-                    "## Formulations side by side", "## Work-precision diagrams",
+                    "## Success by family", "## Formulations side by side",
+                    "## Work-precision diagrams",
                     "### Family k3", "### Family row", "## Performance profiles",
                     "## What accuracy costs", "## Status honesty", "## Warm against cold",
                     "## Targets of our own solver", "## Accuracy options"):

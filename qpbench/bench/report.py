@@ -165,6 +165,18 @@ def _levels(summary: pd.DataFrame, shift: float) -> str:
     return "".join(parts)
 
 
+def _families(frame: pd.DataFrame) -> str:
+    """Success rate per solver/formulation (rows) and family (columns) at the tightest level."""
+    tightest = float(frame["accuracy"].min())
+    at_level = frame[np.isclose(frame["accuracy"].astype(float), tightest)]
+    at_level = at_level.assign(key=stats.solver_keys(at_level),
+                               solved=at_level["success"].fillna(False).astype(bool))
+    table = at_level.pivot_table(index="key", columns="family", values="solved", aggfunc="mean")
+    table.index.name = "solver"
+    return (f"\nAt accuracy {level(tightest)}, the share of each family's problems solved.\n\n"
+            + markdown_table(table, {column: percent for column in table.columns}, index=True))
+
+
 def _formulations(summary: pd.DataFrame) -> str:
     split = summary["solver"].str.split("/", n=1, expand=True)
     summary = summary.assign(name=split[0], formulation=split[1])
@@ -291,6 +303,7 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
                              folder, "success rate by level"))
+    out.append("\n## Success by family\n" + _families(main))
     out.append("\n## Formulations side by side\n" + _formulations(summary))
 
     out.append("\n## Work-precision diagrams\n\nEach curve is one solver/formulation; each "

@@ -243,6 +243,13 @@ def die_with_parent() -> None:
         os._exit(1)
 
 
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays as Python values, for JSON."""
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    raise TypeError(f"cannot send {type(value).__name__}")
+
+
 def main() -> None:
     """Entry point of a worker started as a program: JSON lines on stdin and on a private copy
     of stdout (stray solver output goes to stderr)."""
@@ -258,7 +265,7 @@ def main() -> None:
         return None
 
     def send(message: dict[str, Any]) -> None:
-        answers.write(json.dumps(message) + "\n")
+        answers.write(json.dumps(message, default=_plain) + "\n")
         answers.flush()
 
     serve(receive, send)
