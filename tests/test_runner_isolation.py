@@ -12,7 +12,7 @@ from bench_problems import write_tiny_problems
 from qpbench.bench import runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
-from qpbench.bench.settings import Limits, RunSettings
+from qpbench.bench.settings import Cell, Limits, RunSettings
 
 runner.start_fork_server()  # its imports overlap with this process's
 
@@ -62,3 +62,18 @@ def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
         assert isinstance(exact[column], str) and exact[column]
     assert 0 < exact["timer_overhead_s"] < 1e-3
     assert exact["time_s"] <= exact["time_median_s"]
+
+
+def test_a_worker_started_as_a_program_is_isolated_too(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    # the way a daemonic process (a Dask worker under a nanny) runs cells: no fork server
+    (path,) = write_tiny_problems(tmp_path, count=1)
+    worker = runner.IsolatedWorker(program=True)
+    limits = Limits(timeout_s=5.0)
+    try:
+        crashed = worker.solve(Cell(str(path), "row3", "test-abort", "lcp", 1e-8, "cold"), limits)
+        solved = worker.solve(Cell(str(path), "row3", "test-exact", "lcp", 1e-8, "cold"), limits)
+    finally:
+        worker.close()
+    assert crashed["status"] == "crashed" and "SIGABRT" in crashed["solver_status"]
+    assert solved["status"] == "solved" and solved["residual"] <= 1e-12
