@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="problem files (.npz) or folders of them (default: problems/)")
     parser.add_argument("--solvers", default="",
                         help="NAME or NAME/FORMULATION, comma-separated (default: every usable)")
-    parser.add_argument("--accuracy", default=",".join(f"{a:g}" for a in DEFAULT_ACCURACIES),
+    parser.add_argument("--accuracy", default=",".join(f"{a:.0e}" for a in DEFAULT_ACCURACIES),
                         help="accuracy levels, comma-separated (default: %(default)s)")
     parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
                         help="wall-clock limit per solve in seconds (default: %(default)s)")
