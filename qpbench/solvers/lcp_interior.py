@@ -78,8 +78,9 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
                    finish_below: float) -> tuple[np.ndarray, bool, int, int]:
     """(l, converged, interior iterations, finishing solves), iterating on the Jacobi-scaled
     LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``; ``normal`` factors its matrices) and
-    judging by the original ``lcp``. ``try_finish(l, w)`` is called on every iterate whose
-    residual is below ``finish_below`` and returns a converged l or None."""
+    judging by the original ``lcp``. ``try_finish(l, w)`` is called on an iterate whose
+    residual is below ``finish_below`` (then below a tenth of the last failed try's) and
+    returns a converged l or None."""
     n = scaled.n
     impulses = np.full(n, scaled.scale)
     slack = np.maximum(scaled.w(impulses), scaled.scale)
@@ -98,6 +99,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
             finished = try_finish(original_l, original_w)
             if finished is not None:
                 return finished, True, iteration - 1, 1
+            finish_below = 0.1 * res  # try again once the residual is ten times smaller
         normal.factorize(np.maximum(slack / impulses, floor))
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)

@@ -3,31 +3,39 @@
 Plain policy iteration is Newton's method on ``min(D l, Q l + b) = 0`` (D = diag Q):
 it cycles, and its policy systems are singular when Q is. pi-robust keeps the
 policy-iteration step (solve the policy's block, switch every infeasible contact)
-and adds three published safeguards:
+and adds published safeguards:
 
 1. Proximal point (Rockafellar, "Monotone operators and the proximal point
-   algorithm", SIAM J. Control Optim. 14(5), 1976). Each outer step solves the LCP
+   algorithm", SIAM J. Control Optim. 14(5), 1976). Each prox step solves the LCP
    with the positive definite ``H = Q + rho D`` and ``q = b - rho D z`` around the
-   prox centre z, then moves z to its solution. The LCP of a monotone Q is the
-   optimality condition of a convex QP, so the centres converge to a solution of
-   the original LCP; no policy block ``H_FF`` is singular. At a subproblem's
-   solution qpbench's residual is ``rho ||D (l - z)||_inf / scale`` on the
-   active contacts. The null space of Q (where l is not unique and v+ does not
-   change) is left alone. rho falls by ``rho_decrease`` when ``stall_steps`` prox
-   steps in a row fail to cut the residual by ``stall_ratio``.
-2. Block principal pivoting with a finite backup rule (Judice and Pires,
-   Comput. Oper. Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011)
-   for each inner LCP: the policy-iteration exchange of every infeasible contact
-   while their number falls, at most ``backup_steps`` full exchanges that do not
-   reduce it, then Murty's single exchange of the largest infeasible index, which
-   terminates for any P-matrix (H is positive definite). No cycling.
-3. Factorization reuse: once the policy settles, further prox steps reuse the
-   Cholesky factor of ``H_FF`` (dense LAPACK up to ``dense_limit`` contacts, sparse
-   SuperLU above), so refining l costs triangular solves only.
+   centre z, then moves z to its solution, so no policy block ``H_FF`` is
+   singular. At a step's solution qpbench's residual is
+   ``rho ||D (l - z)||_inf / scale`` on the active contacts. The null space of Q
+   (where l is not unique and v+ does not change) is left alone. rho falls by
+   ``rho_decrease`` when ``stall_steps`` prox steps in a row fail to cut the
+   residual by ``stall_ratio``.
+2. Block principal pivoting with a backup rule (Judice and Pires, Comput. Oper.
+   Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011) for each
+   prox LCP: the policy-iteration exchange of every infeasible contact while
+   their number falls, at most ``backup_steps`` full exchanges that do not
+   reduce it, then (``single_exchanges``) Murty's single exchange of the largest
+   infeasible index, which terminates for any P-matrix. No cycling.
+3. A safe path when that is slow: policy iteration gets ``pi_budget`` linear
+   solves (enough on most impacts: boxes, cradles, K3/K4, small grids). Then a
+   Mehrotra interior point (``qpbench.solvers.lcp_interior``, Jacobi-scaled,
+   ``ipm_iters`` at most) runs, and every iterate whose residual is below
+   ``finish_below`` (then ten times lower than the last try) is handed back to
+   the prox policy iteration for ``finish_budget`` solves from its policy
+   ``{w < D l}``: near the solution that finds the exact active set in one or
+   two solves (an active-set polish), so the answer is not an interior point's
+   approximation.
+4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
-Stops when qpbench's ``residual(l) <= tol`` on the clipped ``l >= 0``. Lemke's
-method (``lemke_limit`` contacts at most) is the fallback when the budget of
-``max_iters`` linear solves runs out; without convergence it reports failure.
+Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
+by LU) or sparse SuperLU; the last factors of policy blocks are kept, so prox
+steps on a settled policy cost triangular solves only. Converged means qpbench's
+``residual(l) <= tol`` (confirmed with qpbench's own metric); otherwise it
+reports failure and returns its best l.
 """
 
 from __future__ import annotations
@@ -95,8 +103,8 @@ class BlockSolver:
 
 
 def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray,
-               tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int
-               ) -> tuple[np.ndarray, np.ndarray, int, bool]:
+               tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int,
+               single_exchanges: bool = True) -> tuple[np.ndarray, np.ndarray, int, bool]:
     """Block principal pivoting on LCP(Q + rho D, q) from ``policy``:
     (x, final policy, linear solves, solved)."""
     shift = rho * lcp.safe_diag
@@ -122,16 +130,18 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
         elif backup > 0:
             backup -= 1
             policy ^= infeasible
-        else:
+        elif single_exchanges:
             last = int(np.flatnonzero(infeasible)[-1])
             policy[last] = not policy[last]
+        else:
+            break  # the caller has a safer path than slow single exchanges
     return x, policy, solves, False
 
 
 def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
                            policy: np.ndarray, tol: float, rho: float, rho_min: float,
                            rho_decrease: float, stall_ratio: float, stall_steps: int,
-                           backup_steps: int, budget: int
+                           backup_steps: int, single_exchanges: bool, budget: int
                            ) -> tuple[np.ndarray, bool, str, int, float]:
     """Prox steps from ``centre`` and ``policy`` within ``budget`` linear solves:
     (best l, converged, status, solves, best residual)."""
@@ -145,7 +155,8 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
         q = lcp.b - rho * lcp.safe_diag * centre
         try:
             x, policy, used, solved = _inner_lcp(lcp, blocks, policy, rho, q, tol_l, tol_w,
-                                                 backup_steps, budget - solves)
+                                                 backup_steps, budget - solves,
+                                                 single_exchanges)
         except np.linalg.LinAlgError:
             status = "block factorization failed"
             rho /= rho_decrease
@@ -173,7 +184,8 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
 
 def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               tol: float, rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
-              stall_steps: int, backup_steps: int, pi_budget: int, finish_budget: int,
+              stall_steps: int, backup_steps: int, single_exchanges: bool, pi_budget: int,
+              finish_budget: int,
               finish_below: float, ipm_iters: int, lemke_limit: int
               ) -> tuple[np.ndarray, bool, str, int, dict]:
     """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
@@ -182,7 +194,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         return start, True, "converged", 0, {"path": "start"}
     settings = {"tol": tol, "rho": rho, "rho_min": rho_min, "rho_decrease": rho_decrease,
                 "stall_ratio": stall_ratio, "stall_steps": stall_steps,
-                "backup_steps": backup_steps}
+                "backup_steps": backup_steps, "single_exchanges": single_exchanges}
     first, converged, status, solves, best_res = _prox_policy_iteration(
         lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
     impulses = first
