@@ -2,9 +2,9 @@
 
 Every executor hands each cell to an :class:`~qpbench.bench.runner.IsolatedWorker`
 (a child process), so all three give the same rows; they differ only in how many
-cells run at once and on which machine. Cells are grouped by problem file so a
-worker loads each problem once. ``map(cells, limits)`` yields ``(cell, row)`` as
-cells finish, in any order.
+cells run at once and on which machine. Cells are grouped (by problem file and
+solver locally, by problem file for Dask tasks) so a worker loads a problem once per
+group. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any order.
 """
 
 from __future__ import annotations
@@ -34,6 +34,13 @@ def by_problem(cells: list[Cell]) -> list[list[Cell]]:
     return [list(group) for _, group in groupby(cells, key=lambda cell: cell.problem_file)]
 
 
+def by_problem_and_solver(cells: list[Cell]) -> list[list[Cell]]:
+    """Consecutive groups of one problem file and one solver: small enough to keep every
+    worker busy on a set of few problems, large enough to load a problem once per group."""
+    return [list(group) for _, group in
+            groupby(cells, key=lambda cell: (cell.problem_file, cell.solver_key))]
+
+
 class SerialExecutor:
     """One worker process, cells in matrix order."""
 
@@ -55,7 +62,7 @@ class ProcessExecutor:
 
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
         chunks: queue.Queue[list[Cell] | None] = queue.Queue()
-        for chunk in by_problem(cells):
+        for chunk in by_problem_and_solver(cells):
             chunks.put(chunk)
         results: queue.Queue[Result | BaseException | None] = queue.Queue()
         stop = threading.Event()
