@@ -19,7 +19,8 @@ from qpbench.bench import runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
-from qpbench.errors import QpbenchError
+from qpbench.errors import InputError, QpbenchError
+from qpbench.problem import files
 
 runner.start_fork_server()  # its imports overlap with this process's
 
@@ -118,3 +119,19 @@ def test_a_second_run_on_the_same_results_is_refused_while_the_first_writes(
         runner.run([str(tmp_path / "problems")], settings, store.path, SerialExecutor(),
                    progress=False)
     assert not store.path.exists() and store.part_files() == []
+
+
+def test_resuming_with_a_changed_problem_of_the_same_name_is_refused(tmp_path: Path) -> None:
+    (path,) = write_tiny_problems(tmp_path / "problems", count=1)
+    settings = RunSettings(solvers=("clarabel/dual",), accuracies=(1e-8,))
+    output = tmp_path / "r.parquet"
+    runner.run([str(tmp_path / "problems")], settings, output, SerialExecutor(), progress=False)
+    assert ResultStore(output).read()["problem_hash"].notna().all()
+
+    problem = files.load(path)
+    problem.v_minus[0] = 2.0  # same name, other numbers
+    files.save(problem, path)
+    more = RunSettings(solvers=("clarabel/dual",), accuracies=(1e-8, 1e-4))
+    with pytest.raises(InputError, match="differs from the one whose results are in"):
+        runner.run([str(tmp_path / "problems")], more, output, SerialExecutor(), progress=False)
+    assert len(ResultStore(output).read()) == 1

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import pyarrow.parquet as pq
 
 from qpbench.bench.settings import CELL_KEY
 from qpbench.errors import InputError, QpbenchError
@@ -36,7 +37,7 @@ INT_COLUMNS = (
 )
 BOOL_COLUMNS = ("success", "claimed_success", "status_honest", "warm_start_used")
 COLUMNS = (
-    "problem", "family", "source", "problem_file", "bodies", "contacts", "nnz",
+    "problem", "family", "source", "problem_file", "problem_hash", "bodies", "contacts", "nnz",
     "rank_deficiency", "solver", "formulation", "backend", "solver_version", "accuracy", "mode",
     "status", "solver_status", "claimed_success", "status_honest", "success", "residual",
     "v_error", "energy_gain", "complementarity", "infeasibility", "energy_identity_gap",
@@ -124,9 +125,15 @@ class ResultStore:
         return sorted(self.parts.glob("part-*.parquet"))
 
     def _read_file(self, path: Path, columns: Iterable[str] | None) -> pd.DataFrame:
+        """One file's rows (``columns`` only, those it lacks as missing values)."""
         try:
-            return pd.read_parquet(path, engine="pyarrow",
-                                   columns=list(columns) if columns is not None else None)
+            if columns is None:
+                return pd.read_parquet(path, engine="pyarrow")
+            wanted = list(columns)
+            present = set(pq.read_schema(path).names)
+            frame = pd.read_parquet(path, engine="pyarrow",
+                                    columns=[column for column in wanted if column in present])
+            return frame.reindex(columns=wanted)
         except (OSError, ValueError) as error:
             raise InputError(str(path), f"not a readable results file ({error})") from error
 

@@ -20,6 +20,7 @@ Measured on the development machine: a new worker after a crash is ready in abou
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
 import math
 import multiprocessing
@@ -36,11 +37,13 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
 from qpbench.bench.settings import Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
+from qpbench.problem.impact import ImpactProblem
 
 CRASHED = "crashed"
 TIMEOUT = "timeout"
@@ -354,18 +357,44 @@ def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limit
 
 
 # --- the problem set ---------------------------------------------------------------------
-def problem_index(paths: Iterable[str | os.PathLike[str]]) -> list[tuple[str, str]]:
-    """(file, problem name) for every problem file named or found; InputError on a name twice."""
-    index: list[tuple[str, str]] = []
+def fingerprint(problem: ImpactProblem) -> str:
+    """A short SHA-256 of the numbers that define the problem (G, M^-1, v-, c, nrel): results
+    of a problem are only resumed for the same numbers."""
+    digest = hashlib.sha256()
+    G = problem.G.tocsc()
+    for array in (np.asarray(G.shape), G.data, G.indices, G.indptr, problem.m_inv,
+                  problem.v_minus, problem.restitution, problem.n_rel):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def problem_index(paths: Iterable[str | os.PathLike[str]]) -> list[tuple[str, str, str]]:
+    """(file, problem name, fingerprint) for every problem file named or found; InputError on
+    a name used twice (names identify rows)."""
+    index: list[tuple[str, str, str]] = []
     seen: dict[str, str] = {}
     for path in files.find(paths):
-        name = files.load(path).name
-        if name in seen:
-            raise InputError(str(path), f"problem name '{name}' is also used by {seen[name]}; "
-                             "names identify results, so they must be unique", attribute="name")
-        seen[name] = str(path)
-        index.append((str(path), name))
+        problem = files.load(path)
+        if problem.name in seen:
+            raise InputError(str(path), f"problem name '{problem.name}' is also used by "
+                             f"{seen[problem.name]}; names identify results, so they must be "
+                             "unique", attribute="name")
+        seen[problem.name] = str(path)
+        index.append((str(path), problem.name, fingerprint(problem)))
     return index
+
+
+def check_same_problems(index: list[tuple[str, str, str]], stored: Any, output: Path) -> None:
+    """Refuses to resume when a problem of the same name was stored with other numbers."""
+    if stored.empty or "problem_hash" not in stored:
+        return
+    known = dict(zip(stored["problem"].astype(str), stored["problem_hash"], strict=True))
+    for path, name, digest in index:
+        previous = known.get(name)
+        if isinstance(previous, str) and previous != digest:
+            raise InputError(path, f"problem '{name}' differs from the one whose results are in "
+                             f"{output} (fingerprint {digest}, stored {previous}); write the "
+                             "results to a new file")
 
 
 def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
@@ -389,13 +418,17 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     index = problem_index(problem_paths)
     if not index:
         raise QpbenchError("no problem files found in " + ", ".join(problem_paths))
-    matrix = cells(index, list(settings.solvers), settings)
+    matrix = cells([(path, name) for path, name, _ in index], list(settings.solvers), settings)
+    digests = {path: digest for path, _, digest in index}
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
                       for spec in resolve(list(settings.solvers))}
     with store.exclusive():
+        check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
+                            store.path)
         done = store.finished_keys()
         pending = [cell for cell in matrix if cell.key not in done]
-        problem_summaries = summaries(sorted({cell.problem_file for cell in pending}))
+        problem_summaries = {path: {**summary, "problem_hash": digests[path]} for path, summary
+                             in summaries(sorted({cell.problem_file for cell in pending})).items()}
         counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}
         bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
                    unit="solve", file=sys.stderr, dynamic_ncols=True)
