@@ -36,7 +36,8 @@ def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
     output = tmp_path / "results.parquet"
     counts = runner.run([str(tmp_path / "problems")], settings, output, SerialExecutor(),
                         progress=False)
-    assert counts == {"cells": 6, "skipped": 0, "run": 6}
+    assert counts == {"cells": 6, "skipped": 0, "run": 6, "crashed": 2, "timeout": 1,
+                      "out-of-memory": 1, "solved": 2}
 
     rows = ResultStore(output).read().set_index("solver")
     assert rows.loc["test-abort", "status"] == "crashed"

@@ -406,7 +406,8 @@ def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
 def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLike[str],
         executor: Any, progress: bool = True, batch_rows: int = 20,
         batch_seconds: float = 10.0) -> dict[str, int]:
-    """Runs every cell not yet in ``output`` and stores its row; returns counts.
+    """Runs every cell not yet in ``output`` and stores its row; returns counts (``cells``,
+    ``skipped``, ``run`` and one count per status of the cells run).
 
     Rows are written in batches (``batch_rows`` rows or ``batch_seconds``), each batch one
     atomically renamed part file; at the end the parts are compacted into ``output``.
@@ -438,8 +439,9 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
                 writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
                                         settings.limits, solver_columns.get(cell.solver_key)))
                 counts["run"] += 1
-                bar.set_postfix_str(f"{cell.solver_key} {row.get('status', '?')}",
-                                    refresh=False)
+                status = str(row.get("status", "?"))
+                counts[status] = counts.get(status, 0) + 1
+                bar.set_postfix_str(f"{cell.solver_key} {status}", refresh=False)
                 bar.update(1)
         finally:
             writer.flush()  # also on Ctrl-C or an error: every finished row is kept

@@ -72,6 +72,9 @@ def run(args: argparse.Namespace) -> int:
         runner.start_fork_server()  # its imports overlap with reading the problems
     counts = runner.run(args.problems, settings, args.output, executor,
                         progress=not args.no_progress, batch_rows=args.batch)
+    statuses = ", ".join(f"{status} {count}" for status, count in sorted(counts.items())
+                         if status not in ("cells", "skipped", "run"))
     print(f"qpbench run: {counts['cells']} cells, {counts['skipped']} already done, "
-          f"{counts['run']} run -> {args.output}", file=sys.stderr)
+          f"{counts['run']} run{f' ({statuses})' if statuses else ''} -> {args.output}",
+          file=sys.stderr)
     return 0
