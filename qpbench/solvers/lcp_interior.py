@@ -93,7 +93,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
         res = lcp.residual_of(original_l, original_w)
         if res < best_res:
             best, best_res = original_l, res
-        if res <= tol and lcp.converged(original_l, tol):
+        if res <= 10.0 * tol and lcp.converged(original_l, tol):
             return original_l, True, iteration - 1, 0
         if res <= finish_below:
             finished = try_finish(original_l, original_w)

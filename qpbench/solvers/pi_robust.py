@@ -168,7 +168,7 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
         previous, res = res, lcp.residual(centre)
         if res < best_res:
             best, best_res = centre, res
-        if res <= tol and lcp.converged(centre, tol):
+        if lcp.converged(centre, tol):
             return centre, True, "converged", solves, res
         if not solved:
             break
@@ -231,6 +231,8 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             return impulses, True, "converged by lemke fallback", solves + pivots, info
         candidates.append(impulses)
     best = min(candidates, key=lcp.residual)
+    if lcp.converged(best, tol):
+        return best, True, "converged (best of the interior point's iterates)", solves, info
     return best, False, "interior point did not converge", solves, info
 
 
