@@ -70,7 +70,7 @@ def misbehaving_solvers() -> Iterator[None]:
 def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupted_run(
         tmp_path: Path, misbehaving_solvers: None) -> None:
     problems = tmp_path / "problems"
-    write_tiny_problems(problems, count=2)  # 2 problems x 3 levels = 6 cells of 0.3 s each
+    write_tiny_problems(problems, count=3)  # 3 problems x 3 levels = 9 cells of 0.3 s each
     killed = tmp_path / "killed.parquet"
     environment = {**os.environ, "QPBENCH_EXTRA_SOLVERS": "bench_solvers",
                    "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
@@ -85,13 +85,13 @@ def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupt
     process.wait()
     process.stderr.close()
     before = store.read()
-    assert 2 <= len(before) < 6, "the kill must land mid-way"
+    assert 2 <= len(before) < 9, "the kill must land mid-way"
     assert not killed.exists()  # never compacted: the parts are all there is
 
     settings = RunSettings(solvers=("test-slow/lcp",), accuracies=(1e-4, 1e-6, 1e-8),
                            limits=Limits(timeout_s=30))
     counts = runner.run([str(problems)], settings, killed, SerialExecutor(), progress=False)
-    assert counts["skipped"] == len(before) and counts["run"] == 6 - len(before)
+    assert counts["skipped"] == len(before) and counts["run"] == 9 - len(before)
     resumed = ResultStore(killed).read()
 
     uninterrupted = tmp_path / "uninterrupted.parquet"
@@ -99,7 +99,7 @@ def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupt
     reference = ResultStore(uninterrupted).read()
 
     key = list(CELL_KEY)
-    assert len(resumed) == 6 and not resumed.duplicated(subset=key).any()
+    assert len(resumed) == 9 and not resumed.duplicated(subset=key).any()
     compared = ["status", "success", "residual", "v_error"]
     pd.testing.assert_frame_equal(resumed.sort_values(key)[key + compared].reset_index(drop=True),
                                   reference.sort_values(key)[key + compared]
