@@ -129,6 +129,7 @@ def _provenance(frame: pd.DataFrame) -> str:
         {"item": "timer overhead (perf_counter back-to-back, min)",
          "value": f"{np.median(overhead) * 1e9:.0f} ns" if len(overhead) else "-"},
         {"item": "fastest solve measured (time_s)", "value": _fastest(frame, overhead)},
+        {"item": "spread of repeats (median of max / min time)", "value": _spread(frame)},
     ])
     versions = (frame.assign(key=stats.solver_keys(frame))
                 .groupby("key")[["backend", "solver_version"]].first().reset_index()
@@ -147,6 +148,17 @@ def _fastest(frame: pd.DataFrame, overhead: Any) -> str:
     if not len(overhead):
         return f"{fastest:.3g} s"
     return f"{fastest:.3g} s = {fastest / float(np.median(overhead)):.0f} x the timer overhead"
+
+
+def _spread(frame: pd.DataFrame) -> str:
+    """How much repeated timings of one solve differ: median over solves of max / min."""
+    if "time_max_s" not in frame or "repeats" not in frame:
+        return "-"
+    repeated = frame[(frame["repeats"].fillna(0) > 1) & (frame["time_s"] > 0)]
+    if repeated.empty:
+        return "- (one repeat per solve)"
+    ratio = (repeated["time_max_s"] / repeated["time_s"]).astype(float)
+    return f"{float(ratio.median()):.3g} over {len(repeated)} repeated solves"
 
 
 def _levels(summary: pd.DataFrame, shift: float) -> str:
