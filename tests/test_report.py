@@ -62,7 +62,8 @@ def test_report_has_every_section_and_its_figures_exist(results: Path, tmp_path:
     images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
     names = {Path(image).name for image in images}
     assert {"work_precision_k3.png", "work_precision_row.png", "profile_1e-04.png",
-            "profile_1e-08.png", "success_by_level.png"} <= names
+            "profile_1e-08.png", "success_by_level.png", "cost_of_accuracy.png",
+            "time_by_size.png"} <= names
     for image in images:
         assert (report.parent / image).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", image
     # the cost-of-accuracy table has the level-to-level ratio columns

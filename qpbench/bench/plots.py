@@ -112,3 +112,49 @@ def success_by_level(summary: pd.DataFrame, path: Path) -> Path | None:
     axes.set_title("Success rate by accuracy level")
     axes.legend(title="accuracy", fontsize=7)
     return _save(figure, path)
+
+
+def cost_of_accuracy(summary: pd.DataFrame, path: Path) -> Path | None:
+    """SGM time (failures charged the limit) against the accuracy level, one line per
+    solver/formulation: what each tighter level costs, at a glance."""
+    if summary.empty or summary["accuracy"].nunique() < 2:
+        return None
+    figure, axes = plt.subplots(figsize=(6.4, 4.6))
+    groups = list(summary.groupby("solver"))
+    for index, (key, group) in enumerate(groups):
+        group = group.sort_values("accuracy", ascending=False)
+        axes.plot(group["accuracy"], group["sgm_time_s"], marker="o", markersize=4, label=key,
+                  **style(index))
+    axes.set_xscale("log")
+    axes.set_yscale("log")
+    axes.invert_xaxis()  # tighter levels to the right
+    axes.set_xlabel("accuracy level (residual bound)")
+    axes.set_ylabel("shifted geometric mean time [s]")
+    axes.set_title("What accuracy costs")
+    axes.grid(True, which="both", alpha=0.3)
+    _legend(axes, len(groups))
+    return _save(figure, path)
+
+
+def time_by_size(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
+    """Solver time against the number of contacts at one level (successful solves only),
+    one marker series per solver/formulation."""
+    solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()
+                   & (frame["contacts"].fillna(0) > 0)]
+    if solved.empty:
+        return None
+    solved = solved.assign(key=solver_keys(solved))
+    figure, axes = plt.subplots(figsize=(6.4, 4.6))
+    groups = list(solved.groupby("key"))
+    for index, (key, group) in enumerate(groups):
+        axes.plot(group["contacts"].astype(float), group["time_s"], marker="o", markersize=3,
+                  linestyle="none", label=key, color=style(index)["color"],
+                  alpha=0.8 if index < 10 else 0.5)
+    axes.set_xscale("log")
+    axes.set_yscale("log")
+    axes.set_xlabel("contacts n")
+    axes.set_ylabel("solver time [s]")
+    axes.set_title(f"Time against problem size at accuracy {accuracy:.0e} (solved only)")
+    axes.grid(True, which="both", alpha=0.3)
+    _legend(axes, len(groups))
+    return _save(figure, path)

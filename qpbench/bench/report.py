@@ -344,6 +344,12 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                "to the next tighter one (a ratio of 2 means the tighter level takes twice as "
                "long).\n\n" + markdown_table(cost.reset_index().rename(columns={"index": "solver"}))
                if not cost.empty else "")
+    out.append("\n" + _image(plots.cost_of_accuracy(summary, figures / "cost_of_accuracy.png"),
+                             folder, "cost of accuracy"))
+    tightest = float(main["accuracy"].min())
+    out.append("\n" + _image(plots.time_by_size(
+        main[np.isclose(main["accuracy"].astype(float), tightest)], tightest,
+        figures / "time_by_size.png"), folder, "time by size"))
     within = stats.accuracy_within_budget(main, budget)
     out.append(f"\nWithin a budget of {budget:.3g} s per solve (the SGM shift unless set with "
                "--budget): the tightest level solved on at least 90% of problems, and the "
