@@ -165,10 +165,11 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
             continue
         solves += used
         centre = np.maximum(x, 0.0)
-        previous, res = res, lcp.residual(centre)
+        w = lcp.w(centre)
+        previous, res = res, lcp.residual_of(centre, w)
         if res < best_res:
             best, best_res = centre, res
-        if lcp.converged(centre, tol):
+        if lcp.converged(centre, tol, w):
             return centre, True, "converged", solves, res
         if not solved:
             break
