@@ -40,15 +40,20 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from qpbench.bench.settings import Cell, Limits, RunSettings, cells
+from qpbench.bench.settings import (
+    CRASHED,
+    ERROR,
+    OUT_OF_MEMORY,
+    TIMEOUT,
+    Cell,
+    Limits,
+    RunSettings,
+    cells,
+)
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 
-CRASHED = "crashed"
-TIMEOUT = "timeout"
-OUT_OF_MEMORY = "out-of-memory"
-ERROR = "error"
 STARTUP_TIMEOUT_S = 300.0
 # allowance for the parts of a cell that are not the solver call (loading the problem, judging)
 OUTSIDE_SOLVE_ALLOWANCE_S = 120.0
@@ -325,7 +330,7 @@ def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
         "status": status,
         "solver_status": message,
         "claimed_success": False,
-        "status_honest": True,
+        "status_honest": None,  # no claim to judge
         "success": False,
         "residual": nan, "v_error": nan, "energy_gain": nan, "complementarity": nan,
         "infeasibility": nan, "energy_identity_gap": nan,

@@ -12,6 +12,13 @@ from typing import Any
 from qpbench.errors import QpbenchError
 
 MODES = ("cold", "warm")
+
+# statuses the harness gives a cell whose solve did not return (beside the verdicts
+# solved / inaccurate / failed of qpbench.solvers.run.judge)
+CRASHED = "crashed"
+TIMEOUT = "timeout"
+OUT_OF_MEMORY = "out-of-memory"
+ERROR = "error"
 DEFAULT_ACCURACIES: tuple[float, ...] = (1e-4, 1e-8)
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_MEMORY_LIMIT_MB = 4096

@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from qpbench.bench.settings import CRASHED, OUT_OF_MEMORY, TIMEOUT
+
 SHIFT_FACTOR = 10.0
 PROFILE_TAUS = np.logspace(0, 4, 200)
 
@@ -75,9 +77,9 @@ def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
             "median_residual": float(group["residual"].median()),
             "max_residual": float(group["residual"].max()),
             "max_v_error": float(group["v_error"].max()),
-            "crashed": int((status == "crashed").sum()),
-            "timeout": int((status == "timeout").sum()),
-            "out_of_memory": int((status == "out-of-memory").sum()),
+            "crashed": int((status == CRASHED).sum()),
+            "timeout": int((status == TIMEOUT).sum()),
+            "out_of_memory": int((status == OUT_OF_MEMORY).sum()),
         })
     return pd.DataFrame(rows)
 

@@ -36,14 +36,12 @@ from typing import Any
 import numpy as np
 
 from qpbench import __version__
-from qpbench.bench.settings import WARM_START_PERTURBATION, Cell, Limits
+from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, all_solvers, resolve
 from qpbench.solvers.run import call_solver, solve_and_judge
-
-OUT_OF_MEMORY = "out-of-memory"
 
 
 def timer_overhead_s(samples: int = 2000) -> float:
@@ -145,7 +143,7 @@ class CellSolver:
         self.provenance = provenance()
         self.memory_limit_mb = 0
 
-    def _say(self, event: str, **fields: Any) -> None:
+    def say(self, event: str, **fields: Any) -> None:
         if self.announce is not None:
             self.announce({"event": event, **fields})
 
@@ -173,12 +171,12 @@ class CellSolver:
         setup_times: list[float] = []
         row: dict[str, Any] = {}
         for repeat in range(limits.repeats):
-            self._say("begin", repeat=repeat)
+            self.say("begin", repeat=repeat)
             if repeat == 0:
                 row, output = solve_and_judge(spec, problem, cell.accuracy, warm_start)
             else:
                 output = call_solver(spec, problem, cell.accuracy, warm_start)
-            self._say("end", repeat=repeat)
+            self.say("end", repeat=repeat)
             times.append(output.solve_time_s)
             setup_times.append(output.setup_time_s)
             if output.impulses is None and repeat == 0:
@@ -209,7 +207,7 @@ def serve(receive: Callable[[], dict[str, Any] | None],
     begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up)."""
     solver = CellSolver(announce=send)
     all_solvers()  # import every backend before the memory cap and before timing anything
-    solver._say("ready", pid=os.getpid())
+    solver.say("ready", pid=os.getpid())
     while (request := receive()) is not None:
         cell = Cell(**request["cell"])
         limits = Limits(**request["limits"])
@@ -218,12 +216,12 @@ def serve(receive: Callable[[], dict[str, Any] | None],
         try:
             row = solver.solve(cell, limits)
         except MemoryError:
-            solver._say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError"})
+            solver.say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError"})
             continue
         except Exception as error:  # a problem file or solver that cannot be set up
-            solver._say("error", message=f"{type(error).__name__}: {error}")
+            solver.say("error", message=f"{type(error).__name__}: {error}")
             continue
-        solver._say("row", row=row)
+        solver.say("row", row=row)
 
 
 def die_with_parent() -> None:
