@@ -39,9 +39,9 @@ from qpbench import __version__
 from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, all_solvers, resolve
-from qpbench.solvers.run import call_solver, solve_and_judge
+from qpbench.solvers.run import call_solver, judge
 
 
 def timer_overhead_s(samples: int = 2000) -> float:
@@ -161,7 +161,8 @@ class CellSolver:
         return self._specs[key]
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell``: qpbench's judgement of the first repeat, times of all repeats."""
+        """The row of ``cell``: qpbench's judgement of the first repeat's answer, the times of
+        all repeats (``time_s`` their minimum)."""
         problem = self.problem(cell.problem_file)
         spec = self.spec(cell.solver_key)
         warm_start, warm_source = (None, "cold")
@@ -169,18 +170,18 @@ class CellSolver:
             warm_start, warm_source = warm_start_for(problem)
         times: list[float] = []
         setup_times: list[float] = []
-        row: dict[str, Any] = {}
+        first: SolverOutput | None = None
         for repeat in range(limits.repeats):
-            self.say("begin", repeat=repeat)
-            if repeat == 0:
-                row, output = solve_and_judge(spec, problem, cell.accuracy, warm_start)
-            else:
-                output = call_solver(spec, problem, cell.accuracy, warm_start)
+            self.say("begin", repeat=repeat)  # the runner's clock for --timeout starts
+            output = call_solver(spec, problem, cell.accuracy, warm_start)
             self.say("end", repeat=repeat)
+            first = first or output
             times.append(output.solve_time_s)
             setup_times.append(output.setup_time_s)
-            if output.impulses is None and repeat == 0:
+            if output.impulses is None:
                 break  # a failed solve is not repeated
+        assert first is not None
+        row = judge(spec, problem, first, cell.accuracy)
         if str(row.get("solver_status", "")).startswith("error: MemoryError"):
             row["status"] = OUT_OF_MEMORY
         finite_times = _finite(times)
