@@ -21,7 +21,6 @@ from qpbench.bench.settings import (
     parse_accuracies,
     parse_modes,
 )
-from qpbench.solvers.registry import resolve, usable_solvers
 
 DEFAULT_PROBLEMS = ("problems",)
 
@@ -59,17 +58,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
-    settings = RunSettings(
-        solvers=tuple(spec.key for spec in specs),
-        accuracies=parse_accuracies(args.accuracy),
-        modes=parse_modes(args.mode),
-        limits=Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
-                      repeats=args.repeats),
-    )
+    accuracies = parse_accuracies(args.accuracy)
+    modes = parse_modes(args.mode)
+    limits = Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
+                    repeats=args.repeats)
     executor = make_executor(args.executor, args.workers)
     if not isinstance(executor, DaskExecutor):
-        runner.start_fork_server()  # its imports overlap with reading the problems
+        # started before this process imports the solver backends, so both import at once
+        runner.start_fork_server()
+    from qpbench.solvers.registry import resolve, usable_solvers
+
+    specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
+    settings = RunSettings(solvers=tuple(spec.key for spec in specs), accuracies=accuracies,
+                           modes=modes, limits=limits)
     counts = runner.run(args.problems, settings, args.output, executor,
                         progress=not args.no_progress, batch_rows=args.batch)
     statuses = ", ".join(f"{status} {count}" for status, count in sorted(counts.items())
