@@ -29,6 +29,7 @@ COMMANDS = (
     "export",
     "render",
     "scaling",
+    "speed",
 )
 
 EXIT_INPUT_ERROR = 2
