@@ -47,31 +47,46 @@ def _save(figure: plt.Figure, path: Path) -> Path:
 
 
 def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
-    """Achieved error against time across the accuracy sweep, one curve per solver/formulation:
-    each point is one level, at (median time_s, median v_error) over the family's problems
-    that returned an answer. Uses the residual where no problem has a verified reference."""
+    """Achieved error against time across the accuracy sweep, one panel per formulation and
+    one curve per solver: each point is one level, at (median time_s, median v_error) over
+    the family's problems that returned an answer. Uses the residual where no problem has a
+    verified reference. A solver keeps its colour and line style in every panel."""
     answered = frame[frame["residual"].notna() & frame["time_s"].notna()]
     if answered.empty:
         return None
     error_column = "v_error" if answered["v_error"].notna().any() else "residual"
-    answered = answered.assign(key=solver_keys(answered))
-    figure, axes = plt.subplots(figsize=(6.4, 4.6))
+    formulations = sorted(answered["formulation"].astype(str).unique())
+    solver_index = {name: i for i, name in enumerate(sorted(answered["solver"].astype(str)
+                                                            .unique()))}
+    columns = min(2, len(formulations))
+    rows = -(-len(formulations) // columns)
+    figure, grid = plt.subplots(rows, columns, figsize=(6.4 * columns, 4.6 * rows),
+                                sharex=True, sharey=True, squeeze=False)
     floor = 1e-17
-    groups = list(answered.groupby("key"))
-    for index, (key, group) in enumerate(groups):
-        points = group.groupby("accuracy").agg(time=("time_s", "median"),
-                                               error=(error_column, "median"))
-        points = points.sort_index(ascending=False)
-        axes.plot(points["time"], np.maximum(points["error"], floor), marker="o", label=key,
-                  markersize=4, **style(index))
-    axes.set_xscale("log")
-    axes.set_yscale("log")
-    axes.set_xlabel("median solver time per problem [s]")
-    axes.set_ylabel(f"median {error_column}" + (" (||v+ - v+_ref||_M / ||v-||_M)"
-                                                  if error_column == "v_error" else ""))
-    axes.set_title(f"Work-precision, family {family} (points: accuracy levels)")
-    axes.grid(True, which="both", alpha=0.3)
-    _legend(axes, len(groups))
+    for panel, formulation in zip(grid.flat, formulations, strict=False):
+        subset = answered[answered["formulation"].astype(str) == formulation]
+        groups = list(subset.groupby(subset["solver"].astype(str)))
+        for name, group in groups:
+            points = group.groupby("accuracy").agg(time=("time_s", "median"),
+                                                   error=(error_column, "median"))
+            points = points.sort_index(ascending=False)
+            panel.plot(points["time"], np.maximum(points["error"], floor), marker="o",
+                       markersize=4, label=name, **style(solver_index[name]))
+        panel.set_xscale("log")
+        panel.set_yscale("log")
+        panel.set_title(f"{formulation}", fontsize=10)
+        panel.grid(True, which="both", alpha=0.3)
+        _legend(panel, len(groups))
+    figure.subplots_adjust(wspace=0.55, hspace=0.25)  # room for legends beside panels
+    for panel in grid.flat[len(formulations):]:
+        panel.set_visible(False)
+    for panel in grid[-1, :]:
+        panel.set_xlabel("median solver time per problem [s]")
+    for panel in grid[:, 0]:
+        panel.set_ylabel(f"median {error_column}")
+    figure.suptitle(f"Work-precision, family {family} (points: accuracy levels; "
+                    + ("v_error = ||v+ - v+_ref||_M / ||v-||_M)" if error_column == "v_error"
+                       else "no reference: residual)"))
     return _save(figure, path)
 
 
