@@ -45,3 +45,20 @@ def test_duplicate_problem_names_are_refused(tmp_path: Path,
                  "-o", str(tmp_path / "r.parquet")])
     error = capsys.readouterr().err
     assert code == 2 and "problem name 'row3' is also used by" in error
+
+
+def test_a_folder_as_results_file_is_refused(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    write_tiny_problems(tmp_path / "problems", count=1)
+    code = main(["run", str(tmp_path / "problems"), "--solvers", "clarabel", "-o", str(tmp_path)])
+    assert code == 2 and "is a folder; name a results file" in capsys.readouterr().err
+
+
+def test_report_of_a_file_that_is_not_parquet_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bogus = tmp_path / "results.parquet"
+    bogus.write_text("not parquet")
+    code = main(["report", str(bogus), "-o", str(tmp_path / "out")])
+    error = capsys.readouterr().err
+    assert code == 2 and error.count("\n") == 1 and "not a readable results file" in error
+    assert not (tmp_path / "out" / "REPORT.md").exists()

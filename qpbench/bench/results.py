@@ -98,6 +98,8 @@ class ResultStore:
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
+        if self.path.is_dir():
+            raise InputError(str(self.path), "is a folder; name a results file (.parquet)")
         self.parts = self.path.with_name(self.path.name + ".parts")
 
     @contextlib.contextmanager
