@@ -135,3 +135,24 @@ def test_resuming_with_a_changed_problem_of_the_same_name_is_refused(tmp_path: P
     with pytest.raises(InputError, match="differs from the one whose results are in"):
         runner.run([str(tmp_path / "problems")], more, output, SerialExecutor(), progress=False)
     assert len(ResultStore(output).read()) == 1
+
+
+def test_retry_solves_timed_out_cells_again_and_replaces_their_rows(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    write_tiny_problems(tmp_path / "problems", count=1)
+    output = tmp_path / "r.parquet"
+    problems = [str(tmp_path / "problems")]
+    short = RunSettings(solvers=("test-slow/lcp",), accuracies=(1e-8,),
+                        limits=Limits(timeout_s=0.05))  # test-slow pauses 0.3 s
+    runner.run(problems, short, output, SerialExecutor(), progress=False)
+    assert list(ResultStore(output).read()["status"]) == ["timeout"]
+
+    longer = RunSettings(solvers=("test-slow/lcp",), accuracies=(1e-8,),
+                         limits=Limits(timeout_s=30))
+    counts = runner.run(problems, longer, output, SerialExecutor(), progress=False)
+    assert counts["run"] == 0  # a stored timeout is a finished cell unless retried
+    counts = runner.run(problems, longer, output, SerialExecutor(), progress=False,
+                        retry=("timeout",))
+    assert counts["run"] == 1
+    rows = ResultStore(output).read()
+    assert list(rows["status"]) == ["solved"] and list(rows["time_limit_s"]) == [30.0]

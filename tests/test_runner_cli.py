@@ -62,3 +62,9 @@ def test_report_of_a_file_that_is_not_parquet_is_one_line(
     error = capsys.readouterr().err
     assert code == 2 and error.count("\n") == 1 and "not a readable results file" in error
     assert not (tmp_path / "out" / "REPORT.md").exists()
+
+
+def test_retry_of_an_unknown_status_is_refused(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["run", str(tmp_path), "--retry", "timedout", "-o", str(tmp_path / "r.parquet")])
+    assert code == 2 and "--retry: unknown status 'timedout'" in capsys.readouterr().err

@@ -4,8 +4,9 @@ Layout beside ``FILE.parquet``: a folder ``FILE.parquet.parts/`` of part files,
 each one batch of rows written to a temporary name, flushed to disk and renamed
 (a reader sees a whole part or none). :meth:`ResultStore.compact` merges the main
 file and the parts into a new main file (again by rename) and only then deletes
-the parts. Readers take the main file and every part and keep the first row of
-each cell key, so a kill between the rename and the deletions duplicates nothing.
+the parts. Readers take the main file and then every part in the order written and
+keep the last row of each cell key, so a kill between the rename and the deletions
+duplicates nothing, and a cell solved again (``run --retry``) replaces its old row.
 Rows are collected in lists and turned into one table per batch: no per-row concat.
 """
 
@@ -140,7 +141,8 @@ class ResultStore:
             raise InputError(str(path), f"not a readable results file ({error})") from error
 
     def read(self, columns: Iterable[str] | None = None) -> pd.DataFrame:
-        """Every row: main file then parts, the first row of each cell key kept."""
+        """Every row: main file then parts in the order written, the last row of each cell key
+        kept."""
         sources = ([self.path] if self.path.exists() else []) + self.part_files()
         if not sources:
             return table([])
@@ -151,12 +153,14 @@ class ResultStore:
             return table([])
         frame = frames[0] if len(frames) == 1 else pd.concat(frames, ignore_index=True)
         keys = [column for column in CELL_KEY if column in frame.columns]
-        frame = frame.drop_duplicates(subset=keys, keep="first").reset_index(drop=True)
+        frame = frame.drop_duplicates(subset=keys, keep="last").reset_index(drop=True)
         return frame if columns is None else frame[list(columns)]
 
-    def finished_keys(self) -> set[tuple[str, str, str, float, str]]:
-        """The cell keys already stored (problem, solver, formulation, accuracy, mode)."""
-        frame = self.read(CELL_KEY)
+    def finished_keys(self, retry: Iterable[str] = ()) -> set[tuple[str, str, str, float, str]]:
+        """The cell keys already stored (problem, solver, formulation, accuracy, mode), less
+        those whose stored status is in ``retry``."""
+        frame = self.read([*CELL_KEY, "status"])
+        frame = frame[~frame["status"].astype(str).isin(list(retry))]
         return {
             (str(p), str(s), str(f), float(a), str(m))
             for p, s, f, a, m in frame[list(CELL_KEY)].itertuples(index=False, name=None)

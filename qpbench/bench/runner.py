@@ -410,8 +410,9 @@ def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
 # --- the whole run -------------------------------------------------------------------------
 def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLike[str],
         executor: Any, progress: bool = True, batch_rows: int = 20,
-        batch_seconds: float = 10.0) -> dict[str, int]:
-    """Runs every cell not yet in ``output`` and stores its row; returns counts (``cells``,
+        batch_seconds: float = 10.0, retry: Iterable[str] = ()) -> dict[str, int]:
+    """Runs every cell not yet in ``output`` (or stored with a status in ``retry``, e.g.
+    ``timeout`` after raising the limit) and stores its row; returns counts (``cells``,
     ``skipped``, ``run`` and one count per status of the cells run).
 
     Rows are written in batches (``batch_rows`` rows or ``batch_seconds``), each batch one
@@ -431,7 +432,7 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     with store.exclusive():
         check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
                             store.path)
-        done = store.finished_keys()
+        done = store.finished_keys(retry)
         pending = [cell for cell in matrix if cell.key not in done]
         problem_summaries = {path: {**summary, "problem_hash": digests[path]} for path, summary
                              in summaries(sorted({cell.problem_file for cell in pending})).items()}

@@ -19,6 +19,7 @@ CRASHED = "crashed"
 TIMEOUT = "timeout"
 OUT_OF_MEMORY = "out-of-memory"
 ERROR = "error"
+STATUSES = ("solved", "inaccurate", "failed", CRASHED, TIMEOUT, OUT_OF_MEMORY, ERROR)
 DEFAULT_ACCURACIES: tuple[float, ...] = (1e-4, 1e-8)
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_MEMORY_LIMIT_MB = 4096
@@ -116,6 +117,16 @@ def parse_modes(text: str) -> tuple[str, ...]:
     if not modes:
         raise QpbenchError("--mode: no mode given")
     return modes
+
+
+def parse_statuses(text: str) -> tuple[str, ...]:
+    """``"timeout,crashed"`` -> ("timeout", "crashed"); raises QpbenchError on an unknown one."""
+    statuses = tuple(part.strip() for part in text.split(",") if part.strip())
+    for status in statuses:
+        if status not in STATUSES:
+            raise QpbenchError(f"--retry: unknown status '{status}' (known: "
+                               f"{', '.join(STATUSES)})")
+    return statuses
 
 
 def cells(problems: list[tuple[str, str]], solver_keys: list[str], settings: RunSettings

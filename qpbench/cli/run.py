@@ -20,6 +20,7 @@ from qpbench.bench.settings import (
     RunSettings,
     parse_accuracies,
     parse_modes,
+    parse_statuses,
 )
 
 DEFAULT_PROBLEMS = ("problems",)
@@ -50,6 +51,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--executor", default="auto",
                         help="serial, processes or dask://HOST:PORT (default: serial, or "
                              "processes with --workers > 1)")
+    parser.add_argument("--retry", default="",
+                        help="statuses to solve again although stored, comma-separated "
+                             "(e.g. timeout,crashed after raising --timeout); the new row "
+                             "replaces the old")
     parser.add_argument("--batch", type=int, default=20,
                         help="rows per part file written (default: %(default)s)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -58,6 +63,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    retry = parse_statuses(args.retry)
     accuracies = parse_accuracies(args.accuracy)
     modes = parse_modes(args.mode)
     limits = Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
@@ -72,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     settings = RunSettings(solvers=tuple(spec.key for spec in specs), accuracies=accuracies,
                            modes=modes, limits=limits)
     counts = runner.run(args.problems, settings, args.output, executor,
-                        progress=not args.no_progress, batch_rows=args.batch)
+                        progress=not args.no_progress, batch_rows=args.batch, retry=retry)
     statuses = ", ".join(f"{status} {count}" for status, count in sorted(counts.items())
                          if status not in ("cells", "skipped", "run"))
     print(f"qpbench run: {counts['cells']} cells, {counts['skipped']} already done, "

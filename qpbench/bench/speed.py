@@ -1,0 +1,144 @@
+"""pi-robust against one sparse factorization on large box packings (issue 4, target 2).
+
+On each box packing ``generate("box", size=N, seed)`` (largest first) this measures,
+side by side in one process:
+
+* ``factorization_s``: the time of ONE sparse LU factorization of ``Q + eps I`` with
+  ``eps = FACTOR_SHIFT * max(diag Q)`` by SuperLU (``scipy.sparse.linalg.splu``), the
+  faster of two column orderings (``MMD_AT_PLUS_A`` in symmetric mode, as pi-robust's
+  sparse path factors its blocks, and SuperLU's default ``COLAMD``); minimum over repeats;
+* ``solve_s``: pi-robust's own solve time at accuracy 1e-8 (``SolverOutput.solve_time_s``,
+  the call alone, as ``qpbench run`` records it), minimum over repeats;
+* ``ratio = solve_s / factorization_s`` against the target ``TARGET_RATIO`` (5x), with
+  qpbench's residual and v_error (against a verified reference) of pi-robust's answer.
+
+Times depend on BLAS threads: the ``speed`` command runs in a process with single-threaded
+BLAS (``SINGLE_THREAD_ENV``), and the JSON says whether it was.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from qpbench import metrics
+from qpbench.bench.runner import SINGLE_THREAD_ENV
+from qpbench.problem.generate import generate
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reference import attach_reference
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+SOLVER = "pi-robust"
+ACCURACY = 1e-8
+TARGET_RATIO = 5.0
+FACTOR_SHIFT = 1e-8
+DEFAULT_SIZES = (1000, 4000)
+DEFAULT_REPEATS = 5
+ORDERINGS = {
+    "MMD_AT_PLUS_A": {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0,
+                      "options": {"SymmetricMode": True}},
+    "COLAMD": {"permc_spec": "COLAMD"},
+}
+
+
+def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
+    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC (SuperLU's input)."""
+    shift = FACTOR_SHIFT * max(float(np.max(problem.diag_Q, initial=0.0)), 1e-300)
+    return sp.csc_matrix(problem.Q + shift * sp.identity(problem.n_contacts, format="csc"))
+
+
+def factorization_times(problem: ImpactProblem, repeats: int) -> dict[str, float]:
+    """ordering -> the minimum over ``repeats`` of one ``splu`` of Q + eps I (seconds); the
+    matrix is built outside the timed window."""
+    matrix = shifted_matrix(problem)
+    times: dict[str, float] = {}
+    for name, settings in ORDERINGS.items():
+        best = math.inf
+        for _ in range(repeats):
+            start = time.perf_counter()
+            spla.splu(matrix, **settings)
+            best = min(best, time.perf_counter() - start)
+        times[name] = best
+    return times
+
+
+def solver_figures(problem: ImpactProblem, repeats: int) -> dict[str, Any]:
+    """pi-robust at 1e-8: minimum solve time over ``repeats``, status, residual and v_error of
+    the first answer (judged by qpbench's metrics, not by the solver's claim)."""
+    spec = get(SOLVER)
+    times = []
+    first = None
+    for _ in range(repeats):
+        output = call_solver(spec, problem, ACCURACY)
+        first = first or output
+        times.append(output.solve_time_s)
+    assert first is not None
+    measured = metrics.evaluate(problem, first.impulses, ACCURACY)
+    return {"solve_s": float(np.nanmin(times)), "solver_status": first.status,
+            "claimed_success": first.claimed_success, "success": bool(measured["success"]),
+            "residual": measured["residual"], "v_error": measured["v_error"],
+            "iterations": first.iterations, "path": first.info.get("path", "")}
+
+
+def measure(size: int, seed: int, repeats: int) -> dict[str, Any]:
+    """The figures of one box packing of ``size`` balls."""
+    problem = attach_reference(generate("box", size, seed=seed)[0])
+    factor = factorization_times(problem, repeats)
+    solver = solver_figures(problem, repeats)
+    fastest = min(factor, key=factor.get)
+    ratio = solver["solve_s"] / factor[fastest]
+    return {"problem": problem.name, "balls": size, "contacts": problem.n_contacts,
+            "nonzeros": int(problem.Q.nnz), "factorization_s": factor[fastest],
+            "factorization_ordering": fastest, "factorization_s_by_ordering": factor,
+            **solver, "ratio": ratio,
+            "target_met": bool(solver["success"] and ratio <= TARGET_RATIO)}
+
+
+def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
+    """A short section with one table row per size."""
+    lines = [
+        "## pi-robust against one sparse factorization (box packings)\n",
+        f"Target: `{SOLVER}`'s solve time at accuracy {ACCURACY:g} within {TARGET_RATIO:g}x "
+        f"the time of ONE sparse factorization of Q + eps I (eps = {FACTOR_SHIFT:g} max diag Q; "
+        "SuperLU `splu`, the faster of the MMD_AT_PLUS_A and COLAMD orderings). Minimum of "
+        f"{repeats} repeats each, single-threaded BLAS, one process.\n",
+        "| problem | contacts | nnz(Q) | factorization [ms] | pi-robust [ms] | ratio | "
+        "residual | v_error | target |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for row in rows:
+        verdict = "met" if row["target_met"] else "not met"
+        if not row["success"]:
+            verdict += " (pi-robust failed)"
+        lines.append(
+            f"| {row['problem']} | {row['contacts']} | {row['nonzeros']} | "
+            f"{1e3 * row['factorization_s']:.2f} ({row['factorization_ordering']}) | "
+            f"{1e3 * row['solve_s']:.2f} | {row['ratio']:.2f}x | {row['residual']:.1e} | "
+            f"{row['v_error']:.1e} | {verdict} |")
+    return "\n".join(lines) + "\n"
+
+
+def single_threaded() -> bool:
+    """Whether this process was started with single-threaded BLAS (the env variables are read
+    when numpy loads, so setting them later changes nothing)."""
+    return all(os.environ.get(name) == "1" for name in SINGLE_THREAD_ENV)
+
+
+def speed(sizes: Sequence[int] = DEFAULT_SIZES, seed: int = 0,
+          repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
+    """The JSON object of ``qpbench speed``: per-size figures (largest first), whether the
+    target is met on every size, and a ready ``markdown`` section."""
+    rows = [measure(size, seed, repeats) for size in sorted(set(sizes), reverse=True)]
+    return {"solver": SOLVER, "accuracy": ACCURACY, "target_ratio": TARGET_RATIO,
+            "factor_shift": FACTOR_SHIFT, "repeats": repeats, "seed": seed,
+            "single_threaded_blas": single_threaded(), "rows": rows,
+            "target_met": bool(rows) and all(row["target_met"] for row in rows),
+            "markdown": markdown(rows, repeats)}
