@@ -1,0 +1,73 @@
+"""``qpbench speed [--sizes 1000,4000] [--seed 0] [--repeats 5] -o results/speed.json``:
+pi-robust against one sparse factorization of Q + eps I on box packings
+(``qpbench.bench.speed``). The measurement runs in a child process with single-threaded BLAS
+unless this one already has it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from qpbench.errors import QpbenchError
+
+
+def _sizes(text: str) -> tuple[int, ...]:
+    try:
+        sizes = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a list of integers: {text!r}") from None
+    if not sizes or any(size < 1 for size in sizes):
+        raise argparse.ArgumentTypeError("give positive ball counts, e.g. 1000,4000")
+    return sizes
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "speed", help="pi-robust against one sparse factorization on box packings")
+    parser.add_argument("--sizes", type=_sizes, default=(1000, 4000),
+                        help="comma-separated ball counts (1000,4000)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    parser.set_defaults(handler=run)
+
+
+def _write_json(path: Path, report: dict) -> None:
+    """Writes ``report`` atomically (a temporary file renamed over ``path``)."""
+    from qpbench.cli.output import to_jsonable
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+    try:
+        with os.fdopen(handle, "w") as stream:
+            json.dump(to_jsonable(report), stream, indent=2)
+            stream.write("\n")
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.repeats < 1:
+        raise QpbenchError("--repeats must be at least 1")
+    from qpbench.bench.runner import SINGLE_THREAD_ENV
+
+    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
+        command = [sys.executable, "-m", "qpbench.cli", "speed",
+                   "--sizes", ",".join(str(size) for size in args.sizes),
+                   "--seed", str(args.seed), "--repeats", str(args.repeats),
+                   "-o", str(args.output)]
+        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
+                              check=False).returncode
+    from qpbench.bench.speed import speed
+
+    report = speed(args.sizes, args.seed, args.repeats)
+    _write_json(Path(args.output), report)
+    print(report["markdown"], end="")
+    return 0
