@@ -10,6 +10,7 @@ group. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any ord
 from __future__ import annotations
 
 import atexit
+import contextlib
 import queue
 import threading
 from collections.abc import Iterator
@@ -161,6 +162,8 @@ class DaskExecutor:
             for future in as_completed(futures):
                 yield from future.result()
         finally:
+            with contextlib.suppress(Exception):  # a lost worker has nothing left to close
+                client.run(_close_dask_workers)  # end the solving processes on every worker
             client.close()
 
 
