@@ -261,6 +261,8 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
             "success cold": percent(cold["success"].fillna(False).astype(bool).mean()),
             "success warm": percent(warm["success"].fillna(False).astype(bool).mean()),
         })
+    if not rows:  # no cell was run both ways
+        return ""
     table = pd.DataFrame(rows).sort_values(["solver", "accuracy"], ascending=[True, False])
     sources = ", ".join(sorted(frame.loc[frame["mode"] == "warm", "warm_start_source"]
                                .dropna().astype(str).unique()))
