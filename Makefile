@@ -55,4 +55,5 @@ lint: setup
 
 # Forget the default benchmark's results (the next `make bench` starts afresh).
 clean-results:
-	rm -rf $(BENCH_RESULTS)/bench.parquet $(BENCH_RESULTS)/bench.parquet.parts
+	rm -rf $(BENCH_RESULTS)/bench.parquet $(BENCH_RESULTS)/bench.parquet.parts \
+		$(BENCH_RESULTS)/bench.parquet.lock

@@ -1,3 +1,6 @@
-"""qpbench: which formulation and solver gets the impulses of simultaneous collisions right, how fast."""
+"""qpbench: which formulation and solver gets simultaneous-impact impulses right, how fast."""
 
 __version__ = "0.1.0"
+
+# numerical libraries limited to one thread: solvers are timed single-threaded
+SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

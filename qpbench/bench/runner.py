@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from qpbench import SINGLE_THREAD_ENV
 from qpbench.bench.settings import (
     CRASHED,
     ERROR,
@@ -59,7 +60,6 @@ STARTUP_TIMEOUT_S = 300.0
 OUTSIDE_SOLVE_ALLOWANCE_S = 120.0
 EXTRA_SOLVERS_ENV = "QPBENCH_EXTRA_SOLVERS"  # as in qpbench.solvers.registry (not imported
 # here: this module stays light, so the fork server's imports overlap with the caller's)
-SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 class WorkerDied(Exception):

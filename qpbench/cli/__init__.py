@@ -14,8 +14,13 @@ import os
 import sys
 from collections.abc import Sequence
 
-from qpbench import __version__
+from qpbench import SINGLE_THREAD_ENV, __version__
 from qpbench.errors import QpbenchError
+
+# Solvers are timed single-threaded (fair, and stable on shared cores) unless the user says
+# otherwise; this must happen before numpy loads its BLAS.
+for _variable, _value in SINGLE_THREAD_ENV.items():
+    os.environ.setdefault(_variable, _value)
 
 COMMANDS = (
     "solvers",
