@@ -1,0 +1,286 @@
+"""pi-robust's dense path compiled with numba: the same algorithm as ``qpbench.solvers.pi_robust``
+(proximal policy iteration with block principal pivoting, then the Mehrotra interior point of
+``qpbench.solvers.lcp_interior`` whose close iterates are finished by policy iteration), for
+problems with at most ``dense_limit`` contacts, without per-step Python overhead.
+
+Linear algebra: blocks ``Q_FF + rho D_F`` and the interior point's ``Q~ + diag(d)`` are
+factored by LAPACK's Cholesky (``np.linalg.cholesky`` in nopython mode) and solved by
+compiled triangular substitutions; the last two block factors are kept, so prox steps on a
+settled policy cost two triangular solves. A factorization that fails raises
+``np.linalg.LinAlgError``; the caller then runs the Python path, which handles it.
+
+Its verdict uses the fast residual ``||min(D l, Q l + b)||_inf / scale`` on the dense Q; the
+caller confirms a claimed convergence with qpbench's own metric before reporting it.
+
+Compilation: ``cache=True`` (machine code cached next to this file); ``warm_up()`` compiles or
+loads it once per process, and pi-robust calls it in its set-up, outside the timed solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# status codes of a prox run
+PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
+# paths of a whole solve
+PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE = 0, 1, 2, 3
+PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
+              "interior point did not converge")
+
+
+@njit(cache=True)
+def natural_residual(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, scale: float,
+                     impulses: np.ndarray) -> float:
+    """||min(D l, Q l + b)||_inf / scale."""
+    w = Q @ impulses + b
+    worst = 0.0
+    for i in range(impulses.size):
+        value = abs(min(diag[i] * impulses[i], w[i]))
+        if value > worst:
+            worst = value
+    return worst / scale
+
+
+@njit(cache=True)
+def _triangular_solve(lower: np.ndarray, size: int, rhs: np.ndarray) -> np.ndarray:
+    """x with L L^T x = rhs, L the leading size x size lower triangle of ``lower``."""
+    y = np.empty(size)
+    for i in range(size):
+        total = rhs[i]
+        for j in range(i):
+            total -= lower[i, j] * y[j]
+        y[i] = total / lower[i, i]
+    x = np.empty(size)
+    for i in range(size - 1, -1, -1):
+        total = y[i]
+        for j in range(i + 1, size):
+            total -= lower[j, i] * x[j]
+        x[i] = total / lower[i, i]
+    return x
+
+
+@njit(cache=True)
+def _block_solve(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
+                 rho: float, rhs: np.ndarray, factors: np.ndarray, policies: np.ndarray,
+                 rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray) -> np.ndarray:
+    """x_F with (Q_FF + rho D_F) x_F = rhs, from a kept factor when the key matches.
+
+    The cache of block factors is plain arrays: ``factors[s]`` holds slot s's Cholesky factor
+    in its leading block, ``policies[s]`` and ``rhos[s]`` its key, ``ages[s]`` its last use;
+    ``counters = [factorizations, uses]``; the least recently used slot is replaced."""
+    size = index.size
+    counters[1] += 1
+    for slot in range(rhos.size):
+        if rhos[slot] == rho and np.all(policies[slot] == policy):
+            ages[slot] = counters[1]
+            return _triangular_solve(factors[slot], size, rhs)
+    slot = int(np.argmin(ages))
+    block = np.empty((size, size))
+    for a in range(size):
+        row = index[a]
+        for c in range(size):
+            block[a, c] = Q[row, index[c]]
+        block[a, a] += rho * safe_diag[row]
+    lower = np.linalg.cholesky(block)
+    counters[0] += 1
+    factors[slot, :size, :size] = lower
+    policies[slot] = policy
+    rhos[slot] = rho
+    ages[slot] = counters[1]
+    return _triangular_solve(factors[slot], size, rhs)
+
+
+@njit(cache=True)
+def _inner_lcp(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, rho: float,
+               q: np.ndarray, tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int,
+               single_exchanges: bool, factors: np.ndarray, policies: np.ndarray,
+               rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray):
+    """Block principal pivoting on LCP(Q + rho D, q): (x, policy, linear solves, solved)."""
+    n = q.size
+    shift = rho * safe_diag
+    best = n + 1
+    backup = backup_steps
+    solves = 0
+    x = np.zeros(n)
+    while solves < budget:
+        index = np.flatnonzero(policy)
+        x = np.zeros(n)
+        if index.size:
+            x[index] = _block_solve(Q, safe_diag, policy, index, rho, -q[index], factors,
+                                    policies, rhos, ages, counters)
+        solves += 1
+        y = Q @ x + shift * x + q
+        infeasible = (policy & (x < -tol_l)) | (np.logical_not(policy) & (y < -tol_w))
+        count = int(np.count_nonzero(infeasible))
+        if count == 0:
+            return x, policy, solves, True
+        policy = policy.copy()
+        if count < best:
+            best, backup = count, backup_steps
+            policy ^= infeasible
+        elif backup > 0:
+            backup -= 1
+            policy ^= infeasible
+        elif single_exchanges:
+            last = np.flatnonzero(infeasible)[-1]
+            policy[last] = not policy[last]
+        else:
+            break
+    return x, policy, solves, False
+
+
+@njit(cache=True)
+def _prox_policy_iteration(Q: np.ndarray, b: np.ndarray, diag: np.ndarray,
+                           safe_diag: np.ndarray, scale: float, centre: np.ndarray,
+                           policy: np.ndarray, tol: float, rho: float, rho_min: float,
+                           rho_decrease: float, stall_ratio: float, stall_steps: int,
+                           backup_steps: int, single_exchanges: bool, budget: int,
+                           factors: np.ndarray, policies: np.ndarray, rhos: np.ndarray,
+                           ages: np.ndarray, counters: np.ndarray):
+    """Prox steps from ``centre``/``policy`` within ``budget`` solves:
+    (best l, converged, status code, solves, best residual)."""
+    tol_l = 0.1 * tol * scale / safe_diag
+    tol_w = 0.1 * tol * scale
+    res = natural_residual(Q, b, diag, scale, centre)
+    best, best_res = centre, res
+    solves = 0
+    stalls = 0
+    status = PROX_BUDGET
+    while solves < budget:
+        q = b - rho * safe_diag * centre
+        x, policy, used, solved = _inner_lcp(Q, safe_diag, policy, rho, q, tol_l, tol_w,
+                                             backup_steps, budget - solves, single_exchanges,
+                                             factors, policies, rhos, ages, counters)
+        solves += used
+        centre = np.maximum(x, 0.0)
+        previous = res
+        res = natural_residual(Q, b, diag, scale, centre)
+        if res < best_res:
+            best, best_res = centre, res
+        if res <= tol:
+            return centre, True, PROX_CONVERGED, solves, res
+        if not solved:
+            break
+        stalls = stalls + 1 if res > stall_ratio * previous else 0
+        if stalls >= stall_steps:
+            stalls = 0
+            if rho * rho_decrease < rho_min:
+                status = PROX_STALLED
+                break
+            rho *= rho_decrease
+    return best, False, status, solves, best_res
+
+
+@njit(cache=True)
+def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
+    """The largest alpha <= 1 with value + alpha * change >= 0."""
+    alpha = 1.0
+    for i in range(value.size):
+        if change[i] < 0.0:
+            candidate = -value[i] / change[i]
+            if candidate < alpha:
+                alpha = candidate
+    return alpha
+
+
+@njit(cache=True)
+def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
+                    scale: float, start: np.ndarray, tol: float, rho: float, rho_min: float,
+                    rho_decrease: float, stall_ratio: float, stall_steps: int,
+                    backup_steps: int, single_exchanges: bool, pi_budget: int,
+                    finish_budget: int, finish_below: float, ipm_iters: int):
+    """(l, converged by the fast residual, path code, linear solves, interior iterations,
+    factorizations) of pi-robust on the dense LCP (Q, b) from ``start`` (l >= 0)."""
+    n = b.size
+    factors = np.empty((2, n, n))
+    policies = np.zeros((2, n), dtype=np.bool_)
+    rhos = np.full(2, -1.0)
+    ages = np.zeros(2, dtype=np.int64)
+    counters = np.zeros(2, dtype=np.int64)
+    if natural_residual(Q, b, diag, scale, start) <= tol:
+        return start, True, PATH_START, 0, 0, 0
+    w = Q @ start + b
+    first, converged, _, solves, _ = _prox_policy_iteration(
+        Q, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
+        rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges, pi_budget,
+        factors, policies, rhos, ages, counters)
+    if converged:
+        return first, True, PATH_POLICY_ITERATION, solves, 0, counters[0]
+    # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
+    root = 1.0 / np.sqrt(safe_diag)
+    scaled_Q = Q * np.outer(root, root)
+    scaled_b = b * root
+    scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
+    impulses = np.full(n, scaled_scale)
+    slack = np.maximum(scaled_Q @ impulses + scaled_b, scaled_scale)
+    floor = 1e-14
+    best, best_res = impulses * root, np.inf
+    iterations = 0
+    for iteration in range(1, ipm_iters + 1):
+        iterations = iteration - 1
+        infeasibility = scaled_Q @ impulses + scaled_b - slack
+        mu = float(impulses @ slack) / n
+        original_l = impulses * root
+        original_w = (infeasibility + slack) / root
+        res = 0.0
+        for i in range(n):
+            value = abs(min(diag[i] * original_l[i], original_w[i]))
+            if value > res:
+                res = value
+        res /= scale
+        if res < best_res:
+            best, best_res = original_l, res
+        if res <= tol and natural_residual(Q, b, diag, scale, original_l) <= tol:
+            return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
+        if res <= finish_below:
+            finished, done, _, used, _ = _prox_policy_iteration(
+                Q, b, diag, safe_diag, scale, original_l, original_w < diag * original_l, tol,
+                rho, rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
+                single_exchanges, finish_budget, factors, policies, rhos, ages, counters)
+            solves += used
+            if done:
+                return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
+                    counters[0]
+            finish_below = 0.1 * res
+        normal = scaled_Q.copy()
+        ratio = slack / impulses
+        for i in range(n):
+            normal[i, i] += max(ratio[i], floor)
+        lower = np.linalg.cholesky(normal)
+        counters[0] += 1
+        dl = _triangular_solve(lower, n, -slack - infeasibility)
+        dw = scaled_Q @ dl + infeasibility
+        alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+        mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
+        sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
+        rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
+        dl = _triangular_solve(lower, n, rhs)
+        dw = scaled_Q @ dl + infeasibility
+        alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
+                                    _step_to_boundary(slack, dw)))
+        impulses = np.maximum(impulses + alpha * dl, 1e-300)
+        slack = np.maximum(slack + alpha * dw, 1e-300)
+        iterations = iteration
+        if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
+            break
+    first_res = natural_residual(Q, b, diag, scale, first)
+    if first_res < best_res:
+        best, best_res = first, first_res
+    return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0]
+
+
+_warm = False
+
+
+def warm_up() -> None:
+    """Compiles (or loads from the cache) the kernel once in this process, on K3's LCP."""
+    global _warm
+    if _warm:
+        return
+    Q = np.array([[2.0, 1.0, -1.0], [1.0, 2.0, 1.0], [-1.0, 1.0, 2.0]])
+    b = np.array([-4.0, -2.0, 2.0])
+    diag = np.diag(Q).copy()
+    dense_pi_robust(Q, b, diag, diag, 4.0, np.zeros(3), 1e-8, 1e-8, 1e-14, 0.01, 0.5, 3, 3,
+                    True, 10, 3, 1e-3, 80)
+    _warm = True
