@@ -123,3 +123,66 @@ def test_pi_robust_claims_exactly_what_qpbench_measures_on_extreme_mass_ratios()
         problem = generate("mass-ratio", 10, seed=seed)[0]
         row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
         assert output.claimed_success == row["success"], (problem.name, output.status)
+
+
+@pytest.mark.parametrize(("family", "size"), HARD_CASES)
+def test_pi_robust_compiled_path_matches_qpbench_and_the_python_path(family: str,
+                                                                      size: int) -> None:
+    """The compiled dense path answers (info "compiled": True) with qpbench's verdict; the
+    Python path, run with the compiled path switched off, reaches the same v+."""
+    from qpbench.solvers import accuracy
+
+    problem = hard_problem(family, size, seed=1)
+    row, compiled = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert row["success"] and compiled.claimed_success
+    assert compiled.info["compiled"] is True, compiled.info
+    original = accuracy.OPTIONS["pi-robust"]["compiled"]
+    accuracy.OPTIONS["pi-robust"]["compiled"] = False
+    try:
+        python_row, python = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    finally:
+        accuracy.OPTIONS["pi-robust"]["compiled"] = original
+    assert python_row["success"] and "compiled" not in python.info
+    assert problem.m_norm(problem.v_plus(compiled.impulses) - problem.v_plus(python.impulses)) \
+        <= 1e-7 * max(problem.m_norm(problem.v_minus), 1e-300)
+
+
+def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
+    """The kernel sums Q l column by column like scipy's CSC product, so its residual is
+    qpbench's exactly, even on masses over 1e-6 .. 1e6; the rounding bound covers any order."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.pi_robust_dense import natural_residual, residual_rounding_bound
+
+    rng = np.random.default_rng(7)
+    for problem in [generate("mass-ratio", 10, seed=3)[0], generate("grid", 7, seed=0)[0],
+                    k3_collinear()]:
+        lcp = Lcp.of(problem, dense_limit=300)
+        csc = csc_arrays(lcp)
+        for _ in range(5):
+            impulses = rng.uniform(0.0, 1.0, problem.n_contacts) * lcp.scale / lcp.safe_diag
+            ours = natural_residual(csc, lcp.b, lcp.diag, lcp.scale, impulses)
+            assert ours == metrics.residual(problem, impulses)
+            dense_order = lcp.residual_of(impulses, lcp.op @ impulses + lcp.b)
+            bound = residual_rounding_bound(csc, lcp.b, lcp.scale, impulses)
+            assert bound > 0.0 and abs(dense_order - ours) <= bound
+
+
+def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor() -> None:
+    """A block that Cholesky refuses (here: a kernel made to raise) sends the solve to the
+    Python path, which still converges and says so."""
+    from qpbench.solvers import pi_robust_dense
+
+    problem = hard_problem("grid", 5, seed=0)
+    kernel = pi_robust_dense.dense_pi_robust
+
+    def refusing(*args: object, **kwargs: object) -> None:
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+
+    pi_robust_dense.dense_pi_robust = refusing
+    try:
+        row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    finally:
+        pi_robust_dense.dense_pi_robust = kernel
+    assert row["success"] and output.claimed_success
+    assert output.info["compiled"] == "not confirmed; Python path"

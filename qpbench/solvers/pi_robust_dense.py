@@ -10,7 +10,10 @@ settled policy cost two triangular solves. A factorization that fails raises
 ``np.linalg.LinAlgError``; the caller then runs the Python path, which handles it.
 
 Its verdict uses the fast residual ``||min(D l, Q l + b)||_inf / scale`` on the dense Q; the
-caller confirms a claimed convergence with qpbench's own metric before reporting it.
+caller confirms a claimed convergence with qpbench's own metric before reporting it. One
+addition to the Python path: when the interior point stalls (its residual not cut by 10% in
+five iterations, as rounding makes it on extreme mass ratios) its best iterate is handed to
+the finishing policy iteration too.
 
 Compilation: ``cache=True`` (machine code cached next to this file); ``warm_up()`` compiles or
 loads it once per process, and pi-robust calls it in its set-up, outside the timed solve.
@@ -30,16 +33,44 @@ PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
 
 
 @njit(cache=True)
-def natural_residual(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, scale: float,
-                     impulses: np.ndarray) -> float:
-    """||min(D l, Q l + b)||_inf / scale."""
-    w = Q @ impulses + b
+def natural_residual(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: np.ndarray,
+                     diag: np.ndarray, scale: float, impulses: np.ndarray) -> float:
+    """||min(D l, Q l + b)||_inf / scale with Q l summed column by column over Q's CSC arrays
+    ``(indptr, indices, data)`` in the order of scipy's CSC product, so that the value is
+    qpbench's ``metrics.residual`` (even where rounding dominates, on extreme mass ratios)."""
+    indptr, indices, data = csc
+    product = np.zeros(impulses.size)
+    for column in range(impulses.size):
+        value = impulses[column]
+        for k in range(indptr[column], indptr[column + 1]):
+            product[indices[k]] += data[k] * value
     worst = 0.0
     for i in range(impulses.size):
-        value = abs(min(diag[i] * impulses[i], w[i]))
+        value = abs(min(diag[i] * impulses[i], product[i] + b[i]))
         if value > worst:
             worst = value
     return worst / scale
+
+
+@njit(cache=True)
+def residual_rounding_bound(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: np.ndarray,
+                            scale: float, impulses: np.ndarray) -> float:
+    """A bound on how far any other summation order of ``Q l + b`` (another product, fused
+    multiply-adds) can move the residual: ``2 gamma max_i (sum_k |Q_ik l_k| + |b_i|) / scale``
+    with ``gamma = (m + 2) u / (1 - (m + 2) u)``, m the most entries in a column, u = 2^-53
+    (Higham, "Accuracy and Stability of Numerical Algorithms", 2002, section 3.1). D l, min,
+    abs, max and the division round identically in every implementation."""
+    indptr, indices, data = csc
+    magnitude = np.abs(b)
+    longest = 0
+    for column in range(impulses.size):
+        value = abs(impulses[column])
+        longest = max(longest, indptr[column + 1] - indptr[column])
+        for k in range(indptr[column], indptr[column + 1]):
+            magnitude[indices[k]] += abs(data[k]) * value
+    unit = (longest + 2) * 2.0 ** -53
+    gamma = unit / (1.0 - unit)
+    return 2.0 * gamma * np.max(magnitude) / scale if impulses.size else 0.0
 
 
 @njit(cache=True)
@@ -131,7 +162,8 @@ def _inner_lcp(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, rho: fl
 
 
 @njit(cache=True)
-def _prox_policy_iteration(Q: np.ndarray, b: np.ndarray, diag: np.ndarray,
+def _prox_policy_iteration(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
+                           b: np.ndarray, diag: np.ndarray,
                            safe_diag: np.ndarray, scale: float, centre: np.ndarray,
                            policy: np.ndarray, tol: float, rho: float, rho_min: float,
                            rho_decrease: float, stall_ratio: float, stall_steps: int,
@@ -142,7 +174,7 @@ def _prox_policy_iteration(Q: np.ndarray, b: np.ndarray, diag: np.ndarray,
     (best l, converged, status code, solves, best residual)."""
     tol_l = 0.1 * tol * scale / safe_diag
     tol_w = 0.1 * tol * scale
-    res = natural_residual(Q, b, diag, scale, centre)
+    res = natural_residual(csc, b, diag, scale, centre)
     best, best_res = centre, res
     solves = 0
     stalls = 0
@@ -155,7 +187,7 @@ def _prox_policy_iteration(Q: np.ndarray, b: np.ndarray, diag: np.ndarray,
         solves += used
         centre = np.maximum(x, 0.0)
         previous = res
-        res = natural_residual(Q, b, diag, scale, centre)
+        res = natural_residual(csc, b, diag, scale, centre)
         if res < best_res:
             best, best_res = centre, res
         if res <= tol:
@@ -185,7 +217,8 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
+def dense_pi_robust(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
+                    b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
                     scale: float, start: np.ndarray, tol: float, rho: float, rho_min: float,
                     rho_decrease: float, stall_ratio: float, stall_steps: int,
                     backup_steps: int, single_exchanges: bool, pi_budget: int,
@@ -198,24 +231,28 @@ def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: n
     rhos = np.full(2, -1.0)
     ages = np.zeros(2, dtype=np.int64)
     counters = np.zeros(2, dtype=np.int64)
-    if natural_residual(Q, b, diag, scale, start) <= tol:
+    if natural_residual(csc, b, diag, scale, start) <= tol:
         return start, True, PATH_START, 0, 0, 0
     w = Q @ start + b
     first, converged, _, solves, _ = _prox_policy_iteration(
-        Q, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
+        Q, csc, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
         rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges, pi_budget,
         factors, policies, rhos, ages, counters)
     if converged:
         return first, True, PATH_POLICY_ITERATION, solves, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
-    scaled_Q = Q * np.outer(root, root)
+    scaled_Q = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            scaled_Q[i, j] = (Q[i, j] * root[i]) * root[j]
     scaled_b = b * root
     scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
     impulses = np.full(n, scaled_scale)
     slack = np.maximum(scaled_Q @ impulses + scaled_b, scaled_scale)
     floor = 1e-14
-    best, best_res = impulses * root, np.inf
+    best, best_res, best_w = impulses * root, np.inf, slack / root
+    progress, stalled = np.inf, 0
     iterations = 0
     for iteration in range(1, ipm_iters + 1):
         iterations = iteration - 1
@@ -230,12 +267,16 @@ def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: n
                 res = value
         res /= scale
         if res < best_res:
-            best, best_res = original_l, res
-        if res <= tol and natural_residual(Q, b, diag, scale, original_l) <= tol:
+            best, best_res, best_w = original_l, res, original_w
+        if res < 0.9 * progress:
+            progress, stalled = res, 0
+        else:
+            stalled += 1
+        if res <= tol and natural_residual(csc, b, diag, scale, original_l) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
             finished, done, _, used, _ = _prox_policy_iteration(
-                Q, b, diag, safe_diag, scale, original_l, original_w < diag * original_l, tol,
+                Q, csc, b, diag, safe_diag, scale, original_l, original_w < diag * original_l, tol,
                 rho, rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
                 single_exchanges, finish_budget, factors, policies, rhos, ages, counters)
             solves += used
@@ -243,6 +284,16 @@ def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: n
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
             finish_below = 0.1 * res
+        if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
+            stalled = 0
+            finished, done, _, used, _ = _prox_policy_iteration(  # from its best iterate
+                Q, csc, b, diag, safe_diag, scale, best, best_w < diag * best, tol, rho,
+                rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
+                single_exchanges, finish_budget, factors, policies, rhos, ages, counters)
+            solves += used
+            if done:
+                return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
+                    counters[0]
         normal = scaled_Q.copy()
         ratio = slack / impulses
         for i in range(n):
@@ -264,7 +315,7 @@ def dense_pi_robust(Q: np.ndarray, b: np.ndarray, diag: np.ndarray, safe_diag: n
         iterations = iteration
         if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
             break
-    first_res = natural_residual(Q, b, diag, scale, first)
+    first_res = natural_residual(csc, b, diag, scale, first)
     if first_res < best_res:
         best, best_res = first, first_res
     return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0]
@@ -281,6 +332,11 @@ def warm_up() -> None:
     Q = np.array([[2.0, 1.0, -1.0], [1.0, 2.0, 1.0], [-1.0, 1.0, 2.0]])
     b = np.array([-4.0, -2.0, 2.0])
     diag = np.diag(Q).copy()
-    dense_pi_robust(Q, b, diag, diag, 4.0, np.zeros(3), 1e-8, 1e-8, 1e-14, 0.01, 0.5, 3, 3,
-                    True, 10, 3, 1e-3, 80)
+    csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
+           Q.T.ravel().copy())
+    impulses, _, _, _, _, _ = dense_pi_robust(Q, csc, b, diag, diag, 4.0, np.zeros(3), 1e-8,
+                                              1e-8, 1e-14, 0.01, 0.5, 3, 3, True, 10, 3,
+                                              1e-3, 80)
+    natural_residual(csc, b, diag, 4.0, impulses)
+    residual_rounding_bound(csc, b, 4.0, impulses)
     _warm = True
