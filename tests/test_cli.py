@@ -35,6 +35,14 @@ def test_generate_writes_seeded_problems(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k4-4-s0.npz", "k4-4-s1.npz"]
 
 
+def test_generate_box_scene_writes_a_scene_that_simulates(tmp_path: Path) -> None:
+    done = qpbench("generate", "box", "--scene", "--size", "50", "-o", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    simulated = qpbench("simulate", str(tmp_path / "box-50-s0.xml"), "--steps", "5", "--json")
+    assert simulated.returncode == 0, simulated.stderr
+    assert len(json.loads(simulated.stdout)["x_final"]) == 50
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

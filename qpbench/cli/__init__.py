@@ -83,6 +83,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except QpbenchError as error:
         print(f"qpbench {args.command}: {error}", file=sys.stderr)
         return EXIT_INPUT_ERROR
+    except BrokenPipeError:  # the reader went away (``| head``): not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except KeyboardInterrupt:
         print(f"qpbench {args.command}: interrupted", file=sys.stderr)
         return 130

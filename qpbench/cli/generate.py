@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from qpbench.errors import QpbenchError
 from qpbench.problem import files
 from qpbench.problem.generate import FAMILIES, generate
 from qpbench.problem.reference import attach_reference
@@ -22,11 +23,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--restitution", type=float, default=None, help="coefficient c (1)")
     parser.add_argument("--no-reference", action="store_true",
                         help="skip the reference solution (v_error will be empty)")
+    parser.add_argument("--scene", action="store_true",
+                        help="box only: write a scene file (balls in a box with walls) to "
+                             "simulate, instead of problems")
     parser.add_argument("-o", "--output", required=True, help="output folder")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.scene:
+        return write_box_scenes(args)
     problems = generate(args.family, size=args.size, seed=args.seed, count=args.count,
                         restitution=args.restitution)
     for problem in problems:
@@ -38,4 +44,18 @@ def run(args: argparse.Namespace) -> int:
                       file=sys.stderr)
         path = files.save(problem, f"{args.output}/{problem.name}")
         print(path)
+    return 0
+
+
+def write_box_scenes(args: argparse.Namespace) -> int:
+    """``--scene``: box scenes of ``--size`` balls (seeds seed..seed+count-1) as scene XML."""
+    from qpbench.scenes.builders import box_scene, write_scene
+
+    if args.family != "box":
+        raise QpbenchError(f"--scene is for the box family only, not '{args.family}'")
+    size = 1000 if args.size is None else args.size
+    for seed in range(args.seed, args.seed + args.count):
+        scene = box_scene(size, seed=seed, restitution=1.0 if args.restitution is None
+                          else args.restitution)
+        print(write_scene(scene, f"{args.output}/box-{size}-s{seed}.xml"))
     return 0
