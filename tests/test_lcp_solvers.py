@@ -136,12 +136,12 @@ def test_pi_robust_compiled_path_matches_qpbench_and_the_python_path(family: str
     row, compiled = solve_and_judge(get("pi-robust"), problem, 1e-8)
     assert row["success"] and compiled.claimed_success
     assert compiled.info["compiled"] is True, compiled.info
-    original = accuracy.OPTIONS["pi-robust"]["compiled"]
-    accuracy.OPTIONS["pi-robust"]["compiled"] = False
+    original = accuracy.OPTIONS["pi-robust"]["compiled_limit"]
+    accuracy.OPTIONS["pi-robust"]["compiled_limit"] = 0
     try:
         python_row, python = solve_and_judge(get("pi-robust"), problem, 1e-8)
     finally:
-        accuracy.OPTIONS["pi-robust"]["compiled"] = original
+        accuracy.OPTIONS["pi-robust"]["compiled_limit"] = original
     assert python_row["success"] and "compiled" not in python.info
     assert problem.m_norm(problem.v_plus(compiled.impulses) - problem.v_plus(python.impulses)) \
         <= 1e-7 * max(problem.m_norm(problem.v_minus), 1e-300)

@@ -33,7 +33,13 @@ and adds published safeguards:
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
 by LU) or sparse SuperLU; the last factors of policy blocks are kept, so prox
-steps on a settled policy cost triangular solves only. Converged means qpbench's
+steps on a settled policy cost triangular solves only.
+
+Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
+(``qpbench.solvers.pi_robust_dense``: numba, contacts in reverse Cuthill-McKee order,
+envelope Cholesky factors); its answer is reported when a rounding bound or qpbench's own
+residual confirms it, otherwise (or when a factor fails) this Python path runs, and the time
+of both counts. Converged means qpbench's
 ``residual(l) <= tol`` (confirmed with qpbench's own metric); otherwise it
 reports failure and returns its best l.
 """
@@ -237,6 +243,9 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
     return best, False, "interior point did not converge", solves, info
 
 
+ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
+
+
 def csc_arrays(lcp: Lcp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses."""
     Q = lcp.problem.Q if lcp.problem is not None else sp.csc_matrix(lcp.Q)
@@ -245,14 +254,14 @@ def csc_arrays(lcp: Lcp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
               start: np.ndarray, options: dict) -> tuple[np.ndarray, bool, str, int, dict] | None:
-    """The compiled dense path (``pi_robust_dense``): its answer when qpbench's residual
-    confirms it, else None (the caller then runs the Python path)."""
+    """The compiled path (``pi_robust_dense``): its answer when qpbench's residual confirms
+    it, else None (the caller then runs the Python path)."""
     from qpbench.solvers import pi_robust_dense as dense
 
     settings = {key: value for key, value in options.items() if key != "lemke_limit"}
     try:
         impulses, converged, path, solves, interior, factorizations = dense.dense_pi_robust(
-            lcp.op, csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start, **settings)
+            *csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start, ORDERING_ABOVE, **settings)
     except np.linalg.LinAlgError:
         return None
     if not converged:
@@ -279,13 +288,11 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
         lcp = Lcp.of(problem, dense_limit=options.pop("dense_limit"))
         options = accuracy.options_for(NAME, eps, lcp.scale)
         options.pop("dense_limit")
-        use_compiled = options.pop("compiled") and lcp.dense
         csc = None
-        if use_compiled:
+        if lcp.n <= options.pop("compiled_limit"):
             from qpbench.solvers.pi_robust_dense import warm_up
 
             warm_up()  # compiles or loads the kernel once per process, outside the clock
-            lcp.op = np.ascontiguousarray(lcp.op)
             csc = csc_arrays(lcp)
             _ = lcp.safe_diag
         blocks = BlockSolver(lcp)
@@ -294,7 +301,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
         result = _compiled(lcp, csc, start, options) if csc is not None else None
         if result is None:
             result = pi_robust(lcp, blocks, start, **options)
-            if use_compiled:
+            if csc is not None:
                 result[4]["compiled"] = "not confirmed; Python path"
         impulses, converged, status, iterations, info = result
     return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)

@@ -1,19 +1,23 @@
-"""pi-robust's dense path compiled with numba: the same algorithm as ``qpbench.solvers.pi_robust``
+"""pi-robust compiled with numba: the same algorithm as ``qpbench.solvers.pi_robust``
 (proximal policy iteration with block principal pivoting, then the Mehrotra interior point of
 ``qpbench.solvers.lcp_interior`` whose close iterates are finished by policy iteration), for
-problems with at most ``dense_limit`` contacts, without per-step Python overhead.
+problems with at most the accuracy table's ``compiled_limit`` contacts, without per-step
+Python overhead.
 
-Linear algebra: blocks ``Q_FF + rho D_F`` and the interior point's ``Q~ + diag(d)`` are
-factored by LAPACK's Cholesky (``np.linalg.cholesky`` in nopython mode) and solved by
-compiled triangular substitutions; the last two block factors are kept, so prox steps on a
-settled policy cost two triangular solves. A factorization that fails raises
-``np.linalg.LinAlgError``; the caller then runs the Python path, which handles it.
+Linear algebra: Q stays in CSC (products are sparse). Above ``order_above`` contacts the
+contacts are put in reverse Cuthill-McKee order (Q's graph is the line graph of the contact
+graph, so this order keeps every block's envelope narrow: a few tens of columns on grids and
+packings). Blocks ``Q_FF + rho D_F`` and the interior point's ``Q~ + diag(d)`` are factored
+by an envelope (profile) Cholesky and solved by envelope substitutions; the last two block
+factors are kept, so prox steps on a settled policy cost two triangular solves. A factor
+that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
 
-Its verdict uses the fast residual ``||min(D l, Q l + b)||_inf / scale`` on the dense Q; the
-caller confirms a claimed convergence with qpbench's own metric before reporting it. One
-addition to the Python path: when the interior point stalls (its residual not cut by 10% in
-five iterations, as rounding makes it on extreme mass ratios) its best iterate is handed to
-the finishing policy iteration too.
+Every residual is qpbench's formula ``||min(D l, Q l + b)||_inf / scale`` summed over the
+problem's own CSC Q in scipy's order; the caller certifies a claimed convergence with a
+rounding bound, or qpbench's own metric, before reporting it. One addition to the Python
+path: when the interior point stalls (its residual not cut by 10% in five iterations, as
+rounding makes it on extreme mass ratios) its best iterate is handed to the finishing policy
+iteration too.
 
 Compilation: ``cache=True`` (machine code cached next to this file); ``warm_up()`` compiles or
 loads it once per process, and pi-robust calls it in its set-up, outside the timed solve.
@@ -74,59 +78,133 @@ def residual_rounding_bound(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: n
 
 
 @njit(cache=True)
-def _triangular_solve(lower: np.ndarray, size: int, rhs: np.ndarray) -> np.ndarray:
-    """x with L L^T x = rhs, L the leading size x size lower triangle of ``lower``."""
-    y = np.empty(size)
+def _original_residual(original: tuple, scale: float, impulses: np.ndarray) -> float:
+    """qpbench's residual of ``impulses`` given in the kernel's order: ``original`` is
+    (indptr, indices, data, b, diag, order) of the problem as posed, ``l[order] = impulses``."""
+    indptr, indices, data, b, diag, order = original
+    unpermuted = np.empty(impulses.size)
+    unpermuted[order] = impulses
+    return natural_residual((indptr, indices, data), b, diag, scale, unpermuted)
+
+
+@njit(cache=True)
+def _matvec(csc: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray) -> np.ndarray:
+    """Q x over Q's CSC arrays."""
+    indptr, indices, data = csc
+    product = np.zeros(x.size)
+    for column in range(x.size):
+        value = x[column]
+        if value != 0.0:
+            for k in range(indptr[column], indptr[column + 1]):
+                product[indices[k]] += data[k] * value
+    return product
+
+
+@njit(cache=True)
+def _envelope_cholesky(matrix: np.ndarray, first: np.ndarray, size: int) -> None:
+    """In place: the leading size x size lower triangle of ``matrix`` (row i nonzero from
+    column first[i] on) becomes its Cholesky factor L, which has the same envelope (Jennings,
+    "A compact storage scheme for the solution of symmetric linear simultaneous equations",
+    Comput. J. 9(3), 1966). Raises LinAlgError when a pivot is not positive."""
     for i in range(size):
-        total = rhs[i]
-        for j in range(i):
-            total -= lower[i, j] * y[j]
-        y[i] = total / lower[i, i]
-    x = np.empty(size)
-    for i in range(size - 1, -1, -1):
-        total = y[i]
-        for j in range(i + 1, size):
-            total -= lower[j, i] * x[j]
+        row_first = first[i]
+        for j in range(row_first, i):
+            begin = max(row_first, first[j])
+            total = matrix[i, j]
+            for k in range(begin, j):
+                total -= matrix[i, k] * matrix[j, k]
+            matrix[i, j] = total / matrix[j, j]
+        total = matrix[i, i]
+        for k in range(row_first, i):
+            total -= matrix[i, k] * matrix[i, k]
+        if not total > 0.0:
+            raise np.linalg.LinAlgError("block is not positive definite")
+        matrix[i, i] = np.sqrt(total)
+
+
+@njit(cache=True)
+def _envelope_solve(lower: np.ndarray, first: np.ndarray, size: int,
+                    rhs: np.ndarray) -> np.ndarray:
+    """x with L L^T x = rhs for an envelope factor L (row i from column first[i])."""
+    x = rhs.copy()
+    for i in range(size):
+        total = x[i]
+        for k in range(first[i], i):
+            total -= lower[i, k] * x[k]
         x[i] = total / lower[i, i]
+    for i in range(size - 1, -1, -1):
+        x[i] /= lower[i, i]
+        value = x[i]
+        for k in range(first[i], i):
+            x[k] -= lower[i, k] * value
     return x
 
 
 @njit(cache=True)
-def _block_solve(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
-                 rho: float, rhs: np.ndarray, factors: np.ndarray, policies: np.ndarray,
+def _gather(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray, n: int,
+            row_scale: np.ndarray, matrix: np.ndarray, first: np.ndarray) -> None:
+    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale) on I) into ``matrix``
+    and each row's first column into ``first``; entries (r, c) scale as (Q_rc s_r) s_c."""
+    indptr, indices, data = A
+    size = index.size
+    position = np.full(n, -1, dtype=np.int64)
+    for a in range(size):
+        position[index[a]] = a
+    for a in range(size):
+        column = index[a]
+        row_first = a
+        for k in range(indptr[column], indptr[column + 1]):
+            p = position[indices[k]]
+            if 0 <= p < row_first:
+                row_first = p
+        first[a] = row_first
+        for c in range(row_first, a + 1):
+            matrix[a, c] = 0.0
+    for a in range(size):
+        column = index[a]
+        for k in range(indptr[column], indptr[column + 1]):
+            p = position[indices[k]]
+            if 0 <= p <= a:
+                matrix[a, p] = (data[k] * row_scale[indices[k]]) * row_scale[column]
+
+
+@njit(cache=True)
+def _block_solve(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
+                 policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray,
+                 factors: np.ndarray, firsts: np.ndarray, policies: np.ndarray,
                  rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray) -> np.ndarray:
     """x_F with (Q_FF + rho D_F) x_F = rhs, from a kept factor when the key matches.
 
-    The cache of block factors is plain arrays: ``factors[s]`` holds slot s's Cholesky factor
-    in its leading block, ``policies[s]`` and ``rhos[s]`` its key, ``ages[s]`` its last use;
-    ``counters = [factorizations, uses]``; the least recently used slot is replaced."""
+    The cache of block factors is plain arrays: ``factors[s]`` holds slot s's envelope
+    Cholesky factor in its leading block (``firsts[s]`` its envelope), ``policies[s]`` and
+    ``rhos[s]`` its key, ``ages[s]`` its last use; ``counters = [factorizations, uses]``; the
+    least recently used slot is replaced."""
     size = index.size
     counters[1] += 1
     for slot in range(rhos.size):
         if rhos[slot] == rho and np.all(policies[slot] == policy):
             ages[slot] = counters[1]
-            return _triangular_solve(factors[slot], size, rhs)
+            return _envelope_solve(factors[slot], firsts[slot], size, rhs)
     slot = int(np.argmin(ages))
-    block = np.empty((size, size))
+    rhos[slot] = -1.0  # invalid until the factorization succeeds
+    block = factors[slot]
+    _gather(A, index, safe_diag.size, np.ones(safe_diag.size), block, firsts[slot])
     for a in range(size):
-        row = index[a]
-        for c in range(size):
-            block[a, c] = Q[row, index[c]]
-        block[a, a] += rho * safe_diag[row]
-    lower = np.linalg.cholesky(block)
+        block[a, a] += rho * safe_diag[index[a]]
+    _envelope_cholesky(block, firsts[slot], size)
     counters[0] += 1
-    factors[slot, :size, :size] = lower
     policies[slot] = policy
     rhos[slot] = rho
     ages[slot] = counters[1]
-    return _triangular_solve(factors[slot], size, rhs)
+    return _envelope_solve(block, firsts[slot], size, rhs)
 
 
 @njit(cache=True)
-def _inner_lcp(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, rho: float,
-               q: np.ndarray, tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int,
-               single_exchanges: bool, factors: np.ndarray, policies: np.ndarray,
-               rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray):
+def _inner_lcp(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
+               policy: np.ndarray, rho: float, q: np.ndarray, tol_l: np.ndarray, tol_w: float,
+               backup_steps: int, budget: int, single_exchanges: bool, factors: np.ndarray,
+               firsts: np.ndarray, policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
+               counters: np.ndarray):
     """Block principal pivoting on LCP(Q + rho D, q): (x, policy, linear solves, solved)."""
     n = q.size
     shift = rho * safe_diag
@@ -138,10 +216,10 @@ def _inner_lcp(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, rho: fl
         index = np.flatnonzero(policy)
         x = np.zeros(n)
         if index.size:
-            x[index] = _block_solve(Q, safe_diag, policy, index, rho, -q[index], factors,
-                                    policies, rhos, ages, counters)
+            x[index] = _block_solve(A, safe_diag, policy, index, rho, -q[index], factors,
+                                    firsts, policies, rhos, ages, counters)
         solves += 1
-        y = Q @ x + shift * x + q
+        y = _matvec(A, x) + shift * x + q
         infeasible = (policy & (x < -tol_l)) | (np.logical_not(policy) & (y < -tol_w))
         count = int(np.count_nonzero(infeasible))
         if count == 0:
@@ -162,32 +240,32 @@ def _inner_lcp(Q: np.ndarray, safe_diag: np.ndarray, policy: np.ndarray, rho: fl
 
 
 @njit(cache=True)
-def _prox_policy_iteration(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
-                           b: np.ndarray, diag: np.ndarray,
-                           safe_diag: np.ndarray, scale: float, centre: np.ndarray,
-                           policy: np.ndarray, tol: float, rho: float, rho_min: float,
-                           rho_decrease: float, stall_ratio: float, stall_steps: int,
-                           backup_steps: int, single_exchanges: bool, budget: int,
-                           factors: np.ndarray, policies: np.ndarray, rhos: np.ndarray,
-                           ages: np.ndarray, counters: np.ndarray):
+def _prox_policy_iteration(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple,
+                           b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
+                           scale: float, centre: np.ndarray, policy: np.ndarray, tol: float,
+                           rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
+                           stall_steps: int, backup_steps: int, single_exchanges: bool,
+                           budget: int, factors: np.ndarray, firsts: np.ndarray,
+                           policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
+                           counters: np.ndarray):
     """Prox steps from ``centre``/``policy`` within ``budget`` solves:
     (best l, converged, status code, solves, best residual)."""
     tol_l = 0.1 * tol * scale / safe_diag
     tol_w = 0.1 * tol * scale
-    res = natural_residual(csc, b, diag, scale, centre)
+    res = _original_residual(original, scale, centre)
     best, best_res = centre, res
     solves = 0
     stalls = 0
     status = PROX_BUDGET
     while solves < budget:
         q = b - rho * safe_diag * centre
-        x, policy, used, solved = _inner_lcp(Q, safe_diag, policy, rho, q, tol_l, tol_w,
+        x, policy, used, solved = _inner_lcp(A, safe_diag, policy, rho, q, tol_l, tol_w,
                                              backup_steps, budget - solves, single_exchanges,
-                                             factors, policies, rhos, ages, counters)
+                                             factors, firsts, policies, rhos, ages, counters)
         solves += used
         centre = np.maximum(x, 0.0)
         previous = res
-        res = natural_residual(csc, b, diag, scale, centre)
+        res = _original_residual(original, scale, centre)
         if res < best_res:
             best, best_res = centre, res
         if res <= tol:
@@ -217,46 +295,51 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def dense_pi_robust(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
+def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple,
                     b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
                     scale: float, start: np.ndarray, tol: float, rho: float, rho_min: float,
                     rho_decrease: float, stall_ratio: float, stall_steps: int,
                     backup_steps: int, single_exchanges: bool, pi_budget: int,
                     finish_budget: int, finish_below: float, ipm_iters: int):
-    """(l, converged by the fast residual, path code, linear solves, interior iterations,
-    factorizations) of pi-robust on the dense LCP (Q, b) from ``start`` (l >= 0)."""
+    """(l, converged by qpbench's residual formula, path code, linear solves, interior
+    iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0).
+
+    ``A`` is Q's CSC arrays in the kernel's order (a bandwidth-reducing permutation of the
+    contacts, or none); ``b``, ``diag``, ``safe_diag``, ``start`` and the answer are in that
+    order too; ``original`` = (indptr, indices, data, b, diag, order) of the problem as posed
+    (``l[order] = answer``), on which every residual is measured."""
     n = b.size
     factors = np.empty((2, n, n))
+    firsts = np.zeros((2, n), dtype=np.int64)
     policies = np.zeros((2, n), dtype=np.bool_)
     rhos = np.full(2, -1.0)
     ages = np.zeros(2, dtype=np.int64)
     counters = np.zeros(2, dtype=np.int64)
-    if natural_residual(csc, b, diag, scale, start) <= tol:
+    if _original_residual(original, scale, start) <= tol:
         return start, True, PATH_START, 0, 0, 0
-    w = Q @ start + b
+    w = _matvec(A, start) + b
     first, converged, _, solves, _ = _prox_policy_iteration(
-        Q, csc, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
+        A, original, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
         rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges, pi_budget,
-        factors, policies, rhos, ages, counters)
+        factors, firsts, policies, rhos, ages, counters)
     if converged:
         return first, True, PATH_POLICY_ITERATION, solves, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
-    scaled_Q = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            scaled_Q[i, j] = (Q[i, j] * root[i]) * root[j]
+    everything = np.arange(n)
+    normal = np.empty((n, n))
+    normal_first = np.zeros(n, dtype=np.int64)
     scaled_b = b * root
     scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
     impulses = np.full(n, scaled_scale)
-    slack = np.maximum(scaled_Q @ impulses + scaled_b, scaled_scale)
+    slack = np.maximum(root * _matvec(A, root * impulses) + scaled_b, scaled_scale)
     floor = 1e-14
     best, best_res, best_w = impulses * root, np.inf, slack / root
     progress, stalled = np.inf, 0
     iterations = 0
     for iteration in range(1, ipm_iters + 1):
         iterations = iteration - 1
-        infeasibility = scaled_Q @ impulses + scaled_b - slack
+        infeasibility = root * _matvec(A, root * impulses) + scaled_b - slack
         mu = float(impulses @ slack) / n
         original_l = impulses * root
         original_w = (infeasibility + slack) / root
@@ -272,13 +355,14 @@ def dense_pi_robust(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray
             progress, stalled = res, 0
         else:
             stalled += 1
-        if res <= tol and natural_residual(csc, b, diag, scale, original_l) <= tol:
+        if res <= tol and _original_residual(original, scale, original_l) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
             finished, done, _, used, _ = _prox_policy_iteration(
-                Q, csc, b, diag, safe_diag, scale, original_l, original_w < diag * original_l, tol,
-                rho, rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
-                single_exchanges, finish_budget, factors, policies, rhos, ages, counters)
+                A, original, b, diag, safe_diag, scale, original_l,
+                original_w < diag * original_l, tol, rho, rho_min, rho_decrease, stall_ratio,
+                stall_steps, backup_steps, single_exchanges, finish_budget, factors, firsts,
+                policies, rhos, ages, counters)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
@@ -287,27 +371,28 @@ def dense_pi_robust(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray
         if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
             stalled = 0
             finished, done, _, used, _ = _prox_policy_iteration(  # from its best iterate
-                Q, csc, b, diag, safe_diag, scale, best, best_w < diag * best, tol, rho,
+                A, original, b, diag, safe_diag, scale, best, best_w < diag * best, tol, rho,
                 rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
-                single_exchanges, finish_budget, factors, policies, rhos, ages, counters)
+                single_exchanges, finish_budget, factors, firsts, policies, rhos, ages,
+                counters)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
-        normal = scaled_Q.copy()
+        _gather(A, everything, n, root, normal, normal_first)
         ratio = slack / impulses
         for i in range(n):
             normal[i, i] += max(ratio[i], floor)
-        lower = np.linalg.cholesky(normal)
+        _envelope_cholesky(normal, normal_first, n)
         counters[0] += 1
-        dl = _triangular_solve(lower, n, -slack - infeasibility)
-        dw = scaled_Q @ dl + infeasibility
+        dl = _envelope_solve(normal, normal_first, n, -slack - infeasibility)
+        dw = root * _matvec(A, root * dl) + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
         mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
-        dl = _triangular_solve(lower, n, rhs)
-        dw = scaled_Q @ dl + infeasibility
+        dl = _envelope_solve(normal, normal_first, n, rhs)
+        dw = root * _matvec(A, root * dl) + infeasibility
         alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
                                     _step_to_boundary(slack, dw)))
         impulses = np.maximum(impulses + alpha * dl, 1e-300)
@@ -315,10 +400,93 @@ def dense_pi_robust(Q: np.ndarray, csc: tuple[np.ndarray, np.ndarray, np.ndarray
         iterations = iteration
         if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
             break
-    first_res = natural_residual(csc, b, diag, scale, first)
+    first_res = _original_residual(original, scale, first)
     if first_res < best_res:
         best, best_res = first, first_res
     return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0]
+
+
+@njit(cache=True)
+def reverse_cuthill_mckee(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
+    """A reverse Cuthill-McKee order of the graph of a symmetric CSC pattern (Cuthill and
+    McKee, "Reducing the bandwidth of sparse symmetric matrices", ACM 1969; George 1971):
+    breadth-first from a least-degree node of each component, neighbours by rising degree,
+    the whole order reversed."""
+    degree = indptr[1:] - indptr[:-1]
+    order = np.empty(n, dtype=np.int64)
+    visited = np.zeros(n, dtype=np.bool_)
+    head = tail = 0
+    for seed in np.argsort(degree, kind="mergesort"):
+        if visited[seed]:
+            continue
+        visited[seed] = True
+        order[tail] = seed
+        tail += 1
+        while head < tail:
+            node = order[head]
+            head += 1
+            begin = tail
+            for k in range(indptr[node], indptr[node + 1]):
+                neighbour = indices[k]
+                if not visited[neighbour]:
+                    visited[neighbour] = True
+                    order[tail] = neighbour
+                    tail += 1
+            for i in range(begin + 1, tail):  # insertion sort by degree (few neighbours)
+                moving = order[i]
+                j = i - 1
+                while j >= begin and degree[order[j]] > degree[moving]:
+                    order[j + 1] = order[j]
+                    j -= 1
+                order[j + 1] = moving
+    return order[::-1].copy()
+
+
+@njit(cache=True)
+def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: np.ndarray):
+    """CSC arrays of Q[order][:, order] (row indices within a column left unsorted)."""
+    n = order.size
+    inverse = np.empty(n, dtype=np.int64)
+    inverse[order] = np.arange(n)
+    new_indptr = np.zeros(n + 1, dtype=np.int64)
+    for j in range(n):
+        new_indptr[j + 1] = new_indptr[j] + indptr[order[j] + 1] - indptr[order[j]]
+    new_indices = np.empty(new_indptr[n], dtype=np.int64)
+    new_data = np.empty(new_indptr[n])
+    for j in range(n):
+        position = new_indptr[j]
+        for k in range(indptr[order[j]], indptr[order[j] + 1]):
+            new_indices[position] = inverse[indices[k]]
+            new_data[position] = data[k]
+            position += 1
+    return new_indptr, new_indices, new_data
+
+
+@njit(cache=True)
+def dense_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
+                    diag: np.ndarray, safe_diag: np.ndarray, scale: float, start: np.ndarray,
+                    order_above: int, tol: float, rho: float, rho_min: float,
+                    rho_decrease: float, stall_ratio: float, stall_steps: int,
+                    backup_steps: int, single_exchanges: bool, pi_budget: int,
+                    finish_budget: int, finish_below: float, ipm_iters: int):
+    """(l, converged by qpbench's residual formula, path code, linear solves, interior
+    iterations, factorizations) of pi-robust on LCP(Q, b), Q given by its CSC arrays, from
+    ``start`` (l >= 0). Above ``order_above`` contacts the contacts are first put in reverse
+    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow."""
+    n = b.size
+    order = np.arange(n)
+    A = (indptr, indices, data)
+    if n > order_above:
+        order = reverse_cuthill_mckee(indptr, indices, n)
+        A = _permuted(indptr, indices, data, order)
+    original = (indptr, indices, data, b, diag, order)
+    answer, converged, path, solves, interior, factorizations = _solve_ordered(
+        A, original, b[order], diag[order], safe_diag[order], scale, start[order], tol, rho,
+        rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
+        pi_budget, finish_budget, finish_below, ipm_iters)
+    impulses = np.empty(n)
+    impulses[order] = answer
+    return impulses, converged, path, solves, interior, factorizations
 
 
 _warm = False
@@ -334,9 +502,10 @@ def warm_up() -> None:
     diag = np.diag(Q).copy()
     csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
            Q.T.ravel().copy())
-    impulses, _, _, _, _, _ = dense_pi_robust(Q, csc, b, diag, diag, 4.0, np.zeros(3), 1e-8,
-                                              1e-8, 1e-14, 0.01, 0.5, 3, 3, True, 10, 3,
-                                              1e-3, 80)
+    for order_above in (64, 0):  # both branches' types
+        impulses, _, _, _, _, _ = dense_pi_robust(*csc, b, diag, diag, 4.0, np.zeros(3),
+                                                  order_above, 1e-8, 1e-8, 1e-14, 0.01, 0.5,
+                                                  3, 3, True, 10, 3, 1e-3, 80)
     natural_residual(csc, b, diag, 4.0, impulses)
     residual_rounding_bound(csc, b, 4.0, impulses)
     _warm = True
