@@ -200,7 +200,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
                   "stall_ratio": 0.5, "stall_steps": 3, "backup_steps": 3,
                   "single_exchanges": True, "pi_budget": 10, "finish_budget": 3,
                   "finish_below": 1e-3, "ipm_iters": 80,
-                  "dense_limit": 300, "lemke_limit": 400, "compiled_limit": 2_000},
+                  "dense_limit": 300, "lemke_limit": 400, "compiled_limit": 50_000},
     "pgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
     "lemke": {"tol": _relative, "max_contacts": 1_500, "max_pivots_per_contact": 50},
     "penalty": {"tol": _relative, "kappa": 1e9, "max_iters": 100, "dense_limit": 300},

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.typed import List
 
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
@@ -101,108 +102,130 @@ def _matvec(csc: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray) -> np
 
 
 @njit(cache=True)
-def _envelope_cholesky(matrix: np.ndarray, first: np.ndarray, size: int) -> None:
-    """In place: the leading size x size lower triangle of ``matrix`` (row i nonzero from
-    column first[i] on) becomes its Cholesky factor L, which has the same envelope (Jennings,
-    "A compact storage scheme for the solution of symmetric linear simultaneous equations",
-    Comput. J. 9(3), 1966). Raises LinAlgError when a pivot is not positive."""
+def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int) -> None:
+    """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
+    has the same envelope (Jennings, "A compact storage scheme for the solution of symmetric
+    linear simultaneous equations", Comput. J. 9(3), 1966). Row i is stored in
+    ``values[offsets[i]:offsets[i + 1]]``, its columns first(i) .. i (the diagonal last).
+    Raises LinAlgError when a pivot is not positive."""
     for i in range(size):
-        row_first = first[i]
-        for j in range(row_first, i):
-            begin = max(row_first, first[j])
-            total = matrix[i, j]
-            for k in range(begin, j):
-                total -= matrix[i, k] * matrix[j, k]
-            matrix[i, j] = total / matrix[j, j]
-        total = matrix[i, i]
-        for k in range(row_first, i):
-            total -= matrix[i, k] * matrix[i, k]
+        base_i = offsets[i]
+        first_i = i + 1 - (offsets[i + 1] - base_i)
+        for j in range(first_i, i):
+            base_j = offsets[j]
+            first_j = j + 1 - (offsets[j + 1] - base_j)
+            total = values[base_i + j - first_i]
+            for k in range(max(first_i, first_j), j):
+                total -= values[base_i + k - first_i] * values[base_j + k - first_j]
+            values[base_i + j - first_i] = total / values[offsets[j + 1] - 1]
+        total = values[offsets[i + 1] - 1]
+        for k in range(base_i, offsets[i + 1] - 1):
+            total -= values[k] * values[k]
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
-        matrix[i, i] = np.sqrt(total)
+        values[offsets[i + 1] - 1] = np.sqrt(total)
 
 
 @njit(cache=True)
-def _envelope_solve(lower: np.ndarray, first: np.ndarray, size: int,
+def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
                     rhs: np.ndarray) -> np.ndarray:
-    """x with L L^T x = rhs for an envelope factor L (row i from column first[i])."""
+    """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky``."""
     x = rhs.copy()
     for i in range(size):
+        base = offsets[i]
+        first = i + 1 - (offsets[i + 1] - base)
         total = x[i]
-        for k in range(first[i], i):
-            total -= lower[i, k] * x[k]
-        x[i] = total / lower[i, i]
+        for k in range(first, i):
+            total -= values[base + k - first] * x[k]
+        x[i] = total / values[offsets[i + 1] - 1]
     for i in range(size - 1, -1, -1):
-        x[i] /= lower[i, i]
+        base = offsets[i]
+        first = i + 1 - (offsets[i + 1] - base)
+        x[i] /= values[offsets[i + 1] - 1]
         value = x[i]
-        for k in range(first[i], i):
-            x[k] -= lower[i, k] * value
+        for k in range(first, i):
+            x[k] -= values[base + k - first] * value
     return x
 
 
 @njit(cache=True)
-def _gather(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray, n: int,
-            row_scale: np.ndarray, matrix: np.ndarray, first: np.ndarray) -> None:
-    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale) on I) into ``matrix``
-    and each row's first column into ``first``; entries (r, c) scale as (Q_rc s_r) s_c."""
-    indptr, indices, data = A
-    size = index.size
-    position = np.full(n, -1, dtype=np.int64)
-    for a in range(size):
-        position[index[a]] = a
-    for a in range(size):
+def _envelope_pattern(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray,
+                      position: np.ndarray, offsets: np.ndarray) -> None:
+    """Row offsets of the lower envelope of Q_II (``position[r]`` = r's place in I, or -1)."""
+    indptr, indices, _ = A
+    offsets[0] = 0
+    for a in range(index.size):
         column = index[a]
         row_first = a
         for k in range(indptr[column], indptr[column + 1]):
             p = position[indices[k]]
             if 0 <= p < row_first:
                 row_first = p
-        first[a] = row_first
-        for c in range(row_first, a + 1):
-            matrix[a, c] = 0.0
+        offsets[a + 1] = offsets[a] + a - row_first + 1
+
+
+@njit(cache=True)
+def _fill(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray,
+          position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
+          offsets: np.ndarray) -> None:
+    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``;
+    entries (r, c) scale as (Q_rc s_r) s_c."""
+    indptr, indices, data = A
+    size = index.size
+    values[:offsets[size]] = 0.0
     for a in range(size):
         column = index[a]
+        base = offsets[a]
+        first = a + 1 - (offsets[a + 1] - base)
         for k in range(indptr[column], indptr[column + 1]):
-            p = position[indices[k]]
+            row = indices[k]
+            p = position[row]
             if 0 <= p <= a:
-                matrix[a, p] = (data[k] * row_scale[indices[k]]) * row_scale[column]
+                values[base + p - first] = (data[k] * row_scale[row]) * row_scale[column]
 
 
 @njit(cache=True)
 def _block_solve(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
                  policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray,
-                 factors: np.ndarray, firsts: np.ndarray, policies: np.ndarray,
-                 rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray) -> np.ndarray:
+                 factors: List, offsets: np.ndarray, policies: np.ndarray, rhos: np.ndarray,
+                 ages: np.ndarray, counters: np.ndarray) -> np.ndarray:
     """x_F with (Q_FF + rho D_F) x_F = rhs, from a kept factor when the key matches.
 
-    The cache of block factors is plain arrays: ``factors[s]`` holds slot s's envelope
-    Cholesky factor in its leading block (``firsts[s]`` its envelope), ``policies[s]`` and
-    ``rhos[s]`` its key, ``ages[s]`` its last use; ``counters = [factorizations, uses]``; the
-    least recently used slot is replaced."""
+    The cache of block factors: ``factors[s]`` (a typed list) holds slot s's envelope
+    Cholesky factor, ``offsets[s]`` its row offsets, ``policies[s]`` and ``rhos[s]`` its key,
+    ``ages[s]`` its last use; ``counters = [factorizations, uses]``; the least recently used
+    slot is replaced."""
+    n = safe_diag.size
     size = index.size
     counters[1] += 1
     for slot in range(rhos.size):
         if rhos[slot] == rho and np.all(policies[slot] == policy):
             ages[slot] = counters[1]
-            return _envelope_solve(factors[slot], firsts[slot], size, rhs)
+            return _envelope_solve(factors[slot], offsets[slot], size, rhs)
     slot = int(np.argmin(ages))
     rhos[slot] = -1.0  # invalid until the factorization succeeds
-    block = factors[slot]
-    _gather(A, index, safe_diag.size, np.ones(safe_diag.size), block, firsts[slot])
+    position = np.full(n, -1, dtype=np.int64)
+    position[index] = np.arange(size)
+    _envelope_pattern(A, index, position, offsets[slot])
+    needed = offsets[slot, size]
+    if factors[slot].size < needed:
+        factors[slot] = np.empty(max(needed, 2 * factors[slot].size))
+    values = factors[slot]
+    _fill(A, index, position, np.ones(n), values, offsets[slot])
     for a in range(size):
-        block[a, a] += rho * safe_diag[index[a]]
-    _envelope_cholesky(block, firsts[slot], size)
+        values[offsets[slot, a + 1] - 1] += rho * safe_diag[index[a]]
+    _envelope_cholesky(values, offsets[slot], size)
     counters[0] += 1
     policies[slot] = policy
     rhos[slot] = rho
     ages[slot] = counters[1]
-    return _envelope_solve(block, firsts[slot], size, rhs)
+    return _envelope_solve(values, offsets[slot], size, rhs)
 
 
 @njit(cache=True)
 def _inner_lcp(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
                policy: np.ndarray, rho: float, q: np.ndarray, tol_l: np.ndarray, tol_w: float,
-               backup_steps: int, budget: int, single_exchanges: bool, factors: np.ndarray,
+               backup_steps: int, budget: int, single_exchanges: bool, factors: List,
                firsts: np.ndarray, policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
                counters: np.ndarray):
     """Block principal pivoting on LCP(Q + rho D, q): (x, policy, linear solves, solved)."""
@@ -245,7 +268,7 @@ def _prox_policy_iteration(A: tuple[np.ndarray, np.ndarray, np.ndarray], origina
                            scale: float, centre: np.ndarray, policy: np.ndarray, tol: float,
                            rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
                            stall_steps: int, backup_steps: int, single_exchanges: bool,
-                           budget: int, factors: np.ndarray, firsts: np.ndarray,
+                           budget: int, factors: List, firsts: np.ndarray,
                            policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
                            counters: np.ndarray):
     """Prox steps from ``centre``/``policy`` within ``budget`` solves:
@@ -309,8 +332,10 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
     order too; ``original`` = (indptr, indices, data, b, diag, order) of the problem as posed
     (``l[order] = answer``), on which every residual is measured."""
     n = b.size
-    factors = np.empty((2, n, n))
-    firsts = np.zeros((2, n), dtype=np.int64)
+    factors = List()
+    for _ in range(2):
+        factors.append(np.empty(0))
+    firsts = np.zeros((2, n + 1), dtype=np.int64)
     policies = np.zeros((2, n), dtype=np.bool_)
     rhos = np.full(2, -1.0)
     ages = np.zeros(2, dtype=np.int64)
@@ -327,8 +352,9 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
     everything = np.arange(n)
-    normal = np.empty((n, n))
-    normal_first = np.zeros(n, dtype=np.int64)
+    normal_first = np.zeros(n + 1, dtype=np.int64)
+    _envelope_pattern(A, everything, everything, normal_first)
+    normal = np.empty(normal_first[n])
     scaled_b = b * root
     scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
     impulses = np.full(n, scaled_scale)
@@ -379,10 +405,10 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
-        _gather(A, everything, n, root, normal, normal_first)
+        _fill(A, everything, everything, root, normal, normal_first)
         ratio = slack / impulses
         for i in range(n):
-            normal[i, i] += max(ratio[i], floor)
+            normal[normal_first[i + 1] - 1] += max(ratio[i], floor)
         _envelope_cholesky(normal, normal_first, n)
         counters[0] += 1
         dl = _envelope_solve(normal, normal_first, n, -slack - infeasibility)
