@@ -61,6 +61,16 @@ def test_cost_of_accuracy_is_the_ratio_of_consecutive_levels() -> None:
     assert table.loc["a/dual", "1e-04 -> 1e-08"] == pytest.approx(4.0)
 
 
+def test_paired_cost_of_accuracy_ignores_problems_failed_at_either_level() -> None:
+    loose = _frame([("p1", "a", 1.0, True), ("p2", "a", 1.0, False),
+                    ("p3", "a", 2.0, True)]).assign(accuracy=1e-4)
+    tight = _frame([("p1", "a", 3.0, True), ("p2", "a", 9.0, True),
+                    ("p3", "a", 10.0, True)]).assign(accuracy=1e-8)
+    table = stats.paired_cost_of_accuracy(pd.concat([loose, tight], ignore_index=True))
+    # p2 failed at 1e-4, so only p1 (ratio 3) and p3 (ratio 5) count: median 4
+    assert table.loc["a/dual", "1e-04 -> 1e-08"] == pytest.approx(4.0)
+
+
 def test_honesty_counts_claims_that_disagree_with_the_verdict() -> None:
     frame = _frame([("p1", "a", 1.0, True), ("p2", "a", 1.0, False)])  # both claim success
     table = stats.honesty(frame).set_index("solver")

@@ -205,6 +205,29 @@ def _formulations(summary: pd.DataFrame) -> str:
     return "".join(parts)
 
 
+def _summary(summary: pd.DataFrame) -> str:
+    """Per level: the most reliable solver/formulation and the fastest of those that solved
+    at least SUMMARY_SUCCESS of the problems."""
+    rows = []
+    for accuracy, group in summary.groupby("accuracy"):
+        ranked = group.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True])
+        reliable = ranked.iloc[0]
+        fast = group[group["success_rate"] >= SUMMARY_SUCCESS].sort_values("sgm_time_s")
+        fastest = (f"`{fast.iloc[0]['solver']}` ({number(fast.iloc[0]['sgm_time_s'])} s)"
+                   if len(fast) else "none")
+        rows.append({
+            "level": level(accuracy),
+            "most reliable": f"`{reliable['solver']}` ({percent(reliable['success_rate'])}, "
+                             f"{number(reliable['sgm_time_s'])} s)",
+            f"fastest with >= {percent(SUMMARY_SUCCESS)} solved": fastest,
+            f"pairs with >= {percent(SUMMARY_SUCCESS)} solved":
+                f"{int((group['success_rate'] >= SUMMARY_SUCCESS).sum())} of {len(group)}",
+        })
+    return ("Per level, over every problem (success = qpbench's residual <= the level; time = "
+            "shifted geometric mean, failures charged the time limit):\n\n"
+            + markdown_table(pd.DataFrame(rows), {c: str for c in rows[0]}) if rows else "")
+
+
 def _robust_targets(frame: pd.DataFrame, shift: float) -> str:
     """The two targets of our own solver on the hard families at 1e-8 (met or not, with figures)."""
     hard = frame[frame["family"].astype(str).isin(HARD_FAMILIES)
@@ -288,8 +311,15 @@ def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
                 continue
             if isinstance(content, dict) and isinstance(content.get("markdown"), str):
                 title = str(content.get("title") or path.stem.replace("_", " ").capitalize())
-                found.append((title, content["markdown"].strip() + "\n"))
+                body = content["markdown"].strip()
+                if body.startswith("#"):  # the section brings its own heading
+                    heading, _, body = body.partition("\n")
+                    title = heading.lstrip("#").strip()
+                found.append((title, body.strip() + "\n"))
     return found
+
+
+SUMMARY_SUCCESS = 0.95
 
 
 # --- the report -----------------------------------------------------------------------------
@@ -313,6 +343,7 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     summary = stats.level_summary(main, shift)
 
     out: list[str] = ["# qpbench report\n\n", _overview(frame, results)]
+    out.append("\n## Summary\n\n" + _summary(summary) + "\n" + _robust_targets(main, shift))
     out.append("\n## Machine and versions\n\n" + _provenance(frame))
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
@@ -346,6 +377,11 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                "to the next tighter one (a ratio of 2 means the tighter level takes twice as "
                "long).\n\n" + markdown_table(cost.reset_index().rename(columns={"index": "solver"}))
                if not cost.empty else "")
+    paired = stats.paired_cost_of_accuracy(main)
+    out.append("\nThe same step measured only on problems solved at both levels (median over "
+               "those problems of the time ratio), so that failures charged the time limit do "
+               "not make a looser level look slower:\n\n"
+               + markdown_table(paired.reset_index()))
     out.append("\n" + _image(plots.cost_of_accuracy(summary, figures / "cost_of_accuracy.png"),
                              folder, "cost of accuracy"))
     tightest = float(main["accuracy"].min())

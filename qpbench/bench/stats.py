@@ -126,6 +126,27 @@ def cost_of_accuracy(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
     return table
 
 
+def paired_cost_of_accuracy(frame: pd.DataFrame) -> pd.DataFrame:
+    """Per solver/formulation (rows), for each level and the next tighter one (columns
+    ``a -> b``): the median over problems solved at BOTH levels of ``t_b / t_a``, so failures
+    at either level do not enter (NaN: no problem solved at both)."""
+    frame = frame.assign(key=solver_keys(frame))
+    solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()]
+    times = solved.pivot_table(index=["key", "problem"], columns="accuracy", values="time_s",
+                               aggfunc="min")
+    levels = sorted(frame["accuracy"].unique(), reverse=True)  # loosest first
+    table = pd.DataFrame(index=sorted(frame["key"].unique()))
+    for looser, tighter in zip(levels, levels[1:], strict=False):
+        column = f"{looser:.0e} -> {tighter:.0e}"
+        if looser in times and tighter in times:
+            ratio = (times[tighter] / times[looser]).dropna()
+            table[column] = ratio.groupby(level="key").median()
+        else:
+            table[column] = math.nan
+    table.index.name = "solver"
+    return table
+
+
 def accuracy_within_budget(frame: pd.DataFrame, budget_s: float, share: float = 0.9
                            ) -> pd.DataFrame:
     """Per solver/formulation, what it reaches within ``budget_s`` seconds per solve:
