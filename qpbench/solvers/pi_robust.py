@@ -253,7 +253,8 @@ def csc_arrays(lcp: Lcp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
-              start: np.ndarray, options: dict) -> tuple[np.ndarray, bool, str, int, dict] | None:
+              start: np.ndarray, options: dict, work_limit: float
+              ) -> tuple[np.ndarray, bool, str, int, dict] | None:
     """The compiled path (``pi_robust_dense``): its answer when qpbench's residual confirms
     it, else None (the caller then runs the Python path)."""
     from qpbench.solvers import pi_robust_dense as dense
@@ -261,7 +262,8 @@ def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
     settings = {key: value for key, value in options.items() if key != "lemke_limit"}
     try:
         impulses, converged, path, solves, interior, factorizations = dense.dense_pi_robust(
-            *csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start, ORDERING_ABOVE, **settings)
+            *csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start, ORDERING_ABOVE,
+            work_limit, **settings)
     except np.linalg.LinAlgError:
         return None
     if not converged:
@@ -289,6 +291,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
         options = accuracy.options_for(NAME, eps, lcp.scale)
         options.pop("dense_limit")
         csc = None
+        work_limit = float(options.pop("compiled_work_limit"))
         if lcp.n <= options.pop("compiled_limit"):
             from qpbench.solvers.pi_robust_dense import warm_up
 
@@ -298,11 +301,11 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
         blocks = BlockSolver(lcp)
         start = lcp.start(warm_start)
     with Stopwatch() as clock:
-        result = _compiled(lcp, csc, start, options) if csc is not None else None
+        result = _compiled(lcp, csc, start, options, work_limit) if csc is not None else None
         if result is None:
             result = pi_robust(lcp, blocks, start, **options)
             if csc is not None:
-                result[4]["compiled"] = "not confirmed; Python path"
+                result[4]["compiled"] = "declined or not confirmed; Python path"
         impulses, converged, status, iterations, info = result
     return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)
 

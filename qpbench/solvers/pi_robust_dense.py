@@ -32,9 +32,9 @@ from numba.typed import List
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
-PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE = 0, 1, 2, 3
+PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED = 0, 1, 2, 3, 4
 PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
-              "interior point did not converge")
+              "interior point did not converge", "declined: envelope too wide")
 
 
 @njit(cache=True)
@@ -491,20 +491,31 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 @njit(cache=True)
 def dense_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
                     diag: np.ndarray, safe_diag: np.ndarray, scale: float, start: np.ndarray,
-                    order_above: int, tol: float, rho: float, rho_min: float,
-                    rho_decrease: float, stall_ratio: float, stall_steps: int,
+                    order_above: int, max_envelope_work: float, tol: float, rho: float,
+                    rho_min: float, rho_decrease: float, stall_ratio: float, stall_steps: int,
                     backup_steps: int, single_exchanges: bool, pi_budget: int,
                     finish_budget: int, finish_below: float, ipm_iters: int):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations) of pi-robust on LCP(Q, b), Q given by its CSC arrays, from
     ``start`` (l >= 0). Above ``order_above`` contacts the contacts are first put in reverse
-    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow."""
+    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow.
+    When one factorization of the whole envelope would cost more than ``max_envelope_work``
+    multiply-adds (sum of squared row widths / 2: wide grids), it declines at once (path
+    ``PATH_DECLINED``) and the caller's sparse path runs."""
     n = b.size
     order = np.arange(n)
     A = (indptr, indices, data)
     if n > order_above:
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
+    widths = np.zeros(n + 1, dtype=np.int64)
+    everything = np.arange(n)
+    _envelope_pattern(A, everything, everything, widths)
+    work = 0.0
+    for i in range(n):
+        work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
+    if work > max_envelope_work:
+        return start.copy(), False, PATH_DECLINED, 0, 0, 0
     original = (indptr, indices, data, b, diag, order)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
         A, original, b[order], diag[order], safe_diag[order], scale, start[order], tol, rho,
@@ -530,7 +541,8 @@ def warm_up() -> None:
            Q.T.ravel().copy())
     for order_above in (64, 0):  # both branches' types
         impulses, _, _, _, _, _ = dense_pi_robust(*csc, b, diag, diag, 4.0, np.zeros(3),
-                                                  order_above, 1e-8, 1e-8, 1e-14, 0.01, 0.5,
+                                                  order_above, 1e9, 1e-8, 1e-8, 1e-14, 0.01,
+                                                  0.5,
                                                   3, 3, True, 10, 3, 1e-3, 80)
     natural_residual(csc, b, diag, 4.0, impulses)
     residual_rounding_bound(csc, b, 4.0, impulses)
