@@ -186,3 +186,40 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
         pi_robust_dense.dense_pi_robust = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
+
+
+def test_pi_robust_compiled_path_declines_a_too_wide_envelope() -> None:
+    """With no envelope work allowed the kernel declines before any solve, and the sparse
+    Python path answers (here a 1,000-ball box packing)."""
+    from qpbench.solvers import accuracy
+
+    problem = generate("box", 1000, seed=4)[0]
+    original = accuracy.OPTIONS["pi-robust"]["compiled_work_limit"]
+    accuracy.OPTIONS["pi-robust"]["compiled_work_limit"] = 0.0
+    try:
+        row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    finally:
+        accuracy.OPTIONS["pi-robust"]["compiled_work_limit"] = original
+    assert row["success"] and output.claimed_success
+    assert output.info["compiled"] == "declined or not confirmed; Python path"
+
+
+def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
+    from qpbench.solvers.pi_robust_dense import (
+        _envelope_pattern,
+        _permuted,
+        reverse_cuthill_mckee,
+    )
+
+    Q = generate("grid", 10, seed=0)[0].Q
+    indptr, indices = Q.indptr.astype(np.int64), Q.indices.astype(np.int64)
+    order = reverse_cuthill_mckee(indptr, indices, Q.shape[0])
+    assert sorted(order) == list(range(Q.shape[0]))
+    everything = np.arange(Q.shape[0])
+    widths = {}
+    for name, arrays in (("natural", (indptr, indices, Q.data)),
+                         ("rcm", _permuted(indptr, indices, Q.data, order))):
+        offsets = np.zeros(Q.shape[0] + 1, dtype=np.int64)
+        _envelope_pattern(arrays, everything, everything, offsets)
+        widths[name] = int(offsets[-1])
+    assert widths["rcm"] < widths["natural"]
