@@ -37,3 +37,9 @@ def test_speed_command_refuses_zero_repeats(tmp_path: Path,
     output = tmp_path / "speed.json"
     assert main(["speed", "--sizes", "16", "--repeats", "0", "-o", str(output)]) == 2
     assert "--repeats" in capsys.readouterr().err and not output.exists()
+
+
+def test_speed_command_refuses_a_folder_as_output(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["speed", "--sizes", "16", "--repeats", "1", "-o", str(tmp_path)]) == 2
+    assert str(tmp_path) in capsys.readouterr().err

@@ -13,7 +13,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from qpbench.errors import QpbenchError
+from qpbench.errors import InputError, QpbenchError
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -41,8 +41,11 @@ def _write_json(path: Path, report: dict) -> None:
     """Writes ``report`` atomically (a temporary file renamed over ``path``)."""
     from qpbench.cli.output import to_jsonable
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+    except OSError as error:
+        raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
     try:
         with os.fdopen(handle, "w") as stream:
             json.dump(to_jsonable(report), stream, indent=2)
@@ -56,6 +59,10 @@ def _write_json(path: Path, report: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise QpbenchError("--repeats must be at least 1")
+    output = Path(args.output)
+    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
+                                             if parent.exists()), os.W_OK):
+        raise InputError(str(output), "cannot write here")
     from qpbench.bench.runner import SINGLE_THREAD_ENV
 
     if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
