@@ -30,7 +30,8 @@ test: setup
 	$(BIN)/python -m pytest -q
 
 # The default benchmark: build the problem set, run every usable solver-formulation pair at
-# every accuracy level, measure the simulator's scaling, write results/REPORT.md.
+# every accuracy level, measure the simulator's scaling and pi-robust against one sparse
+# factorization on large box packings, write results/REPORT.md.
 # Re-running resumes: finished cells are skipped.
 BENCH_SET ?= problems/default.toml
 BENCH_PROBLEMS ?= build/problems/default
@@ -43,6 +44,7 @@ bench: setup
 	$(BIN)/qpbench run $(BENCH_PROBLEMS) --accuracy $(BENCH_ACCURACY) --timeout $(BENCH_TIMEOUT) \
 		-o $(BENCH_RESULTS)/bench.parquet
 	$(BIN)/qpbench scaling -o $(BENCH_RESULTS)/scaling.json
+	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
 	$(BIN)/qpbench report $(BENCH_RESULTS)/bench.parquet -o $(BENCH_RESULTS)
 
 # The larger sweep, in its own folders.
