@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,3 +30,24 @@ def to_jsonable(value: Any) -> Any:
 def print_json(value: Any) -> None:
     """One JSON object on stdout."""
     print(json.dumps(to_jsonable(value)))
+
+
+def write_json(path: str | os.PathLike[str], value: Any) -> Path:
+    """Writes ``value`` as indented JSON atomically (a temporary file renamed over ``path``)."""
+    from qpbench.errors import InputError
+
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+    except OSError as error:
+        raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
+    try:
+        with os.fdopen(handle, "w") as stream:
+            json.dump(to_jsonable(value), stream, indent=2)
+            stream.write("\n")
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
+    return path

@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import tempfile
-from pathlib import Path
 
-from qpbench.cli.output import to_jsonable
+from qpbench.cli.output import write_json
 from qpbench.errors import QpbenchError
 from qpbench.simulation.scaling import DEFAULT_SIZES, DEFAULT_SOLVER, DEFAULT_STEPS, scaling
 
@@ -40,16 +36,6 @@ def run(args: argparse.Namespace) -> int:
     if args.steps < 1:
         raise QpbenchError("--steps must be at least 1")
     report = scaling(args.sizes, args.steps, args.solver, args.seed)
-    path = Path(args.output)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            json.dump(to_jsonable(report), stream, indent=2)
-            stream.write("\n")
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+    write_json(args.output, report)
     print(report["markdown"], end="")
     return 0

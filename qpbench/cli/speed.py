@@ -6,13 +6,12 @@ unless this one already has it."""
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
+from qpbench.cli.output import write_json
 from qpbench.errors import InputError, QpbenchError
 
 
@@ -37,25 +36,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def _write_json(path: Path, report: dict) -> None:
-    """Writes ``report`` atomically (a temporary file renamed over ``path``)."""
-    from qpbench.cli.output import to_jsonable
-
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
-    except OSError as error:
-        raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
-    try:
-        with os.fdopen(handle, "w") as stream:
-            json.dump(to_jsonable(report), stream, indent=2)
-            stream.write("\n")
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-
-
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise QpbenchError("--repeats must be at least 1")
@@ -75,6 +55,6 @@ def run(args: argparse.Namespace) -> int:
     from qpbench.bench.speed import speed
 
     report = speed(args.sizes, args.seed, args.repeats)
-    _write_json(Path(args.output), report)
+    write_json(Path(args.output), report)
     print(report["markdown"], end="")
     return 0
