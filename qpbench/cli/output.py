@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -34,20 +33,13 @@ def print_json(value: Any) -> None:
 
 def write_json(path: str | os.PathLike[str], value: Any) -> Path:
     """Writes ``value`` as indented JSON atomically (a temporary file renamed over ``path``)."""
+    from qpbench.atomic import atomic_path
     from qpbench.errors import InputError
 
-    path = Path(path)
+    text = json.dumps(to_jsonable(value), indent=2) + "\n"
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+        with atomic_path(path) as temporary:
+            temporary.write_text(text)
     except OSError as error:
         raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
-    try:
-        with os.fdopen(handle, "w") as stream:
-            json.dump(to_jsonable(value), stream, indent=2)
-            stream.write("\n")
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return path
+    return Path(path)

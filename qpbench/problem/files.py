@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from qpbench.atomic import atomic_path
 from qpbench.errors import InputError
 from qpbench.problem.impact import ImpactProblem, Reference
 
@@ -68,15 +68,8 @@ def save(problem: ImpactProblem, path: str | os.PathLike[str]) -> Path:
             "tolerance": ref.tolerance,
         }
     arrays["header_json"] = _json_bytes(header)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=SUFFIX)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez_compressed(stream, **arrays)
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+        np.savez_compressed(stream, **arrays)
     return path
 
 

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from qpbench.atomic import atomic_path
 from qpbench.scenes.model import Bodies, ImpactOperator, Scene, SolverChoice
 from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH
 
@@ -128,14 +128,6 @@ def scene_xml(scene: Scene) -> str:
 
 def write_scene(scene: Scene, path: str | os.PathLike[str]) -> Path:
     """Writes ``scene`` as XML to ``path`` atomically (a temporary file, then a rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".xml")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(scene_xml(scene))
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-    return path
+    with atomic_path(path) as temporary:
+        temporary.write_text(scene_xml(scene), encoding="utf-8")
+    return Path(path)

@@ -12,7 +12,6 @@ pointing along n (the direction of the impulse on a).
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from matplotlib.collections import PatchCollection  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
+from qpbench.atomic import atomic_path
 from qpbench.errors import QpbenchError  # noqa: E402
 from qpbench.scenes.model import Scene  # noqa: E402
 from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent  # noqa: E402
@@ -207,16 +207,9 @@ def render_gif(scene: Scene, recording: Recording, result: SimulationResult, pat
 
 def _save(figure: plt.Figure, path: Path, write) -> None:
     """Writes through a temporary file in the same folder, then renames (no half files)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
-    os.close(handle)
     try:
-        write(tmp_name)
-        os.chmod(tmp_name, 0o644)
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+        with atomic_path(path) as temporary:
+            write(str(temporary))
     finally:
         plt.close(figure)
 
