@@ -337,6 +337,26 @@ def _polish(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple, b: np
 
 
 @njit(cache=True)
+def _finish(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple, b: np.ndarray,
+            diag: np.ndarray, safe_diag: np.ndarray, scale: float, start: np.ndarray,
+            start_w: np.ndarray, tol: float, rho: float, rho_min: float, rho_decrease: float,
+            stall_ratio: float, stall_steps: int, backup_steps: int, single_exchanges: bool,
+            finish_budget: int, factors: List, firsts: np.ndarray, policies: np.ndarray,
+            rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray):
+    """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
+    policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
+    finished, done, _, used, _ = _prox_policy_iteration(
+        A, original, b, diag, safe_diag, scale, start, start_w < diag * start, tol, rho,
+        rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
+        finish_budget, factors, firsts, policies, rhos, ages, counters)
+    if done:
+        finished, polished = _polish(A, original, b, diag, safe_diag, scale, finished, tol,
+                                     rho, factors, firsts, policies, rhos, ages, counters)
+        used += polished
+    return finished, done, used
+
+
+@njit(cache=True)
 def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple,
                     b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
                     scale: float, start: np.ndarray, tol: float, rho: float, rho_min: float,
@@ -405,30 +425,24 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
         if res <= tol and _original_residual(original, scale, original_l) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
-            finished, done, _, used, _ = _prox_policy_iteration(
-                A, original, b, diag, safe_diag, scale, original_l,
-                original_w < diag * original_l, tol, rho, rho_min, rho_decrease, stall_ratio,
-                stall_steps, backup_steps, single_exchanges, finish_budget, factors, firsts,
-                policies, rhos, ages, counters)
+            finished, done, used = _finish(
+                A, original, b, diag, safe_diag, scale, original_l, original_w, tol, rho,
+                rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
+                finish_budget, factors, firsts, policies, rhos, ages, counters)
             solves += used
             if done:
-                finished, used = _polish(A, original, b, diag, safe_diag, scale, finished, tol,
-                                         rho, factors, firsts, policies, rhos, ages, counters)
-                return finished, True, PATH_INTERIOR, solves + used + iterations, iterations, \
+                return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
             finish_below = 0.1 * res
         if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
             stalled = 0
-            finished, done, _, used, _ = _prox_policy_iteration(  # from its best iterate
-                A, original, b, diag, safe_diag, scale, best, best_w < diag * best, tol, rho,
-                rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps,
-                single_exchanges, finish_budget, factors, firsts, policies, rhos, ages,
-                counters)
+            finished, done, used = _finish(  # from its best iterate
+                A, original, b, diag, safe_diag, scale, best, best_w, tol, rho, rho_min,
+                rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
+                finish_budget, factors, firsts, policies, rhos, ages, counters)
             solves += used
             if done:
-                finished, used = _polish(A, original, b, diag, safe_diag, scale, finished, tol,
-                                         rho, factors, firsts, policies, rhos, ages, counters)
-                return finished, True, PATH_INTERIOR, solves + used + iterations, iterations, \
+                return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
         _fill(A, everything, everything, root, normal, normal_first)
         ratio = slack / impulses
