@@ -65,13 +65,6 @@ def primal_qp(problem: ImpactProblem) -> PrimalQP:
     )
 
 
-def impulses_from_velocity(problem: ImpactProblem, v_plus: np.ndarray) -> np.ndarray:
-    """The least-squares l with M^-1 G l = v+ - v- (for a primal solver without multipliers)."""
-    from scipy.sparse.linalg import lsqr
-
-    return lsqr(problem.M_inv_G, v_plus - problem.v_minus, atol=1e-15, btol=1e-15)[0]
-
-
 @dataclass(frozen=True)
 class FactoredDualQP:
     """The dual with ``Q = L^T L`` as a QP in ``x = (l, y)`` that never forms Q.
