@@ -6,10 +6,15 @@ STAMP := $(VENV)/.installed
 # Debian packages that cyipopt builds against (IPOPT with MUMPS)
 APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config
 
-.PHONY: setup apt-packages test bench bench-large lint clean-results
+.PHONY: setup apt-packages lock test bench bench-large lint clean-results
 
-# Idempotent: checks the Debian packages (fast) and reinstalls the venv only when
-# pyproject.toml or this Makefile changed, or the venv is missing.
+# Idempotent: checks the Debian packages (fast) and reinstalls the venv only when the lock,
+# pyproject.toml or this Makefile changed, or the venv is missing. The venv gets exactly the
+# versions of requirements.lock (hashes checked); `make lock` refreshes the lock on purpose.
+UV_VERSION := 0.13.9
+LOCK := requirements.lock
+LOCK_EXTRAS := --extra dev --extra ipopt --extra build
+
 setup: apt-packages $(STAMP)
 
 apt-packages:
@@ -20,11 +25,22 @@ apt-packages:
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
 
-$(STAMP): pyproject.toml Makefile
+$(BIN)/uv:
 	@[ -x $(BIN)/python ] || $(PYTHON) -m venv $(VENV)
-	@[ -x $(BIN)/uv ] || $(BIN)/pip install -q uv
-	$(BIN)/uv pip install -q --python $(BIN)/python -e ".[dev,ipopt]"
+	$(BIN)/pip install -q uv==$(UV_VERSION)
+
+$(STAMP): $(LOCK) pyproject.toml Makefile | $(BIN)/uv
+	@[ "$$($(BIN)/uv --version | cut -d' ' -f2)" = "$(UV_VERSION)" ] || $(BIN)/pip install -q uv==$(UV_VERSION)
+	$(BIN)/uv pip sync -q --python $(BIN)/python --require-hashes --build-constraints $(LOCK) \
+		$(LOCK)
+	$(BIN)/uv pip install -q --python $(BIN)/python --no-deps --build-constraints $(LOCK) -e .
 	@touch $@
+
+# Re-resolve every package to its newest allowed release. Then run `make test` and
+# `make bench`, and commit the lock together with the new results.
+lock: $(BIN)/uv
+	$(BIN)/uv pip compile -q --upgrade pyproject.toml $(LOCK_EXTRAS) --generate-hashes \
+		--python-version 3.11 --python-platform x86_64-unknown-linux-gnu -o $(LOCK)
 
 test: setup
 	$(BIN)/python -m pytest -q
