@@ -10,7 +10,9 @@ solvers leave the registry again and no other test ever runs them.
 * ``test-abort``: calls os.abort() (SIGABRT);
 * ``test-segfault``: reads address 0 through ctypes (SIGSEGV);
 * ``test-hang``: sleeps for an hour;
-* ``test-greedy``: allocates 64 GiB (beyond any memory cap).
+* ``test-greedy``: allocates 64 GiB (beyond any memory cap);
+* ``test-vandal``: test-exact, then overwrites every array of the problem it was handed and
+  records whether it could see a reference or stored data (it must not).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import numpy as np
 from bench_problems import exact_impulses
 
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import registry
+from qpbench.solvers import accuracy, registry
 from qpbench.solvers.base import SolverOutput, SolverSpec
 
 BACKEND = "qpbench-tests"
@@ -34,10 +36,8 @@ BACKEND = "qpbench-tests"
 
 def _exact(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None
            ) -> SolverOutput:
-    start = time.perf_counter()
     impulses = exact_impulses(problem)
-    return SolverOutput(impulses=impulses, status="solved", claimed_success=True,
-                        solve_time_s=time.perf_counter() - start, iterations=1)
+    return SolverOutput(impulses=impulses, status="solved", claimed_success=True, iterations=1)
 
 
 def _slow(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None
@@ -67,12 +67,27 @@ def _greedy(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | No
             ) -> SolverOutput:
     hoard = np.ones(8 * 1024**3)  # 64 GiB
     return SolverOutput(impulses=hoard[: problem.n_contacts], status="solved",
-                        claimed_success=True, solve_time_s=0.0)
+                        claimed_success=True)
+
+
+def _vandal(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None
+            ) -> SolverOutput:
+    output = _exact(problem, accuracy, warm_start)
+    saw = {"reference": problem.reference is not None, "data": sorted(problem.data),
+           "metadata": sorted(problem.metadata), "family": problem.family}
+    for array in (problem.G.data, problem.m_inv, problem.v_minus, problem.restitution,
+                  problem.n_rel, problem.Q.data, problem.b, problem.diag_Q):
+        array[...] = np.nan
+    if warm_start is not None:
+        warm_start[...] = np.nan
+    output.info["saw"] = saw
+    return output
 
 
 for _name, _solve in (("test-exact", _exact), ("test-slow", _slow), ("test-abort", _abort),
                       ("test-segfault", _segfault), ("test-hang", _hang),
-                      ("test-greedy", _greedy)):
+                      ("test-greedy", _greedy), ("test-vandal", _vandal)):
+    accuracy.OPTIONS.setdefault(_name, {})  # no options: an exact method
     registry.register(SolverSpec(name=_name, formulation="lcp", backend=BACKEND, solve=_solve,
                                  version="0", warm_start=False))
 
@@ -92,6 +107,7 @@ def registered() -> Iterator[None]:
         else:
             os.environ[registry.EXTRA_SOLVERS_ENV] = previous
         for key in [key for key, spec in registry._SOLVERS.items() if spec.backend == BACKEND]:
+            accuracy.OPTIONS.pop(registry._SOLVERS[key].name, None)
             del registry._SOLVERS[key]
         sys.modules.pop(__name__, None)
 

@@ -29,7 +29,8 @@ from qpbench.errors import InputError, QpbenchError
 # column order of the table, with the dtype each column is stored as
 FLOAT_COLUMNS = (
     "accuracy", "residual", "v_error", "energy_gain", "complementarity", "infeasibility",
-    "energy_identity_gap", "time_s", "time_median_s", "time_max_s", "setup_time_s",
+    "energy_identity_gap", "time_s", "time_median_s", "time_max_s", "formulation_time_s",
+    "compile_time_s", "backend_setup_time_s", "backend_solve_time_s",
     "timer_overhead_s", "time_limit_s", "cell_wall_s",
 )
 INT_COLUMNS = (
@@ -43,9 +44,10 @@ COLUMNS = (
     "status", "solver_status", "claimed_success", "status_honest", "success", "residual",
     "v_error", "energy_gain", "complementarity", "infeasibility", "energy_identity_gap",
     "iterations", "time_s", "time_median_s", "time_max_s", "repeats", "repeats_requested",
-    "setup_time_s", "warm_start_source", "warm_start_used", "time_limit_s", "memory_limit_mb",
-    "timer_overhead_s", "cell_wall_s", "qpbench_version", "python_version", "numpy_version",
-    "platform", "cpu_model", "hostname", "date",
+    "formulation_time_s", "compile_time_s", "backend_setup_time_s", "backend_solve_time_s",
+    "warm_start_source", "warm_start_used", "time_limit_s", "memory_limit_mb",
+    "timer_overhead_s", "cell_wall_s", "qpbench_version", "lock_hash", "python_version",
+    "numpy_version", "platform", "cpu_model", "hostname", "date",
 )
 
 

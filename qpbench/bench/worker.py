@@ -36,10 +36,11 @@ from typing import Any
 import numpy as np
 
 from qpbench import __version__
+from qpbench.bench.lock import lock_label
 from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec
 from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, all_solvers, resolve
 from qpbench.solvers.run import call_solver, judge
 
@@ -70,6 +71,7 @@ def provenance() -> dict[str, Any]:
     """Machine and version columns common to every row this process writes."""
     return {
         "qpbench_version": __version__,
+        "lock_hash": lock_label(),
         "python_version": platform.python_version(),
         "numpy_version": np.__version__,
         "platform": platform.platform(),
@@ -127,6 +129,14 @@ def warm_start_for(problem: ImpactProblem) -> tuple[np.ndarray | None, str]:
     return None, "none"
 
 
+def prepare_solvers() -> None:
+    """Imports every backend and runs each usable solver's ``prepare`` (e.g. loading a compiled
+    kernel) once in this process, so that no timed solve pays for it."""
+    for spec in all_solvers():
+        if spec.usable and spec.prepare is not None:
+            spec.prepare()
+
+
 def _finite(values: list[float]) -> list[float]:
     return [value for value in values if value is not None and math.isfinite(value)]
 
@@ -168,32 +178,30 @@ class CellSolver:
         warm_start, warm_source = (None, "cold")
         if cell.mode == "warm":
             warm_start, warm_source = warm_start_for(problem)
-        times: list[float] = []
-        setup_times: list[float] = []
-        first: SolverOutput | None = None
+        outputs: list[SolverOutput] = []
         for repeat in range(limits.repeats):
             self.say("begin", repeat=repeat)  # the runner's clock for --timeout starts
             output = call_solver(spec, problem, cell.accuracy, warm_start)
             self.say("end", repeat=repeat)
-            first = first or output
-            times.append(output.solve_time_s)
-            setup_times.append(output.setup_time_s)
+            outputs.append(output)
             if output.impulses is None:
                 break  # a failed solve is not repeated
-        assert first is not None
-        row = judge(spec, problem, first, cell.accuracy)
+        row = judge(spec, problem, outputs[0], cell.accuracy)
         if str(row.get("solver_status", "")).startswith("error: MemoryError"):
             row["status"] = OUT_OF_MEMORY
-        finite_times = _finite(times)
+        finite_times = _finite([output.time_s for output in outputs])
         row.update({
             "mode": cell.mode,
             "warm_start_source": warm_source,
             "warm_start_used": bool(warm_start is not None and spec.warm_start),
-            "repeats": len(times),
+            "repeats": len(outputs),
             "time_s": min(finite_times) if finite_times else math.nan,
             "time_median_s": statistics.median(finite_times) if finite_times else math.nan,
             "time_max_s": max(finite_times) if finite_times else math.nan,
-            "setup_time_s": min(_finite(setup_times), default=math.nan),
+            "formulation_time_s": min(_finite([o.formulation_time_s for o in outputs]),
+                                      default=math.nan),
+            **{column: min(_finite([o.backend_times.get(column, math.nan) for o in outputs]),
+                           default=math.nan) for column in BACKEND_TIMES},
             "timer_overhead_s": self.timer_overhead_s,
             "memory_limit_mb": self.memory_limit_mb,
             "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
@@ -207,7 +215,7 @@ def serve(receive: Callable[[], dict[str, Any] | None],
     """Answers each request ``{"cell": ..., "limits": ...}`` (until ``receive`` gives None) with
     begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up)."""
     solver = CellSolver(announce=send)
-    all_solvers()  # import every backend before the memory cap and before timing anything
+    prepare_solvers()  # every backend imported and prepared before the memory cap and timing
     solver.say("ready", pid=os.getpid())
     while (request := receive()) is not None:
         cell = Cell(**request["cell"])

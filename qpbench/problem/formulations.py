@@ -44,7 +44,13 @@ class PrimalQP:
 
 
 def primal_qp(problem: ImpactProblem) -> PrimalQP:
-    """The velocity-space QP of ``problem`` (see the module docstring)."""
+    """The velocity-space QP of ``problem`` (see the module docstring), built once."""
+    if "primal" not in problem.posed:
+        problem.posed["primal"] = _primal_qp(problem)
+    return problem.posed["primal"]
+
+
+def _primal_qp(problem: ImpactProblem) -> PrimalQP:
     free = problem.m_inv > 0
     G = sp.csr_matrix(problem.G)
     G_free = sp.csc_matrix(G[free])
@@ -89,13 +95,22 @@ class FactoredDualQP:
 
 
 def factored_rows(problem: ImpactProblem) -> sp.csc_matrix:
-    """L = M^-1/2 G without the rows of kinematic degrees of freedom (k x n, k = free dofs)."""
-    free = problem.m_inv > 0
-    return sp.csc_matrix(sp.csr_matrix(problem.L)[free])
+    """L = M^-1/2 G without the rows of kinematic degrees of freedom (k x n, k = free dofs),
+    built once."""
+    if "factored_rows" not in problem.posed:
+        free = problem.m_inv > 0
+        problem.posed["factored_rows"] = sp.csc_matrix(sp.csr_matrix(problem.L)[free])
+    return problem.posed["factored_rows"]
 
 
 def factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
-    """The dual-factored formulation as a QP (see :class:`FactoredDualQP`)."""
+    """The dual-factored formulation as a QP (see :class:`FactoredDualQP`), built once."""
+    if "dual-factored" not in problem.posed:
+        problem.posed["dual-factored"] = _factored_dual_qp(problem)
+    return problem.posed["dual-factored"]
+
+
+def _factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
     L = factored_rows(problem)
     k, n = L.shape
     P = sp.block_diag([sp.csc_matrix((n, n)), sp.identity(k)], format="csc")
@@ -108,6 +123,21 @@ def factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
         h=np.zeros(n),
         n_contacts=n,
     )
+
+
+def pose(problem: ImpactProblem, formulation: str) -> None:
+    """Builds the matrices ``formulation`` hands a solver, kept on ``problem``: ``Q``, ``b``
+    and ``diag(Q)`` for ``dual`` and ``lcp``; :func:`primal_qp` for ``primal``;
+    :func:`factored_dual_qp` (with L) for ``dual-factored``. The same for every solver of a
+    formulation, so it is timed apart (``formulation_time_s``)."""
+    if formulation in ("dual", "lcp"):
+        _ = problem.Q, problem.b, problem.diag_Q
+    elif formulation == "primal":
+        primal_qp(problem)
+    elif formulation == "dual-factored":
+        factored_dual_qp(problem)
+    else:
+        raise ValueError(f"unknown formulation {formulation!r}")
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
@@ -67,13 +67,11 @@ def apgd(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, check_every: i
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    with Stopwatch() as setup:
-        lcp = Lcp.of(problem)
-        options = accuracy.options_for(NAME, eps, lcp.scale)
-        start = lcp.start(warm_start)
-    with Stopwatch() as clock:
-        impulses, converged, status, iterations = apgd(lcp, start, **options)
-    return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed)
+    lcp = Lcp.of(problem)
+    options = accuracy.options_for(NAME, eps, lcp.scale)
+    start = lcp.start(warm_start)
+    impulses, converged, status, iterations = apgd(lcp, start, **options)
+    return output(impulses, converged, status, iterations)
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

@@ -9,6 +9,7 @@ status honesty.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,22 +19,35 @@ import numpy as np
 
 from qpbench.problem.impact import ImpactProblem
 
+# the parts of a solve that a backend reports itself, stored beside ``time_s``, never as it
+BACKEND_TIMES = ("compile_time_s", "backend_setup_time_s", "backend_solve_time_s")
+# what time_s covers, in the words the README and the report use
+TIME_S_COVERS = ("`time_s` is the wall time, on one stopwatch around every solver alike, from "
+                 "the formulation's matrices to l as a NumPy array: conversion to the "
+                 "backend's format, its set-up and factorizations, the solve and reading the "
+                 "answer back (cvxpy's compile step included); the minimum over repeats.")
+
 
 @dataclass
 class SolverOutput:
-    """One solve as the solver reported it.
+    """One solve as the solver reported it, and the harness's two times of it.
 
-    ``solve_time_s`` times the solver call alone; ``setup_time_s`` the conversions
-    and model building before it (cvxpy's compile time, matrix formats).
+    A solve function fills ``impulses`` (l in the problem's contact order), ``status`` (the
+    backend's own words), ``claimed_success``, ``iterations`` and ``backend_times`` (keys
+    of BACKEND_TIMES: cvxpy's compile time, a backend's own set-up/solve split), and never
+    times itself. :func:`qpbench.solvers.run.call_solver` sets ``time_s``: the wall time from
+    the formulation's matrices to l as a NumPy array (conversions, set-up, solve, reading
+    back), and ``formulation_time_s``: building those matrices from G, M^-1 and v-.
     """
 
     impulses: np.ndarray | None
     status: str
     claimed_success: bool
-    solve_time_s: float
-    setup_time_s: float = 0.0
     iterations: int | None = None
+    backend_times: dict[str, float] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    time_s: float = math.nan
+    formulation_time_s: float = math.nan
 
 
 class SolveFunction(Protocol):
@@ -54,6 +68,11 @@ class SolverSpec:
     warm_start: bool = False
     description: str = ""
     reason: str = ""  # why it is not usable; empty when usable
+    # loads what the solver needs once per process (a compiled kernel), before any timed solve;
+    # called by the harness each time, so it must return at once after the first call
+    prepare: Callable[[], None] | None = None
+    # stops on qpbench's own residual, so its claim agrees with the verdict by construction
+    own_stopping_rule: bool = False
 
     @property
     def key(self) -> str:
@@ -76,9 +95,3 @@ class Stopwatch:
     def __exit__(self, *exc: object) -> None:
         self.elapsed = time.perf_counter() - self.start
 
-
-def timed(call: Callable[[], Any]) -> tuple[Any, float]:
-    """Runs ``call()`` and returns (its result, seconds it took)."""
-    start = time.perf_counter()
-    result = call()
-    return result, time.perf_counter() - start

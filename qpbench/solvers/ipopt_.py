@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.qpsolvers_ import c_stdout_silenced, problem_scale
 from qpbench.solvers.registry import register
 
@@ -111,13 +111,11 @@ def make_solve(formulation: str) -> Callable[..., SolverOutput]:
               ) -> SolverOutput:
         scale = problem_scale(problem)
         options = accuracy.options_for(NAME, eps, scale)
-        with Stopwatch() as setup:
-            program, bounds, start, impulses_of = _posed(formulation, problem, warm_start)
-            nlp = cyipopt.Problem(n=start.size, m=bounds["cl"].size, problem_obj=program,
-                                  **bounds)
-            for key, value in options.items():
-                nlp.add_option(key, value)
-        with c_stdout_silenced(), Stopwatch() as call:
+        program, bounds, start, impulses_of = _posed(formulation, problem, warm_start)
+        nlp = cyipopt.Problem(n=start.size, m=bounds["cl"].size, problem_obj=program, **bounds)
+        for key, value in options.items():
+            nlp.add_option(key, value)
+        with c_stdout_silenced():
             x, info = nlp.solve(start)
         message = info.get("status_msg", b"")
         message = message.decode(errors="replace") if isinstance(message, bytes) else message
@@ -126,8 +124,6 @@ def make_solve(formulation: str) -> Callable[..., SolverOutput]:
             impulses=impulses_of(np.asarray(x, dtype=float), info),
             status=f"{status_code}: {message.strip()}",
             claimed_success=status_code == 0,
-            solve_time_s=call.elapsed,
-            setup_time_s=setup.elapsed,
             iterations=program.iterations,
             info={"scale": scale},
         )

@@ -99,8 +99,7 @@ class Lcp:
 
 
 def output(impulses: np.ndarray | None, converged: bool, status: str, iterations: int,
-           solve_time_s: float, setup_time_s: float, **info: object) -> SolverOutput:
+           **info: object) -> SolverOutput:
     """A SolverOutput whose claim is the algorithm's own convergence test."""
     return SolverOutput(impulses=impulses, status=status, claimed_success=bool(converged),
-                        solve_time_s=solve_time_s, setup_time_s=setup_time_s,
                         iterations=int(iterations), info=dict(info))

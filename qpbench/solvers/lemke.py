@@ -19,7 +19,7 @@ import numpy as np
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
@@ -119,16 +119,14 @@ def _polish(lcp: Lcp, impulses: np.ndarray, basic: np.ndarray, scaled_Q: np.ndar
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    with Stopwatch() as setup:
-        lcp = Lcp.of(problem)
-        options = accuracy.options_for(NAME, eps, lcp.scale)
+    lcp = Lcp.of(problem)
+    options = accuracy.options_for(NAME, eps, lcp.scale)
     if lcp.n > options["max_contacts"]:
         return output(None, False, f"declined: {lcp.n} contacts > max_contacts "
-                      f"{options['max_contacts']} (dense tableau)", 0, 0.0, setup.elapsed)
-    with Stopwatch() as clock:
-        impulses, converged, status, pivots = lemke(
-            lcp, options["tol"], options["max_pivots_per_contact"] * lcp.n + 100)
-    return output(impulses, converged, status, pivots, clock.elapsed, setup.elapsed)
+                      f"{options['max_contacts']} (dense tableau)", 0)
+    impulses, converged, status, pivots = lemke(
+        lcp, options["tol"], options["max_pivots_per_contact"] * lcp.n + 100)
+    return output(impulses, converged, status, pivots)
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

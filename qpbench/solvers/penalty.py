@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
@@ -58,12 +58,10 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    with Stopwatch() as setup:
-        lcp = Lcp.of(problem)
-        options = accuracy.options_for(NAME, eps, lcp.scale)
-    with Stopwatch() as clock:
-        impulses, converged, status, iterations = penalty(lcp, **options)
-    return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed)
+    lcp = Lcp.of(problem)
+    options = accuracy.options_for(NAME, eps, lcp.scale)
+    impulses, converged, status, iterations = penalty(lcp, **options)
+    return output(impulses, converged, status, iterations)
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

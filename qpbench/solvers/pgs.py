@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
@@ -81,15 +81,13 @@ def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    with Stopwatch() as setup:
-        lcp = Lcp.of(problem)
-        options = accuracy.options_for(NAME, eps, lcp.scale)
-        sweep = Sweep(lcp)
-        start = lcp.start(warm_start)
-    with Stopwatch() as clock:
-        impulses, converged, status, sweeps = pgs(lcp, sweep, start, options["tol"],
-                                                  options["max_sweeps"], options["check_every"])
-    return output(impulses, converged, status, sweeps, clock.elapsed, setup.elapsed,
+    lcp = Lcp.of(problem)
+    options = accuracy.options_for(NAME, eps, lcp.scale)
+    sweep = Sweep(lcp)
+    start = lcp.start(warm_start)
+    impulses, converged, status, sweeps = pgs(lcp, sweep, start, options["tol"],
+                                              options["max_sweeps"], options["check_every"])
+    return output(impulses, converged, status, sweeps,
                   order="greedy colouring of the contact graph, colours in increasing order",
                   colours=len(sweep.classes))
 

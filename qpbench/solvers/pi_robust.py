@@ -39,15 +39,13 @@ Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled
 (``qpbench.solvers.pi_robust_dense``: numba, contacts in reverse Cuthill-McKee order,
 envelope Cholesky factors); its answer is reported when a rounding bound or qpbench's own
 residual confirms it, otherwise (or when a factor fails) this Python path runs, and the time
-of both counts. The kernel is loaded from numba's cache (compiled once, ``cache=True``) at
-the first solve, in its set-up (``setup_time_s``), or at import inside a bench worker.
+of both counts. The kernel is loaded from numba's cache (compiled once, ``cache=True``) by
+:func:`prepare`, which the harness calls before it starts any clock.
 Converged means qpbench's ``residual(l) <= tol`` (confirmed with qpbench's own metric);
 otherwise it reports failure and returns its best l.
 """
 
 from __future__ import annotations
-
-import sys
 
 import numpy as np
 import scipy.linalg as la
@@ -56,7 +54,7 @@ import scipy.sparse.linalg as spla
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import NormalMatrix, interior_point, jacobi_scaled
 from qpbench.solvers.registry import register
@@ -288,38 +286,33 @@ def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    with Stopwatch() as setup:
-        options = accuracy.options_for(NAME, eps, 1.0)
-        lcp = Lcp.of(problem, dense_limit=options.pop("dense_limit"))
-        options = accuracy.options_for(NAME, eps, lcp.scale)
-        options.pop("dense_limit")
-        csc = None
-        work_limit = float(options.pop("compiled_work_limit"))
-        if lcp.n <= options.pop("compiled_limit"):
-            from qpbench.solvers.pi_robust_dense import warm_up
-
-            warm_up()  # compiles or loads the kernel once per process, outside the clock
-            csc = csc_arrays(lcp)
-            _ = lcp.safe_diag
-        blocks = BlockSolver(lcp)
-        start = lcp.start(warm_start)
-    with Stopwatch() as clock:
-        result = _compiled(lcp, csc, start, options, work_limit) if csc is not None else None
-        if result is None:
-            result = pi_robust(lcp, blocks, start, **options)
-            if csc is not None:
-                result[4]["compiled"] = "declined or not confirmed; Python path"
-        impulses, converged, status, iterations, info = result
-    return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed, **info)
+    options = accuracy.options_for(NAME, eps, 1.0)
+    lcp = Lcp.of(problem, dense_limit=options.pop("dense_limit"))
+    options = accuracy.options_for(NAME, eps, lcp.scale)
+    options.pop("dense_limit")
+    csc = None
+    work_limit = float(options.pop("compiled_work_limit"))
+    if lcp.n <= options.pop("compiled_limit"):
+        csc = csc_arrays(lcp)
+        _ = lcp.safe_diag
+    blocks = BlockSolver(lcp)
+    start = lcp.start(warm_start)
+    result = _compiled(lcp, csc, start, options, work_limit) if csc is not None else None
+    if result is None:
+        result = pi_robust(lcp, blocks, start, **options)
+        if csc is not None:
+            result[4]["compiled"] = "declined or not confirmed; Python path"
+    impulses, converged, status, iterations, info = result
+    return output(impulses, converged, status, iterations, **info)
 
 
-if "qpbench.bench.worker" in sys.modules:
-    # a bench worker (or the fork server it is forked from) is importing every backend before
-    # it times anything: load (or compile, once) the kernel now, so that no timed cell pays it
-    from qpbench.solvers.pi_robust_dense import warm_up as _warm_up
+def prepare() -> None:
+    """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
+    from qpbench.solvers.pi_robust_dense import warm_up
 
-    _warm_up()
+    warm_up()
+
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
-                    version=VERSION, warm_start=True,
+                    version=VERSION, warm_start=True, prepare=prepare, own_stopping_rule=True,
                     description="proximal policy iteration, block pivoting, Lemke fallback"))

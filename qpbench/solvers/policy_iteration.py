@@ -24,7 +24,7 @@ import scipy.sparse.linalg as spla
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
@@ -80,16 +80,14 @@ def policy_iteration(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, cg
 def _solver(name: str, randomize: bool):
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
-        with Stopwatch() as setup:
-            lcp = Lcp.of(problem)
-            options = accuracy.options_for(name, eps, lcp.scale)
-            start = lcp.start(warm_start)
-            rng = np.random.default_rng(options["seed"]) if randomize else None
-        with Stopwatch() as clock:
-            impulses, converged, status, iterations = policy_iteration(
-                lcp, start, options["tol"], options["max_iters"], options["cg_rtol"],
-                options["cg_max_iters"], rng)
-        return output(impulses, converged, status, iterations, clock.elapsed, setup.elapsed)
+        lcp = Lcp.of(problem)
+        options = accuracy.options_for(name, eps, lcp.scale)
+        start = lcp.start(warm_start)
+        rng = np.random.default_rng(options["seed"]) if randomize else None
+        impulses, converged, status, iterations = policy_iteration(
+            lcp, start, options["tol"], options["max_iters"], options["cg_rtol"],
+            options["cg_max_iters"], rng)
+        return output(impulses, converged, status, iterations)
 
     return solve
 

@@ -29,7 +29,7 @@ import qpsolvers
 from qpbench.problem.formulations import factored_dual_qp, primal_qp, regularized
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.registry import register, register_unusable
 
 BACKEND = "qpsolvers"
@@ -102,6 +102,20 @@ def _claim(solver: str, solution: qpsolvers.Solution) -> tuple[str, int | None]:
     return ("found" if solution.found else "not found"), None
 
 
+def _reported_times(solver: str, solution: qpsolvers.Solution) -> dict[str, float]:
+    """The backend's own split of its time: OSQP's ``setup_time`` / ``solve_time`` from its
+    info, else qpsolvers' ``build_time`` / ``solve_time`` where it records them."""
+    extras: dict[str, Any] = getattr(solution, "extras", None) or {}
+    info = extras.get("info")
+    pairs = {"backend_setup_time_s": getattr(solution, "build_time", None),
+             "backend_solve_time_s": getattr(solution, "solve_time", None)}
+    if solver == "osqp" and info is not None:
+        pairs = {"backend_setup_time_s": getattr(info, "setup_time", None),
+                 "backend_solve_time_s": getattr(info, "solve_time", None)}
+    return {key: float(value) for key, value in pairs.items()
+            if isinstance(value, int | float | np.floating)}
+
+
 def _integer(value: Any) -> int | None:
     try:
         return None if value is None else int(value)
@@ -150,14 +164,13 @@ def make_solve(name: str, solver: str, formulation: str) -> Callable[..., Solver
         if "regularization" in options:
             delta = float(options.pop("regularization")) * max(
                 float(np.max(problem.diag_Q, initial=0.0)), 1e-300)
-        with Stopwatch() as setup:
-            qp, impulses_of = _build(formulation, problem, solver, delta)
-            initvals = _initial_values(formulation, problem, warm_start)
+        qp, impulses_of = _build(formulation, problem, solver, delta)
+        initvals = _initial_values(formulation, problem, warm_start)
         messages: list[str] = []
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             quiet = c_stdout_silenced() if solver == "osqp" else contextlib.nullcontext()
-            with quiet, Stopwatch() as call:
+            with quiet:
                 try:
                     solution = qpsolvers.solve_problem(qp, solver=solver, initvals=initvals,
                                                        **options)
@@ -172,21 +185,17 @@ def make_solve(name: str, solver: str, formulation: str) -> Callable[..., Solver
             refused = _refused_positive_definite(messages)
             status = NOT_POSITIVE_DEFINITE if refused else f"error: {messages[0]}"
             return SolverOutput(impulses=None, status=status, claimed_success=False,
-                                solve_time_s=call.elapsed, setup_time_s=setup.elapsed,
                                 info=info)
         status, iterations = _claim(solver, solution)
         if not solution.found and _refused_positive_definite(messages):
             status = NOT_POSITIVE_DEFINITE
-        solve_time = getattr(solution, "solve_time", None)
-        build_time = getattr(solution, "build_time", None)
         impulses = impulses_of(solution) if solution.found or solution.x is not None else None
         return SolverOutput(
             impulses=None if impulses is None or np.size(impulses) == 0 else impulses,
             status=status,
             claimed_success=bool(solution.found),
-            solve_time_s=float(solve_time) if solve_time is not None else call.elapsed,
-            setup_time_s=setup.elapsed + (float(build_time) if build_time is not None else 0.0),
             iterations=iterations,
+            backend_times=_reported_times(solver, solution),
             info=info,
         )
 

@@ -1,4 +1,9 @@
-"""One solve, judged: call a solver, never let it crash the caller, measure the answer."""
+"""One solve, judged: call a solver, never let it crash the caller, measure the answer.
+
+The one timing boundary (docs/design.md section 7) is here, in :func:`call_solver`: every
+solver, external or ours, is timed by the same stopwatch around the same call, on a blind
+copy of the problem whose formulation was built before the clock started.
+"""
 
 from __future__ import annotations
 
@@ -9,29 +14,59 @@ from typing import Any
 import numpy as np
 
 from qpbench import metrics
+from qpbench.problem.formulations import pose
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec, Stopwatch
 
 
 def call_solver(spec: SolverSpec, problem: ImpactProblem, accuracy: float,
                 warm_start: np.ndarray | None = None) -> SolverOutput:
-    """``spec.solve`` with any exception turned into an output with status ``error: ...``."""
+    """``spec.solve`` on a blind copy of ``problem``, timed, with any exception turned into an
+    output with status ``error: ...``.
+
+    The solver gets :meth:`ImpactProblem.blind_copy` (fresh arrays; no reference, no stored
+    data) with its formulation's matrices already built (``formulation_time_s``), and a copy
+    of the warm start. ``time_s`` is the wall time from there to l as a NumPy array.
+    ``problem`` itself is never handed over, so it stays untouched for judging.
+    """
     assert spec.solve is not None, f"{spec.key} is not usable: {spec.reason}"
-    try:
-        output = spec.solve(problem, accuracy, warm_start)
-    except Exception as error:  # a backend that raises is a failed solve, not a failed run
-        last = traceback.extract_tb(error.__traceback__)[-1:]
-        where = f" at {last[0].filename.rsplit('/', 1)[-1]}:{last[0].lineno}" if last else ""
-        return SolverOutput(impulses=None, status=f"error: {type(error).__name__}: {error}{where}",
-                            claimed_success=False, solve_time_s=math.nan)
-    if output.impulses is not None:
-        output.impulses = np.asarray(output.impulses, dtype=float).ravel()
+    if spec.prepare is not None:
+        spec.prepare()
+    blind = problem.blind_copy()
+    start = None if warm_start is None else np.array(warm_start, dtype=float)
+    with Stopwatch() as posing:
+        pose(blind, spec.formulation)
+    output: SolverOutput | None = None
+    failure: Exception | None = None
+    with Stopwatch() as clock:
+        try:
+            output = spec.solve(blind, accuracy, start)
+            if output.impulses is not None:
+                output.impulses = np.asarray(output.impulses, dtype=float).ravel()
+        except Exception as error:  # a backend that raises is a failed solve, not a failed run
+            failure = error
+    if failure is not None or output is None:
+        output = SolverOutput(impulses=None, status=_error_status(failure),
+                              claimed_success=False)
+    output.time_s = clock.elapsed
+    output.formulation_time_s = posing.elapsed
     return output
+
+
+def _error_status(error: Exception | None) -> str:
+    """``error: TYPE: message at FILE:LINE`` (the innermost frame)."""
+    if error is None:
+        return "error: the solve function returned nothing"
+    last = traceback.extract_tb(error.__traceback__)[-1:]
+    where = f" at {last[0].filename.rsplit('/', 1)[-1]}:{last[0].lineno}" if last else ""
+    return f"error: {type(error).__name__}: {error}{where}"
 
 
 def judge(spec: SolverSpec, problem: ImpactProblem, output: SolverOutput,
           accuracy: float) -> dict[str, Any]:
     """The result row of one solve: qpbench's metrics and verdict next to the solver's claim.
+
+    ``problem`` must be the untouched original (never the copy the solver was given).
 
     ``status`` is qpbench's verdict (``solved`` / ``inaccurate`` / ``failed``);
     ``solver_status`` is the backend's own; ``status_honest`` is whether its claim agreed.
@@ -55,8 +90,9 @@ def judge(spec: SolverSpec, problem: ImpactProblem, output: SolverOutput,
         "status_honest": bool(output.claimed_success == measured["success"]),
         **measured,
         "iterations": output.iterations,
-        "time_s": output.solve_time_s,
-        "setup_time_s": output.setup_time_s,
+        "time_s": output.time_s,
+        "formulation_time_s": output.formulation_time_s,
+        **{column: output.backend_times.get(column, math.nan) for column in BACKEND_TIMES},
     }
 
 
