@@ -62,6 +62,8 @@ class ImpactProblem:
     metadata: dict[str, Any] = field(default_factory=dict)
     data: dict[str, np.ndarray] = field(default_factory=dict)
     reference: Reference | None = None
+    # the matrices of each formulation, once built (qpbench.problem.formulations.pose)
+    posed: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def build(
@@ -112,6 +114,13 @@ class ImpactProblem:
             raise InputError(where, "inverse masses must be >= 0", attribute="m_inv")
         if np.any((self.restitution < 0) | (self.restitution > 1)):
             raise InputError(where, "restitution must lie in [0, 1]", attribute="restitution")
+
+    def blind_copy(self) -> ImpactProblem:
+        """What a solver may see: fresh copies of G, M^-1, v-, c and nrel under the same name;
+        no reference, no stored data (dumped answers, warm starts), no metadata or family."""
+        return ImpactProblem(name=self.name, G=self.G.copy(), m_inv=self.m_inv.copy(),
+                             v_minus=self.v_minus.copy(), restitution=self.restitution.copy(),
+                             n_rel=self.n_rel.copy(), dofs_per_body=self.dofs_per_body)
 
     # --- sizes -----------------------------------------------------------------
     @property
