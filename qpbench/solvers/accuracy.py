@@ -210,8 +210,9 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
 
 
 def options_for(solver: str, accuracy: float, scale: float = 1.0) -> dict[str, Any]:
-    """The options of ``solver`` for accuracy level ``accuracy`` on a problem of ``scale``."""
-    row = OPTIONS.get(solver, {})
+    """The options of ``solver`` for accuracy level ``accuracy`` on a problem of ``scale``
+    (KeyError for a solver without a row: registration refuses those)."""
+    row = OPTIONS[solver]
     return {key: value(accuracy, scale) if callable(value) else value for key, value in row.items()}
 
 

@@ -5,13 +5,22 @@ import fails registers its solvers as unusable with the reason, so it drops out 
 from __future__ import annotations
 
 from qpbench.errors import QpbenchError
+from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverSpec
 
 _SOLVERS: dict[str, SolverSpec] = {}
 
 
 def register(spec: SolverSpec) -> SolverSpec:
-    """Adds ``spec`` under ``NAME/FORMULATION`` (a later registration replaces an earlier one)."""
+    """Adds ``spec`` under ``NAME/FORMULATION`` (a later registration replaces an earlier one).
+
+    A solver that can run must have its row in the accuracy-options table
+    (``qpbench.solvers.accuracy.OPTIONS``): none runs on defaults nobody chose.
+    """
+    if spec.solve is not None and spec.name not in accuracy.OPTIONS:
+        raise QpbenchError(f"solver '{spec.name}' has no row in the accuracy-options table "
+                           "(qpbench/solvers/accuracy.py): add one, even an empty one, to say "
+                           "that its defaults are chosen")
     _SOLVERS[spec.key] = spec
     return spec
 
