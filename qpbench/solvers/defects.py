@@ -1,0 +1,85 @@
+"""The table of known solver defects (``defects.toml`` beside this module).
+
+A row names a solver/formulation pair, a package and a version range, the problems it hits
+and what goes wrong. :func:`known_defect` tells whether a row applies to a solve here: the
+installed version is in the range and the problem is of the kind named. Tests read it to
+expect a described failure; the report prints the table.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from functools import cache
+from importlib import metadata
+from pathlib import Path
+
+from packaging.specifiers import SpecifierSet
+
+from qpbench.errors import InputError
+
+TABLE = Path(__file__).with_name("defects.toml")
+PROBLEM_KINDS = ("any", "singular")
+EFFECTS = ("wrong-claim", "fails", "inaccurate")
+FIELDS = ("solver", "formulation", "package", "versions", "problems", "effect", "what")
+
+
+@dataclass(frozen=True)
+class Defect:
+    solver: str
+    formulation: str
+    package: str
+    versions: str
+    problems: str
+    effect: str
+    what: str
+
+    def installed_version(self) -> str | None:
+        try:
+            return metadata.version(self.package)
+        except metadata.PackageNotFoundError:
+            return None
+
+    def applies_here(self) -> bool:
+        """The installed version of ``package`` is within ``versions``."""
+        version = self.installed_version()
+        return version is not None and SpecifierSet(self.versions).contains(
+            version, prereleases=True)
+
+    def hits(self, solver: str, formulation: str, rank_deficiency: int) -> bool:
+        """Whether this row describes ``solver/formulation`` on a problem with that rank
+        deficiency, with the package installed here."""
+        pair = self.solver == solver and self.formulation in ("*", formulation)
+        kind = self.problems == "any" or (self.problems == "singular" and rank_deficiency > 0)
+        return pair and kind and self.applies_here()
+
+
+@cache
+def defects(path: Path = TABLE) -> tuple[Defect, ...]:
+    """Every row of the table; InputError naming the row and field on a malformed one."""
+    try:
+        rows = tomllib.loads(path.read_text(encoding="utf-8")).get("defect", [])
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise InputError(str(path), f"cannot read the defects table: {error}") from error
+    table = []
+    for number, row in enumerate(rows, start=1):
+        where = f"defect {number}"
+        for name in FIELDS:
+            if not isinstance(row.get(name), str):
+                raise InputError(str(path), "missing or not a string", element=where,
+                                 attribute=name)
+        if row["problems"] not in PROBLEM_KINDS:
+            raise InputError(str(path), f"must be one of {PROBLEM_KINDS}", element=where,
+                             attribute="problems")
+        if row["effect"] not in EFFECTS:
+            raise InputError(str(path), f"must be one of {EFFECTS}", element=where,
+                             attribute="effect")
+        SpecifierSet(row["versions"])  # raises InvalidSpecifier on a malformed range
+        table.append(Defect(**{name: row[name] for name in FIELDS}))
+    return tuple(table)
+
+
+def known_defect(solver: str, formulation: str, rank_deficiency: int) -> Defect | None:
+    """The first row that describes this solve here, or None."""
+    return next((defect for defect in defects()
+                 if defect.hits(solver, formulation, rank_deficiency)), None)
