@@ -41,6 +41,7 @@ import numpy as np
 from tqdm import tqdm
 
 from qpbench import SINGLE_THREAD_ENV
+from qpbench.bench.lock import lock_label
 from qpbench.bench.settings import (
     CRASHED,
     ERROR,
@@ -82,7 +83,7 @@ def fork_server() -> Any:
     with _FORK_SERVER_LOCK:
         if _FORK_SERVER is None:
             context = multiprocessing.get_context("forkserver")
-            context.set_forkserver_preload(["qpbench.bench.worker", "qpbench.solvers"])
+            context.set_forkserver_preload(["qpbench.bench.preload"])
             _FORK_SERVER = context
         _ensure_running()
         return _FORK_SERVER
@@ -399,7 +400,21 @@ def check_same_problems(index: list[tuple[str, str, str]], stored: Any, output: 
         if isinstance(previous, str) and previous != digest:
             raise InputError(path, f"problem '{name}' differs from the one whose results are in "
                              f"{output} (fingerprint {digest}, stored {previous}); write the "
-                             "results to a new file")
+                             "results to a new file, or run `make clean-results` to start afresh")
+
+
+def check_same_lock(stored: Any, output: Path) -> None:
+    """Refuses to resume a table whose rows were made with another set of package versions
+    (another ``lock_hash``): one table must compare like with like."""
+    if stored.empty or "lock_hash" not in stored:
+        return
+    current = lock_label()
+    previous = sorted({str(value) for value in stored["lock_hash"].dropna()} - {current})
+    if previous:
+        raise InputError(str(output), f"its rows were made with the packages of lock "
+                         f"{previous[0]}, this environment is lock {current}; write the "
+                         "results to a new file, or run `make clean-results` to start afresh",
+                         attribute="lock_hash")
 
 
 def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
@@ -432,6 +447,7 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     with store.exclusive():
         check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
                             store.path)
+        check_same_lock(store.read(["lock_hash"]), store.path)
         done = store.finished_keys(retry)
         pending = [cell for cell in matrix if cell.key not in done]
         problem_summaries = {path: {**summary, "problem_hash": digests[path]} for path, summary
