@@ -20,14 +20,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from qpbench.atomic import atomic_path
 from qpbench.bench import plots, stats
 from qpbench.bench.results import ResultStore
 from qpbench.errors import InputError
 from qpbench.solvers import accuracy as accuracy_table
+from qpbench.solvers import defects as defect_table
+from qpbench.solvers.base import TIME_S_COVERS
 
 HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
                  "near-duplicate", "dump")
-OWN_BACKEND = "qpbench"
 ROBUST_SOLVER = "pi-robust"
 PROFILE_LEVELS = (1e-4, 1e-8)
 TARGET_LEVEL = 1e-8
@@ -115,6 +117,7 @@ def _provenance(frame: pd.DataFrame) -> str:
     overhead = frame["timer_overhead_s"].dropna() if "timer_overhead_s" in frame else []
     rows = pd.DataFrame([
         {"item": "qpbench", "value": values("qpbench_version")},
+        {"item": "package lock (requirements.lock, SHA-256)", "value": values("lock_hash")},
         {"item": "Python", "value": values("python_version")},
         {"item": "NumPy", "value": values("numpy_version")},
         {"item": "platform", "value": values("platform")},
@@ -166,8 +169,7 @@ def _levels(summary: pd.DataFrame, shift: float) -> str:
         f"Shifted geometric mean (SGM) of time with shift {shift:.3g} s = "
         f"{stats.SHIFT_FACTOR:g} x the median over problems and levels of the fastest "
         "successful solve (the problems' own time scale); a failed solve is charged the time "
-        "limit. Only the solver call is timed (minimum over repeats); conversions before it "
-        "are `median_setup_s`.\n",
+        f"limit. {TIME_S_COVERS}\n",
     ]
     for accuracy in sorted(summary["accuracy"].unique(), reverse=True):
         table = summary[summary["accuracy"] == accuracy].drop(columns="accuracy")
@@ -252,7 +254,7 @@ def _robust_targets(frame: pd.DataFrame, shift: float) -> str:
     sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)
            for key, group in hard[hard["problem"].isin(problems)].groupby("key")}
     robust_key = min((k for k in sgm if k.split("/")[0] == ROBUST_SOLVER), key=sgm.get)
-    external = hard[hard["backend"].astype(str) != OWN_BACKEND]
+    external = hard[hard["backend"].astype(str) != stats.OWN_BACKEND]
     external_keys = [k for k in sgm if k in set(external["key"])]
     if not external_keys:
         lines.append("2. No external backend has solves on the same problems: no ratio.")
@@ -294,6 +296,19 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
             "perturbed by 1% (`perturbed-reference`); used here: " + (sources or "-") + ".\n\n"
             + markdown_table(table, {"success cold": str, "success warm": str,
                                      "accuracy": level}))
+
+
+def _defects() -> str:
+    """The table of known defects (qpbench/solvers/defects.toml), with whether each applies to
+    the versions installed here."""
+    rows = [{"solver": f"{d.solver}/{d.formulation}", "package": d.package,
+             "versions": d.versions, "installed": d.installed_version() or "-",
+             "applies here": "yes" if d.applies_here() else "no", "problems": d.problems,
+             "effect": d.effect, "what goes wrong": d.what}
+            for d in defect_table.defects()]
+    return ("Data, not code: `qpbench/solvers/defects.toml`, which the tests read too. A row "
+            "whose version range excludes the installed version no longer applies.\n\n"
+            + markdown_table(pd.DataFrame(rows), {key: str for key in rows[0]} if rows else {}))
 
 
 def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
@@ -343,7 +358,8 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     summary = stats.level_summary(main, shift)
 
     out: list[str] = ["# qpbench report\n\n", _overview(frame, results)]
-    out.append("\n## Summary\n\n" + _summary(summary) + "\n" + _robust_targets(main, shift))
+    out.append("\n## Summary\n\n" + _summary(summary) + f"\n{TIME_S_COVERS} Solvers marked "
+               "`ours` are written here and stop on qpbench's own residual.\n")
     out.append("\n## Machine and versions\n\n" + _provenance(frame))
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
@@ -394,8 +410,10 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                "median over problems of the best v_error reached.\n\n"
                + markdown_table(within, {"tightest_level": _maybe_level}))
     out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
-               "qpbench's verdict (solves that returned an answer or a status).\n\n"
+               "qpbench's verdict (solves that returned an answer or a status). Solvers marked "
+               "`ours` stop on qpbench's own residual, so theirs is 100% by construction.\n\n"
                + markdown_table(stats.honesty(frame), {"honesty_rate": percent}))
+    out.append("\n## Known solver defects\n\n" + _defects())
     out.append(_warm_cold(frame, shift))
     out.append("\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
                + _robust_targets(main, shift))
@@ -407,7 +425,6 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
         out.append(f"\n## {title}\n\n{markdown}")
 
     report = folder / "REPORT.md"
-    temporary = report.with_name(".tmp-REPORT.md")
-    temporary.write_text("".join(out), encoding="utf-8")
-    temporary.replace(report)
+    with atomic_path(report) as temporary:
+        temporary.write_text("".join(out), encoding="utf-8")
     return report
