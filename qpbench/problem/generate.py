@@ -1,9 +1,9 @@
 """Seeded, deterministic families of hard impact problems (2 degrees of freedom per ball).
 
-Every family lays out balls, finds the contacts and assembles G the way the
-simulator does: ball-ball contact a,b puts ``+n_ab`` in a's rows and ``-n_ab`` in
-b's, ``n_ab = (x_a - x_b) / |x_a - x_b|``; a ball-plane contact puts the plane
-normal in the ball's rows. A contact is active when the balls overlap (or touch
+Every family lays out balls, finds the contacts and assembles G with the simulator's
+:func:`~qpbench.problem.jacobian.contact_jacobian`: ball-ball contact a,b puts ``+n_ab`` in
+a's rows and ``-n_ab`` in b's, ``n_ab = (x_a - x_b) / |x_a - x_b|``; a ball-plane contact
+puts the plane normal in the ball's rows. A contact is active when the balls overlap (or touch
 within ``touch_tolerance``) and approach each other or rest against each other
 (``G^T v- <= 0``), as in SCISim's impact detection.
 """
@@ -14,11 +14,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from qpbench.errors import QpbenchError
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.jacobian import contact_jacobian
 
 
 @dataclass
@@ -57,22 +57,16 @@ def assemble(name: str, family: str, layout: Layout, metadata: dict | None = Non
     ``extra_normals`` adds contacts (a, b, n): +n in a's rows and -n in b's (b = -1 for none).
     """
     balls = layout.positions.shape[0]
-    rows: list[np.ndarray] = []
-    cols: list[np.ndarray] = []
-    vals: list[np.ndarray] = []
-    column = 0
+    # contacts in column order: ball pairs, then planes, then the extra normals
+    body_a: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    body_b: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    normals: list[np.ndarray] = [np.zeros((0, 2))]
 
-    def add(a: np.ndarray, b: np.ndarray | None, normals: np.ndarray) -> None:
-        nonlocal column
-        k = np.arange(column, column + len(a))
-        for sign, body in ((1.0, a), (-1.0, b)):
-            if body is None:
-                continue
-            for axis in (0, 1):
-                rows.append(2 * body + axis)
-                cols.append(k)
-                vals.append(sign * normals[:, axis])
-        column += len(a)
+    def add(a: np.ndarray, b: np.ndarray | None, contact_normals: np.ndarray) -> None:
+        body_a.append(np.asarray(a, dtype=np.int64))
+        body_b.append(np.full(len(a), -1, dtype=np.int64) if b is None
+                      else np.asarray(b, dtype=np.int64))
+        normals.append(np.asarray(contact_normals, dtype=float).reshape(-1, 2))
 
     pairs = ball_pairs(layout)
     if len(pairs):
@@ -84,11 +78,8 @@ def assemble(name: str, family: str, layout: Layout, metadata: dict | None = Non
         add(touching, None, np.tile(normal, (len(touching), 1)))
     for a, b, normal in extra_normals or []:
         add(np.array([a]), None if b < 0 else np.array([b]), np.asarray(normal)[None, :])
-    G = sp.csc_matrix(
-        (np.concatenate(vals) if vals else [], (np.concatenate(rows) if rows else [],
-                                                np.concatenate(cols) if cols else [])),
-        shape=(2 * balls, column),
-    )
+    G = contact_jacobian(np.concatenate(body_a), np.concatenate(body_b),
+                         np.concatenate(normals), balls, 2)
     v_minus = layout.velocities.reshape(-1)
     if layout.approaching_only:
         G = G[:, np.flatnonzero(G.T @ v_minus <= 0)]

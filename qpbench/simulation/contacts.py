@@ -22,10 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.errors import UnsupportedError
+from qpbench.problem.jacobian import contact_jacobian
 from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
 
 BALL, PLANE, DRUM = 0, 1, 2
-KIND_NAMES = {BALL: "ball", PLANE: "plane", DRUM: "drum"}
 
 
 @dataclass
@@ -54,17 +54,7 @@ class Contacts:
 
     def jacobian(self, bodies: int, dofs_per_body: int) -> sp.csc_matrix:
         """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k."""
-        column = np.arange(self.count)
-        two_body = self.body_b >= 0
-        rows = [dofs_per_body * self.body_a, dofs_per_body * self.body_a + 1,
-                dofs_per_body * self.body_b[two_body], dofs_per_body * self.body_b[two_body] + 1]
-        cols = [column, column, column[two_body], column[two_body]]
-        values = [self.normals[:, 0], self.normals[:, 1],
-                  -self.normals[two_body, 0], -self.normals[two_body, 1]]
-        return sp.csc_matrix(
-            (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(bodies * dofs_per_body, self.count),
-        )
+        return contact_jacobian(self.body_a, self.body_b, self.normals, bodies, dofs_per_body)
 
     @staticmethod
     def concatenate(parts: list[Contacts]) -> Contacts:
