@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from qpbench import metrics
+from qpbench.problem import metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.reference import attach_reference, enumeration
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qpbench import metrics
+from qpbench.problem import metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import Reference
 from qpbench.problem.reference import REFERENCE_TOLERANCE, attach_reference

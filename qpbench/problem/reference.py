@@ -21,7 +21,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
-from qpbench import metrics
+from qpbench.problem import metrics
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem, Reference
 from qpbench.problem.scaling import jacobi_scaled
