@@ -1,47 +1,131 @@
-"""Rendering a simulated scene to PNG and GIF."""
+"""Rendering a simulated scene to PNG and GIF: what the pictures show, read back as pixels."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.image
+import numpy as np
 import pytest
+from matplotlib.collections import PatchCollection
+from PIL import Image
 
 from qpbench.cli import main
 from qpbench.errors import QpbenchError
+from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
+from qpbench.simulation import render as render_module
 from qpbench.simulation.render import render
 
 SCENES = Path(__file__).resolve().parents[1] / "problems" / "scenes"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+CLARABEL = choose_by_name("clarabel/dual")
+WHITE = np.array([1.0, 1.0, 1.0])
 
 
-def test_a_png_shows_a_run_with_its_strongest_impact(tmp_path: Path) -> None:
+def inside_point(outline: np.ndarray) -> np.ndarray:
+    """Half a radius above the centre of a circle drawn with outline vertices ``outline``."""
+    lower, upper = outline.min(axis=0), outline.max(axis=0)
+    centre = 0.5 * (lower + upper)
+    return centre + np.array([0.0, 0.25 * (upper[1] - lower[1])])
+
+
+class DrawnBalls:
+    """Wraps render's ``_save``: before writing, records for every axes of the figure that
+    draws balls its ball collections: a point inside every ball, as a pixel (row, column)
+    of the saved image."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.axes: list[list[np.ndarray]] = []  # per axes, per collection: (balls, 2)
+        self.height = 0
+        real_save = render_module._save
+
+        def save(figure, path, write) -> None:
+            figure.canvas.draw()
+            self.height = int(round(figure.get_figheight() * figure.dpi))
+            for axes in figure.axes:
+                collections = []
+                for collection in axes.collections:
+                    if isinstance(collection, PatchCollection):
+                        # half a radius above each centre: inside the ball, off the
+                        # contact normals drawn through centres of a row of balls
+                        points = np.array([inside_point(path.vertices) for path in
+                                           collection.get_paths()]).reshape(-1, 2)
+                        pixels = axes.transData.transform(points)
+                        collections.append(np.column_stack([self.height - pixels[:, 1],
+                                                            pixels[:, 0]]))
+                if collections:  # not the colour bar
+                    self.axes.append(collections)
+            real_save(figure, path, write)
+
+        monkeypatch.setattr(render_module, "_save", save)
+
+
+def colour_at(image: np.ndarray, pixel: np.ndarray) -> np.ndarray:
+    """RGB of ``image`` (rows, columns, RGB[A] in 0..1) at a (row, column) pixel."""
+    row, column = np.round(pixel).astype(int)
+    return image[row, column, :3]
+
+
+def test_a_png_shows_every_ball_where_it_ended_and_the_strongest_impact(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    drawn = DrawnBalls(monkeypatch)
     output = tmp_path / "cradle.png"
-    result = render(load_scene(SCENES / "scisim" / "newtons_cradle.xml"), output,
-                    end_time=0.7, solver="clarabel/dual")
+    scene = load_scene(SCENES / "scisim" / "newtons_cradle.xml")
+    result = render(scene, output, end_time=0.7, choose_solve=CLARABEL)
     assert result.impacts >= 1
-    data = output.read_bytes()
-    assert data.startswith(PNG_MAGIC) and len(data) > 10_000
+    assert output.read_bytes().startswith(PNG_MAGIC)
     assert not list(tmp_path.glob(".tmp-*"))
+    image = matplotlib.image.imread(output)
+    assert image.shape[0] == drawn.height and image.shape[1] == 2 * drawn.height  # two panels
+    impact_axes, run_axes = drawn.axes
+    assert [centres.shape[0] for centres in impact_axes] == [scene.bodies.count]
+    start, end = run_axes  # dashed outlines at the start, filled balls at the end
+    assert start.shape[0] == end.shape[0] == scene.bodies.count == 3
+    for point in [*end, *impact_axes[0]]:
+        colour = colour_at(image, point)
+        assert not np.allclose(colour, WHITE, atol=0.02), point
+        assert colour[2] > colour[0]  # blue: tab:blue over white
+    corner = colour_at(image, np.array([drawn.height * 0.92, drawn.height * 1.9]))
+    assert np.allclose(corner, WHITE, atol=0.02)  # background where nothing is drawn
 
 
-def test_a_gif_of_a_scene_with_planes(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+def test_a_gif_of_a_scene_with_planes_has_one_frame_per_stride_and_the_last(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     output = tmp_path / "box.gif"
     code = main(["render", str(SCENES / "ura" / "10_balls_in_box.xml"), "-o", str(output),
                  "--steps", "30", "--frames", "6", "--solver", "clarabel/dual"])
     assert code == 0
     assert output.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
     assert f"wrote {output}" in capsys.readouterr().out
+    with Image.open(output) as gif:
+        assert gif.n_frames == 7  # steps 0, 5, ..., 25 (stride 30 // 6) and the end
+        frames = []
+        for index in range(gif.n_frames):
+            gif.seek(index)
+            frames.append(np.asarray(gif.convert("RGB"), dtype=float))
+    assert all(not np.array_equal(a, b) for a, b in zip(frames, frames[1:], strict=False))
+    first = frames[0] / 255.0
+    blue = (first[..., 2] > first[..., 0] + 0.2) & (first[..., 2] > 0.5)
+    assert blue.sum() > 100  # the balls
 
 
-def test_a_drum_scene_renders(tmp_path: Path) -> None:
+def test_a_drum_scene_draws_its_balls(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    drawn = DrawnBalls(monkeypatch)
     output = tmp_path / "butterfly.png"
-    render(load_scene(SCENES / "scisim" / "butterfly.xml"), output, steps=60,
-           solver="clarabel/dual")
-    assert output.read_bytes().startswith(PNG_MAGIC)
+    scene = load_scene(SCENES / "scisim" / "butterfly.xml")
+    render(scene, output, steps=60, choose_solve=CLARABEL)
+    image = matplotlib.image.imread(output)
+    end = drawn.axes[-1][-1]
+    assert end.shape[0] == scene.bodies.count
+    inside = [point for point in end
+              if 0 <= point[0] < image.shape[0] and 0 <= point[1] < image.shape[1]]
+    assert len(inside) == scene.bodies.count
+    assert all(not np.allclose(colour_at(image, point), WHITE, atol=0.02) for point in inside)
 
 
 def test_an_unknown_picture_format_is_refused(tmp_path: Path) -> None:
     with pytest.raises(QpbenchError, match=r"\.png or \.gif"):
-        render(load_scene(SCENES / "ura" / "K3.xml"), tmp_path / "k3.jpg", steps=1)
+        render(load_scene(SCENES / "ura" / "K3.xml"), tmp_path / "k3.jpg", steps=1,
+               choose_solve=CLARABEL)
     assert not list(tmp_path.iterdir())

@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from qpbench.errors import QpbenchError
+from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import parse_scene
 from qpbench.simulation.stepper import Simulator
 
@@ -64,7 +65,7 @@ def test_mutated_scenes_give_success_or_one_qpbench_line(path: Path, data: st.Da
     text = mutate(path.read_text(), data)
     try:
         scene = parse_scene(text, path.name)
-        result = Simulator(scene, solver="clarabel/dual").run(max_steps=3)
+        result = Simulator(scene, choose_by_name("clarabel/dual")).run(max_steps=3)
     except QpbenchError as error:
         message = str(error)
         assert message and "\n" not in message

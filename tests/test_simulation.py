@@ -9,16 +9,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from qpbench import inner_solvers
 from qpbench.cli import main
 from qpbench.errors import QpbenchError
+from qpbench.inner_solvers import choose_by_name, solve_with
 from qpbench.problem import files
+from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene, parse_scene
+from qpbench.scenes.model import ImpactOperator
 from qpbench.scenes.solver_names import FALLBACK
 from qpbench.simulation import stepper
 from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
-from qpbench.simulation.stepper import Simulator
+from qpbench.simulation.operators import ChosenSolve, SolvedImpulses
+from qpbench.simulation.stepper import Simulator, StepEvent
 from qpbench.solvers import registry
-from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.base import SolverSpec
 
 SCENES = Path(__file__).resolve().parents[1] / "problems" / "scenes"
 SOLVER = "clarabel/dual"
@@ -44,7 +49,8 @@ def ball2d(balls: str, operator: str = "lcp", cor: float = 1.0, dt: str = "0.01"
 
 def run(text: str, end_time: float | None = None, steps: int | None = None,
         solver: str = SOLVER) -> stepper.SimulationResult:
-    result = Simulator(parse_scene(text, "test.xml"), solver=solver).run(end_time, steps)
+    result = Simulator(parse_scene(text, "test.xml"), choose_by_name(solver)).run(end_time,
+                                                                                 steps)
     assert result.failure is None, result.failure
     return result
 
@@ -72,7 +78,7 @@ CRADLE = SCENES / "scisim" / "newtons_cradle.xml"
 
 
 def test_newtons_cradle_with_gr_gives_the_last_ball_all_the_momentum() -> None:
-    result = Simulator(load_scene(CRADLE), solver=SOLVER).run(end_time=1.0)
+    result = Simulator(load_scene(CRADLE), choose_by_name(SOLVER)).run(end_time=1.0)
     assert np.allclose(result.v_final, [[0, 0], [0, 0], [2, 0]], atol=TOLERANCE)
     assert result.momentum_drift < 1e-12
     assert result.energy_final == pytest.approx(result.energy_initial, rel=TOLERANCE)
@@ -106,7 +112,7 @@ def test_a_rigid_circle_bounces_without_its_spin_changing() -> None:
     text = (SCENES / "scisim" / "horizontal_plane_collision.xml").read_text().replace(
         'omega="0.0"', 'omega="3.0"')
     scene = parse_scene(text, "spin.xml")
-    simulator = Simulator(scene, solver=SOLVER)
+    simulator = Simulator(scene, choose_by_name(SOLVER))
     result = simulator.run(end_time=2.0)
     assert np.allclose(result.v_final, [[0.0, 2.0]], atol=TOLERANCE)
     assert simulator.omega[0] == 3.0
@@ -172,7 +178,7 @@ SCENE_STEP_CAPS = {"balls_in_box_1000": 15, "balls_in_box_100": 100, "newtons_cr
 @pytest.mark.parametrize("path", sorted(SCENES.rglob("*.xml")), ids=lambda p: p.stem)
 def test_every_shared_scene_simulates_without_energy_gain(path: Path) -> None:
     scene = load_scene(path)
-    result = Simulator(scene, solver=SOLVER).run(
+    result = Simulator(scene, choose_by_name(SOLVER)).run(
         end_time=scene.end_time or 2.0, max_steps=SCENE_STEP_CAPS.get(scene.name, 300))
     assert result.failure is None, result.failure
     assert result.steps > 0
@@ -185,7 +191,7 @@ def test_every_shared_scene_simulates_without_energy_gain(path: Path) -> None:
 
 def test_captured_problems_carry_their_scene_step_and_time(tmp_path: Path) -> None:
     scene = load_scene(SCENES / "ura" / "K3.xml")
-    result = Simulator(scene, solver=SOLVER, capture=tmp_path).run(max_steps=5)
+    result = Simulator(scene, choose_by_name(SOLVER), capture=tmp_path).run(max_steps=5)
     paths = sorted(tmp_path.glob("*.npz"))
     assert result.captured == len(paths) == 1
     problem = files.load(paths[0])
@@ -201,32 +207,50 @@ def test_captured_problems_carry_their_scene_step_and_time(tmp_path: Path) -> No
     assert np.allclose(problem.Q.toarray(), problem.Q.toarray().T)
 
 
-def test_a_failed_inner_solve_stops_the_run_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
-    def no_answer(problem, accuracy, warm_start=None) -> SolverOutput:
-        return SolverOutput(impulses=np.full(problem.n_contacts, np.nan), status="solved",
-                            claimed_success=True, solve_time_s=0.0)
+def test_a_failed_inner_solve_stops_the_run_and_says_so() -> None:
+    def no_answer(problem: ImpactProblem, accuracy: float,
+                  warm_start: np.ndarray | None) -> SolvedImpulses:
+        return SolvedImpulses(np.full(problem.n_contacts, np.nan), 0.0, "solved")
 
-    registry.all_solvers()
-    spec = SolverSpec(name="test-nan", formulation="dual", backend="test", solve=no_answer)
-    monkeypatch.setitem(registry._SOLVERS, spec.key, spec)
-    result = Simulator(load_scene(SCENES / "ura" / "K3.xml"), solver="test-nan").run(
-        max_steps=10)
+    def choose_solve(operator: ImpactOperator) -> ChosenSolve:
+        return ChosenSolve("test-nan", no_answer)
+
+    result = Simulator(load_scene(SCENES / "ura" / "K3.xml"), choose_solve).run(max_steps=10)
     assert result.failure is not None and result.failure["reason"] == "no finite answer"
+    assert result.failure["solver"] == "test-nan" and result.failure["solver_status"] == "solved"
     assert result.failure["step"] == 4 and result.steps == 4  # the first impact, then stop
     assert result.as_dict()["success"] is False
 
 
+def test_a_raising_backend_is_a_failed_inner_solve(monkeypatch: pytest.MonkeyPatch) -> None:
+    def raises(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None):
+        raise RuntimeError("backend broke")
+
+    registry.all_solvers()
+    spec = SolverSpec(name="test-raise", formulation="dual", backend="test", solve=raises)
+    monkeypatch.setitem(registry._SOLVERS, spec.key, spec)
+    result = Simulator(load_scene(SCENES / "ura" / "K3.xml"),
+                       choose_by_name("test-raise")).run(max_steps=10)
+    assert result.failure is not None and result.failure["solver"] == "test-raise/dual"
+    assert "backend broke" in result.failure["solver_status"]
+
+
+def test_an_operator_that_needs_a_solver_needs_a_choice() -> None:
+    with pytest.raises(ValueError, match="needs an inner solver"):
+        Simulator(load_scene(SCENES / "ura" / "K3.xml"))
+
+
 def test_an_unusable_scene_solver_falls_back_and_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
-    real_get = stepper.get
+    real_get = inner_solvers.get
 
     def only_fallback(name: str) -> SolverSpec:
         if name != FALLBACK:
             raise QpbenchError(f"solver '{name}' is not usable here: test")
         return real_get(name)
 
-    monkeypatch.setattr(stepper, "get", only_fallback)
-    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"))
-    assert [inner.spec.key for inner in simulator.inner.values()] == [FALLBACK]
+    monkeypatch.setattr(inner_solvers, "get", only_fallback)
+    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"), choose_by_name())
+    assert [inner.chosen.name for inner in simulator.inner.values()] == [FALLBACK]
     assert len(simulator.notes) == 1 and "'ipopt'" in simulator.notes[0]
 
 
@@ -261,7 +285,7 @@ def test_scaling_writes_ratio_and_markdown(tmp_path: Path, capsys: pytest.Captur
 
 
 def test_an_end_time_in_decimal_gives_the_exact_step_count() -> None:
-    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"), solver=SOLVER)
+    simulator = Simulator(load_scene(SCENES / "scisim" / "two_balls.xml"), choose_by_name(SOLVER))
     assert simulator.step_count(1.1, None) == 11  # 1.1 / 0.1, not 12 from 1.1's binary value
     assert simulator.step_count(None, 7) == 7 and simulator.step_count(1.1, 5) == 5
 
@@ -271,3 +295,55 @@ def test_cached_impulses_warm_start_and_give_the_same_answer() -> None:
     assert parse_scene(text, "cached.xml").impact.cache_impulses
     result = run(text, end_time=2.0)
     assert np.allclose(result.v_final, [[-0.5, 0.0], [1.0, 0.0]], atol=TOLERANCE)
+
+
+# balls 0 and 2 rest on the floor; ball 1 lands later, so its contact joins between theirs
+RESTING_AND_LANDING = ('<ball x="-3" y="0.5" vx="0" vy="0" m="1" r="0.5" fixed="0"/>'
+                       '<ball x="0" y="0.6" vx="0" vy="0" m="2" r="0.5" fixed="0"/>'
+                       '<ball x="3" y="0.5" vx="0" vy="0" m="3" r="0.5" fixed="0"/>')
+
+
+class RecordingSolve:
+    """clarabel through the registry, recording the warm start of every call by step."""
+
+    def __init__(self) -> None:
+        self.solve = solve_with(registry.get(SOLVER))
+        self.warm_starts: dict[int, np.ndarray | None] = {}
+
+    def __call__(self, problem: ImpactProblem, accuracy: float,
+                 warm_start: np.ndarray | None) -> SolvedImpulses:
+        self.warm_starts[problem.metadata["step"]] = warm_start
+        return self.solve(problem, accuracy, warm_start)
+
+
+def test_the_warm_start_is_the_previous_steps_impulse_of_each_persisting_contact() -> None:
+    text = ball2d(RESTING_AND_LANDING, "lcp", cor=0.0, extra='<gravity fx="0" fy="-9.81"/>'
+                  '<static_plane x="0 0" n="0 1"/>').replace('cache_impulses="0"',
+                                                             'cache_impulses="1"')
+    recording = RecordingSolve()
+    events: list[StepEvent] = []
+    simulator = Simulator(parse_scene(text, "resting.xml"),
+                          lambda operator: ChosenSolve(SOLVER, recording))
+    result = simulator.run(max_steps=20, on_step=events.append)
+    assert result.failure is None, result.failure
+    assert len(recording.warm_starts) >= 10
+    for step, warm in recording.warm_starts.items():
+        assert step > 0  # the first step starts at rest: b = 0, l = 0 without a solve
+        previous = events[step - 1]
+        cached = dict(zip(previous.contacts.keys().tolist(), previous.impulses.tolist(),
+                          strict=True))
+        expected = [cached.get(key, 0.0) for key in events[step].contacts.keys().tolist()]
+        assert warm is not None and warm.tolist() == expected, step
+    warm_starts = [warm for warm in recording.warm_starts.values() if warm is not None]
+    assert any(np.all(warm > 0) for warm in warm_starts)  # cached impulses reach the solver
+    landing = [warm for warm in warm_starts if warm.shape == (3,) and np.any(warm == 0)]
+    assert landing and all(warm[1] == 0 and warm[0] > 0 and warm[2] > 0 for warm in landing)
+
+
+def test_without_the_cache_flag_no_warm_start_reaches_the_solver() -> None:
+    text = ball2d(RESTING_AND_LANDING, "lcp", cor=0.0, extra='<gravity fx="0" fy="-9.81"/>'
+                  '<static_plane x="0 0" n="0 1"/>')
+    recording = RecordingSolve()
+    Simulator(parse_scene(text, "resting.xml"),
+              lambda operator: ChosenSolve(SOLVER, recording)).run(max_steps=5)
+    assert recording.warm_starts and all(w is None for w in recording.warm_starts.values())

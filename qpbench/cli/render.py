@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from qpbench.cli.simulate import DEFAULT_STEPS
+from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 
 
@@ -32,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
         steps = DEFAULT_STEPS
         print(f"qpbench render: note: {scene.path} has no <end_time>; drawing {DEFAULT_STEPS} "
               "steps (use --end-time or --steps)", file=sys.stderr)
-    result = render(scene, args.output, args.end_time, steps, args.solver, args.frames)
+    result = render(scene, args.output, args.end_time, steps, choose_by_name(args.solver),
+                    args.frames)
     for note in result.notes:
         print(f"qpbench render: note: {note}", file=sys.stderr)
     if result.failure is not None:

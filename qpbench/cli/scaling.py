@@ -6,7 +6,10 @@ import argparse
 
 from qpbench.cli.output import write_json
 from qpbench.errors import QpbenchError
-from qpbench.simulation.scaling import DEFAULT_SIZES, DEFAULT_SOLVER, DEFAULT_STEPS, scaling
+from qpbench.inner_solvers import choose_by_name
+from qpbench.simulation.scaling import DEFAULT_SIZES, DEFAULT_STEPS, scaling
+
+DEFAULT_SOLVER = "clarabel/dual"
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -35,7 +38,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.steps < 1:
         raise QpbenchError("--steps must be at least 1")
-    report = scaling(args.sizes, args.steps, args.solver, args.seed)
+    report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed)
     write_json(args.output, report)
     print(report["markdown"], end="")
     return 0

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from qpbench.cli.output import print_json
 from qpbench.errors import InputError, QpbenchError
+from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import DEFAULT_ACCURACY, Simulator
 
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         steps = DEFAULT_STEPS
         print(f"qpbench simulate: note: {scene.path} has no <end_time>; simulating "
               f"{DEFAULT_STEPS} steps (use --end-time or --steps)", file=sys.stderr)
-    simulator = Simulator(scene, solver=args.solver, accuracy=args.accuracy,
+    simulator = Simulator(scene, choose_by_name(args.solver), accuracy=args.accuracy,
                           capture=args.capture)
     for note in simulator.notes:
         print(f"qpbench simulate: note: {note}", file=sys.stderr)

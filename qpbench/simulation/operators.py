@@ -10,29 +10,57 @@
 * ``gauss_seidel``: pairwise sweeps; each approaching contact k in turn gets
   ``dl = -(1 + c_k) u_k / Q_kk`` (``u_k = G_k^T v + nrel_k``) until none approaches.
 
-Every inner LCP answer is judged with qpbench's own residual
-(``qpbench.metrics``): above the accuracy asked it counts as inaccurate; not
-finite, or above :data:`REJECT_RESIDUAL`, it is a failure that stops the run
-(:class:`InnerSolveFailed`), never used silently.
+Every inner LCP is solved by an :data:`ImpactSolve` the caller hands in (the simulator
+knows no solver registry; :mod:`qpbench.inner_solvers` builds one from a solver name), and
+every answer is judged with qpbench's own residual (``qpbench.problem.metrics``): above
+the accuracy asked it counts as inaccurate; not finite, or above :data:`REJECT_RESIDUAL`,
+it is a failure that stops the run (:class:`InnerSolveFailed`), never used silently.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from qpbench import metrics
+from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes.model import ImpactOperator
-from qpbench.solvers.base import SolverSpec
-from qpbench.solvers.run import call_solver
 
 REJECT_RESIDUAL = 1e-3
 MAX_GR_ROUNDS = 1000
 MAX_GAUSS_SEIDEL_SWEEPS = 10_000
+
+
+@dataclass(frozen=True)
+class SolvedImpulses:
+    """One inner solve as the solver gave it, before qpbench judges it."""
+
+    impulses: np.ndarray | None  # l in the problem's contact order; None when there is none
+    time_s: float  # wall seconds of the whole solve (NaN when unknown)
+    status: str  # the solver's own word, reported when the answer is rejected
+
+
+ImpactSolve = Callable[[ImpactProblem, float, np.ndarray | None], SolvedImpulses]
+"""``solve(problem, accuracy, warm_start)``: the impulses of the LCP of ``problem`` at the
+residual ``accuracy``; ``warm_start`` is a guess of l (or None), which it may ignore."""
+
+
+@dataclass(frozen=True)
+class ChosenSolve:
+    """The inner solve of one operator, the name the logs give it, and a note on the choice
+    (a fallback from the scene's own solver), if any."""
+
+    name: str
+    solve: ImpactSolve
+    note: str | None = None
+
+
+ChooseSolve = Callable[[ImpactOperator], ChosenSolve]
+"""The inner solve of each lcp/gr operator of a scene (nested in a grr too)."""
 
 
 class InnerSolveFailed(Exception):
@@ -67,9 +95,9 @@ class SolveLog:
 
 @dataclass
 class InnerSolver:
-    """A registered solver used inside an impact operator, its answers judged by qpbench."""
+    """The inner solve of one operator, its answers judged by qpbench."""
 
-    spec: SolverSpec
+    chosen: ChosenSolve
     accuracy: float
     log: SolveLog
 
@@ -80,20 +108,19 @@ class InnerSolver:
         if np.all(problem.b >= 0):  # nothing approaches: l = 0 solves the LCP exactly
             self.log.trivial += 1
             return np.zeros(problem.n_contacts)
-        start = warm_start if self.spec.warm_start else None
-        output = call_solver(self.spec, problem, self.accuracy, start)
+        answer = self.chosen.solve(problem, self.accuracy, warm_start)
         self.log.solves += 1
-        self.log.solvers.add(self.spec.key)
-        if math.isfinite(output.solve_time_s):
-            self.log.solve_time_s += output.solve_time_s
-        impulses = output.impulses
+        self.log.solvers.add(self.chosen.name)
+        if math.isfinite(answer.time_s):
+            self.log.solve_time_s += answer.time_s
+        impulses = answer.impulses
         finite = metrics.is_finite(impulses, problem)
         residual = metrics.residual(problem, impulses) if finite else math.nan
         if finite:
             self.log.max_residual = max(self.log.max_residual, residual)
         if not finite or not residual <= REJECT_RESIDUAL:
             raise InnerSolveFailed({
-                "solver": self.spec.key, "solver_status": output.status,
+                "solver": self.chosen.name, "solver_status": answer.status,
                 "contacts": problem.n_contacts, "residual": residual,
                 "reason": ("no finite answer" if not finite else
                            f"residual {residual:.3g} > {REJECT_RESIDUAL:g}"),

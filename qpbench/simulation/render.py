@@ -28,6 +28,7 @@ from matplotlib.patches import Circle  # noqa: E402
 from qpbench.atomic import atomic_path
 from qpbench.errors import QpbenchError  # noqa: E402
 from qpbench.scenes.model import Scene  # noqa: E402
+from qpbench.simulation.operators import ChooseSolve  # noqa: E402
 from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent  # noqa: E402
 
 MAX_GIF_FRAMES = 80
@@ -74,9 +75,10 @@ class Recording:
 
 
 def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
-                        solver: str | None, frames: int) -> tuple[SimulationResult, Recording]:
+                        choose_solve: ChooseSolve | None, frames: int
+                        ) -> tuple[SimulationResult, Recording]:
     """Runs the scene, recording about ``frames`` frames."""
-    simulator = Simulator(scene, solver=solver)
+    simulator = Simulator(scene, choose_solve)
     total = simulator.step_count(end_time, steps)
     recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii)
     result = simulator.run(end_time=end_time, max_steps=steps, on_step=recording)
@@ -215,13 +217,13 @@ def _save(figure: plt.Figure, path: Path, write) -> None:
 
 
 def render(scene: Scene, output: str | os.PathLike[str], end_time: float | None = None,
-           steps: int | None = None, solver: str | None = None,
+           steps: int | None = None, choose_solve: ChooseSolve | None = None,
            frames: int = MAX_GIF_FRAMES) -> SimulationResult:
     """Simulates ``scene`` and draws it to ``output`` (``.png`` or ``.gif``)."""
     path = Path(output)
     if path.suffix.lower() not in SUFFIXES:
         raise QpbenchError(f"{path}: the output must end in .png or .gif")
-    result, recording = simulate_and_record(scene, end_time, steps, solver,
+    result, recording = simulate_and_record(scene, end_time, steps, choose_solve,
                                             frames if path.suffix.lower() == ".gif" else 400)
     if path.suffix.lower() == ".png":
         render_png(scene, recording, result, path)

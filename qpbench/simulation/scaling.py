@@ -13,37 +13,41 @@ import time
 from typing import Any
 
 from qpbench.scenes.builders import box_scene
+from qpbench.simulation.operators import ChooseSolve
 from qpbench.simulation.stepper import Simulator
 
 TARGET_RATIO = 1.5
 DEFAULT_SIZES = (1000, 10000)
 DEFAULT_STEPS = 20
-DEFAULT_SOLVER = "clarabel/dual"
 
 
-def measure(balls: int, steps: int, solver: str = DEFAULT_SOLVER, seed: int = 0
-            ) -> dict[str, Any]:
-    """One size: wall time of ``steps`` steps of ``box_scene(balls)`` and what they did."""
-    simulator = Simulator(box_scene(balls, seed=seed), solver=solver)
+def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
+            ) -> tuple[dict[str, Any], str | None]:
+    """One size: wall time of ``steps`` steps of ``box_scene(balls)`` and what they did, and
+    the names of the inner solvers."""
+    simulator = Simulator(box_scene(balls, seed=seed), choose_solve)
     simulator.step()  # warm-up: first calls into numpy, scipy and the solver
     solve_before = simulator.log.solve_time_s
     start = time.perf_counter()
     result = simulator.run(max_steps=steps)
     wall = time.perf_counter() - start
     solve = simulator.log.solve_time_s - solve_before
-    return {
+    row = {
         "balls": balls, "steps": steps, "wall_s": wall, "solve_s": solve,
         "cost_per_ball_step_us": 1e6 * wall / (balls * steps),
         "cost_without_solves_us": 1e6 * (wall - solve) / (balls * steps),
         "impacts": result.impacts, "max_contacts": result.max_contacts,
         "max_energy_gain": result.max_energy_gain, "success": result.failure is None,
     }
+    return row, simulator.solver_names
 
 
-def scaling(sizes: tuple[int, ...] = DEFAULT_SIZES, steps: int = DEFAULT_STEPS,
-            solver: str = DEFAULT_SOLVER, seed: int = 0) -> dict[str, Any]:
+def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
+            steps: int = DEFAULT_STEPS, seed: int = 0) -> dict[str, Any]:
     """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table."""
-    rows = [measure(balls, steps, solver, seed) for balls in sizes]
+    measured = [measure(balls, steps, choose_solve, seed) for balls in sizes]
+    rows = [row for row, _ in measured]
+    solver = measured[0][1]
     first, last = rows[0], rows[-1]
     ratio = last["cost_per_ball_step_us"] / first["cost_per_ball_step_us"]
     ratio_without = last["cost_without_solves_us"] / first["cost_without_solves_us"]

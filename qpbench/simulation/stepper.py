@@ -11,6 +11,9 @@ One step from (x0, v0) with step h:
    when some contact approaches, ``b < 0``, since otherwise l = 0 exactly),
    let the impact operator find l, and re-integrate from x0 with
    ``v0 + M^-1 G l``.
+
+The inner solves come from a :data:`~qpbench.simulation.operators.ChooseSolve` the caller
+hands in; the simulator knows no solver by name.
 """
 
 from __future__ import annotations
@@ -25,15 +28,18 @@ from typing import Any
 
 import numpy as np
 
-from qpbench import metrics
 from qpbench.errors import QpbenchError, UnsupportedError
-from qpbench.problem import files
+from qpbench.problem import files, metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes.model import ImpactOperator, Scene
-from qpbench.scenes.solver_names import FALLBACK
 from qpbench.simulation import checks, contacts, integrators
-from qpbench.simulation.operators import InnerSolveFailed, InnerSolver, SolveLog, apply
-from qpbench.solvers.registry import get
+from qpbench.simulation.operators import (
+    ChooseSolve,
+    InnerSolveFailed,
+    InnerSolver,
+    SolveLog,
+    apply,
+)
 
 DEFAULT_ACCURACY = 1e-8
 
@@ -103,36 +109,27 @@ def solver_operators(operator: ImpactOperator | None) -> list[ImpactOperator]:
     return [operator] if operator.type in ("lcp", "gr") else []
 
 
-def choose_solvers(operator: ImpactOperator | None, override: str | None, accuracy: float,
-                   log: SolveLog) -> tuple[dict[int, InnerSolver], list[str]]:
-    """The inner solver of each operator that needs one, and notes about fallbacks.
-
-    ``override`` (``--solver``) replaces the scene's choice everywhere. A scene's solver
-    that is not registered or not usable here falls back to :data:`FALLBACK`.
-    """
+def choose_solvers(operator: ImpactOperator | None, choose_solve: ChooseSolve | None,
+                   accuracy: float, log: SolveLog) -> tuple[dict[int, InnerSolver], list[str]]:
+    """The inner solver of each operator that needs one (keyed by ``id(operator)``), and the
+    notes of the choice; ValueError when some operator needs one and ``choose_solve`` is None."""
     inner: dict[int, InnerSolver] = {}
     notes: list[str] = []
     for op in solver_operators(operator):
-        if override is not None:
-            spec = get(override)
-        elif op.solver is None:  # a friction solver with mu = 0: no solver child
-            spec = get(FALLBACK)
-            notes.append(f"<{op.declared_by}> with mu = 0: frictionless lcp solved by {spec.key}")
-        else:
-            try:
-                spec = get(op.solver.qpbench_name)
-            except QpbenchError as error:
-                spec = get(FALLBACK)
-                notes.append(f"SCISim solver '{op.solver.scisim_name}' maps to "
-                             f"'{op.solver.qpbench_name}', {error}; using {spec.key} instead")
-        inner[id(op)] = InnerSolver(spec=spec, accuracy=accuracy, log=log)
+        if choose_solve is None:
+            raise ValueError(f"the <{op.declared_by}> operator needs an inner solver: "
+                             "give the Simulator a choose_solve")
+        chosen = choose_solve(op)
+        if chosen.note is not None:
+            notes.append(chosen.note)
+        inner[id(op)] = InnerSolver(chosen=chosen, accuracy=accuracy, log=log)
     return inner, sorted(set(notes))
 
 
 class Simulator:
     """Steps a scene; every impact event becomes an ImpactProblem (optionally captured)."""
 
-    def __init__(self, scene: Scene, solver: str | None = None,
+    def __init__(self, scene: Scene, choose_solve: ChooseSolve | None = None,
                  accuracy: float = DEFAULT_ACCURACY, capture: str | Path | None = None) -> None:
         self.scene = scene
         bodies = scene.bodies
@@ -145,7 +142,8 @@ class Simulator:
         self.dt = float(scene.dt)
         self.step_index = 0
         self.log = SolveLog()
-        self.inner, self.notes = choose_solvers(scene.impact, solver, accuracy, self.log)
+        self.inner, self.notes = choose_solvers(scene.impact, choose_solve, accuracy,
+                                                self.log)
         self.capture = Path(capture) if capture is not None else None
         self.captured = 0
         self._cache: dict[int, float] = {}
@@ -165,6 +163,11 @@ class Simulator:
             per_body.append(1.0 / bodies.inertia)
         table = np.stack(per_body, axis=1) * self.free[:, None]
         return table.ravel()
+
+    @property
+    def solver_names(self) -> str | None:
+        """The names of the inner solvers, sorted and comma-separated; None when there is none."""
+        return ", ".join(sorted({inner.chosen.name for inner in self.inner.values()})) or None
 
     # --- state -------------------------------------------------------------------------
     def dof_velocity(self) -> np.ndarray:
@@ -272,7 +275,7 @@ class Simulator:
         total = self.step_count(end_time, max_steps)
         result = SimulationResult(scene=scene.path, log=self.log, notes=list(self.notes))
         result.operator = scene.impact.type if scene.impact is not None else None
-        result.solver = ", ".join(sorted({inner.spec.key for inner in self.inner.values()})) or None
+        result.solver = self.solver_names
         v_start = self.velocities.copy()
         result.energy_initial = self.energy()
         start = time.perf_counter()

@@ -1,0 +1,67 @@
+"""The simulator's inner solves, built from solver names through the registry.
+
+This is the one place where the simulator (which knows no solver by name) meets the
+solvers: :func:`choose_by_name` gives the ``choose_solve`` a
+:class:`~qpbench.simulation.stepper.Simulator` takes. With a name (``--solver``) every
+lcp/gr operator uses that solver; without one each uses the qpbench solver its scene's
+SCISim solver maps to (:mod:`qpbench.scenes.solver_names`), or :data:`FALLBACK` when that
+one is not registered or not usable here, with a note saying so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from qpbench.errors import QpbenchError
+from qpbench.problem.impact import ImpactProblem
+from qpbench.scenes.model import ImpactOperator
+from qpbench.scenes.solver_names import FALLBACK
+from qpbench.simulation.operators import ChooseSolve, ChosenSolve, ImpactSolve, SolvedImpulses
+from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+
+def solve_with(spec: SolverSpec) -> ImpactSolve:
+    """An inner solve by ``spec`` through :func:`call_solver` (so a raising backend is a
+    failed answer); the warm start reaches only a solver that takes one."""
+
+    def solve(problem: ImpactProblem, accuracy: float,
+              warm_start: np.ndarray | None) -> SolvedImpulses:
+        output = call_solver(spec, problem, accuracy, warm_start if spec.warm_start else None)
+        # time_s is the whole solve; a SolverOutput from before it existed split it in two
+        seconds = (output.time_s if hasattr(output, "time_s")
+                   else output.solve_time_s + output.setup_time_s)
+        return SolvedImpulses(impulses=output.impulses, time_s=seconds, status=output.status)
+
+    return solve
+
+
+def chosen(spec: SolverSpec, note: str | None = None) -> ChosenSolve:
+    """``spec`` as the inner solve of an operator, named ``NAME/FORMULATION``."""
+    return ChosenSolve(name=spec.key, solve=solve_with(spec), note=note)
+
+
+def choose_by_name(override: str | None = None) -> ChooseSolve:
+    """The inner solve of each operator: ``override`` (``NAME[/FORMULATION]``) everywhere when
+    given, else the scene's own solver, mapped, with :data:`FALLBACK` when it cannot run here.
+
+    An unknown or unusable ``override`` raises QpbenchError (one line) when first used.
+    """
+
+    def choose_solve(operator: ImpactOperator) -> ChosenSolve:
+        if override is not None:
+            return chosen(get(override))
+        if operator.solver is None:  # a friction solver with mu = 0: no solver child
+            spec = get(FALLBACK)
+            return chosen(spec, f"<{operator.declared_by}> with mu = 0: frictionless lcp "
+                                f"solved by {spec.key}")
+        try:
+            return chosen(get(operator.solver.qpbench_name))
+        except QpbenchError as error:
+            spec = get(FALLBACK)
+            return chosen(spec, f"SCISim solver '{operator.solver.scisim_name}' maps to "
+                                f"'{operator.solver.qpbench_name}', {error}; using "
+                                f"{spec.key} instead")
+
+    return choose_solve
