@@ -15,7 +15,8 @@ max_problems = 5                 # evenly spread over the captured impacts
 ```
 
 Every problem file gets a verified reference (qpbench.problem.reference). Building is
-incremental: a problem whose file exists is not made again.
+incremental: a problem whose file exists is not made again. Building runs the simulator
+(scenes) and the solvers (inner solves, references), so it lives above both, in bench.
 """
 
 from __future__ import annotations
@@ -31,11 +32,14 @@ from typing import Any
 import numpy as np
 
 from qpbench.errors import InputError
+from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.generate import FAMILIES, generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
+from qpbench.scenes import load_scene
+from qpbench.simulation.stepper import Simulator
 
 
 def read_set(path: str | Path) -> dict[str, Any]:
@@ -77,14 +81,11 @@ def _dump_problems(definition: dict[str, Any], root: Path, existing: set[str]
 
 def _scene_problems(definition: dict[str, Any], root: Path, existing: set[str]
                     ) -> Iterator[ImpactProblem]:
-    from qpbench.scenes import load_scene
-    from qpbench.simulation.stepper import Simulator
-
     for entry in definition.get("scenes", []):
         scene_path = root / entry["path"]
         with tempfile.TemporaryDirectory() as capture:
             scene = load_scene(scene_path)
-            simulator = Simulator(scene, solver=entry.get("solver"), capture=capture)
+            simulator = Simulator(scene, choose_by_name(entry.get("solver")), capture=capture)
             simulator.run(end_time=entry.get("end_time"), max_steps=entry.get("steps"))
             captured = files.find([capture])
             keep = int(entry.get("max_problems", len(captured)))

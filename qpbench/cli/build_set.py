@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from qpbench.problem import files, sets
+from qpbench.bench import problem_sets
+from qpbench.problem import files
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -17,7 +18,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    written = sets.build(args.set_file, args.output)
+    written = problem_sets.build(args.set_file, args.output)
     total = len(files.find([args.output]))
     print(f"{len(written)} problems written, {total} in {args.output}")
     return 0

@@ -1,0 +1,58 @@
+"""Problem sets: a set file's families, dumps and captured scenes become problem files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from qpbench.bench import problem_sets
+from qpbench.cli import main
+from qpbench.errors import InputError
+from qpbench.problem import files
+
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
+
+SMALL_SET = f"""
+[families]
+k3 = {{ count = 2 }}
+
+[dumps]
+paths = ["{PROBLEMS / "dumps" / "2_balls.json"}"]
+
+[[scenes]]
+path = "{PROBLEMS / "scenes" / "ura" / "K3.xml"}"
+steps = 5
+solver = "clarabel/dual"
+"""
+
+
+def test_a_set_builds_its_families_dumps_and_captured_impacts_once(tmp_path: Path) -> None:
+    set_file = tmp_path / "small.toml"
+    set_file.write_text(SMALL_SET)
+    written = problem_sets.build(set_file, tmp_path / "out")
+    assert sorted(path.stem for path in written) == ["2_balls", "K3_step000004", "k3-3-s0",
+                                                      "k3-3-s1"]
+    captured = files.load(tmp_path / "out" / "K3_step000004.npz")
+    assert captured.family == "scene:K3" and captured.reference.verified
+    assert problem_sets.build(set_file, tmp_path / "out") == []  # incremental: nothing new
+
+
+def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    set_file = tmp_path / "small.toml"
+    set_file.write_text('[families]\nk4 = { count = 1 }\n')
+    assert main(["build-set", str(set_file), "-o", str(tmp_path / "out")]) == 0
+    assert f"1 problems written, 1 in {tmp_path / 'out'}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[families]\nnope = {}\n", r"<families> attribute 'nope': unknown family"),
+    ('[[scenes]]\nsteps = 3\n', r"<scenes\[0\]> attribute 'path': missing"),
+    ("[families\n", "malformed TOML"),
+])
+def test_a_bad_set_file_is_one_line_naming_the_entry(tmp_path: Path, text: str,
+                                                      message: str) -> None:
+    set_file = tmp_path / "bad.toml"
+    set_file.write_text(text)
+    with pytest.raises(InputError, match=message):
+        problem_sets.read_set(set_file)
