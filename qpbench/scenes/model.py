@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-DIALECTS = ("ball2d", "rigidbody2d")
 INTEGRATORS = ("symplectic_euler", "verlet")
 OPERATORS = ("lcp", "gr", "grr", "gauss_seidel")
 

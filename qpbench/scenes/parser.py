@@ -232,8 +232,10 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
                              element=tag)
 
     warnings: list[str] = []
-    bodies = (_ball2d_bodies if dialect == "ball2d" else _rigidbody2d_bodies)(
-        reader, children, warnings)
+    if dialect == "ball2d":
+        bodies = _ball2d_bodies(reader, children)
+    else:
+        bodies = _rigidbody2d_bodies(reader, children, warnings)
     integrator, dt = _integrator(reader, children)
     scene = Scene(path=path, dialect=dialect, bodies=bodies, integrator=integrator, dt=dt)
     scene.gravity = _gravity(reader, children, dialect)
@@ -253,8 +255,7 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     return scene
 
 
-def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]],
-                   warnings: list[str]) -> Bodies:
+def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]]) -> Bodies:
     """``<ball x y vx vy m r fixed/>``, mass given."""
     rows = []
     for index, ball in enumerate(children.get("ball", [])):
