@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -54,6 +58,38 @@ def test_a_truncated_file_is_one_clear_error(tmp_path) -> None:
     path.write_bytes(path.read_bytes()[:100])
     with pytest.raises(InputError, match="pair.npz"):
         files.load(path)
+
+
+def rewrite_header(path: Path, change: Callable[[dict], None]) -> None:
+    """Rewrites the JSON header of the problem file at ``path`` through ``change``."""
+    with np.load(path, allow_pickle=False) as archive:
+        arrays = {key: archive[key] for key in archive.files}
+    header = json.loads(arrays["header_json"].tobytes().decode())
+    change(header)
+    arrays["header_json"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+    with open(path, "wb") as stream:
+        np.savez_compressed(stream, **arrays)
+
+
+@pytest.mark.parametrize("version", [files.FORMAT_VERSION + 1, "2.0", None])
+def test_a_file_of_another_format_version_is_one_line_naming_the_field(
+        tmp_path: Path, version: object) -> None:
+    path = files.save(head_on_pair(), tmp_path / "pair")
+    rewrite_header(path, lambda header: header.update(format=version))
+    with pytest.raises(InputError) as raised:
+        files.load(path)
+    message = str(raised.value)
+    assert message.startswith(f"{path} attribute 'format': format version ")
+    assert f"reads version {files.FORMAT_VERSION}" in message and "\n" not in message
+
+
+def test_a_file_without_a_name_is_one_line_naming_the_field(tmp_path: Path) -> None:
+    path = files.save(head_on_pair(), tmp_path / "pair")
+    rewrite_header(path, lambda header: header.pop("name"))
+    with pytest.raises(InputError) as raised:
+        files.load(path)
+    assert str(raised.value) == (f"{path} attribute 'name': missing: every problem file "
+                                 "names its problem")
 
 
 @pytest.mark.parametrize(

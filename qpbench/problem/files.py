@@ -93,6 +93,7 @@ def load(path: str | os.PathLike[str]) -> ImpactProblem:
         raise InputError(str(path), "missing array", attribute=str(error.args[0])) from error
     except (ValueError, json.JSONDecodeError) as error:
         raise InputError(str(path), f"corrupt problem file ({error})") from error
+    _check_header(header, path)
     reference = None
     if "reference" in header:
         reference = Reference(
@@ -114,6 +115,21 @@ def load(path: str | os.PathLike[str]) -> ImpactProblem:
     )
     problem.validate(str(path))
     return problem
+
+
+def _check_header(header: Any, path: Path) -> None:
+    """InputError naming the file and the field when the header is not one :func:`save` writes:
+    a format version other than FORMAT_VERSION, or no name."""
+    if not isinstance(header, dict):
+        raise InputError(str(path), "corrupt problem file (the header is not a JSON object)")
+    version = header.get("format")
+    if version != FORMAT_VERSION:
+        found = "missing" if version is None else f"is {version!r}"
+        raise InputError(str(path), f"format version {found}; this qpbench reads version "
+                         f"{FORMAT_VERSION}", attribute="format")
+    if not isinstance(header.get("name"), str) or not header["name"]:
+        raise InputError(str(path), "missing: every problem file names its problem",
+                         attribute="name")
 
 
 def find(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
