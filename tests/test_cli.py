@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-DUMPS = Path(__file__).resolve().parents[1].parent / "shared" / "dumps"
+DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 
 
 def qpbench(*args: str) -> subprocess.CompletedProcess:

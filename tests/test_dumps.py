@@ -7,12 +7,18 @@ from pathlib import Path
 
 import pytest
 
-from qpbench import metrics
 from qpbench.errors import InputError
+from qpbench.problem import metrics
 from qpbench.problem.dumps import import_dump
 
-DUMPS = Path(__file__).resolve().parents[1].parent / "shared" / "dumps"
-ALL_DUMPS = sorted(DUMPS.glob("*"))
+DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
+# named, not globbed: a dump missing from the repository fails its test instead of vanishing
+DUMP_NAMES = ("2_balls.json", "grid5_itr_0.out", "grid5_itr_1.out", "ok_itr_0.out")
+ALL_DUMPS = [DUMPS / name for name in DUMP_NAMES]
+
+
+def test_the_repository_holds_exactly_these_dumps() -> None:
+    assert sorted(path.name for path in DUMPS.iterdir()) == sorted(DUMP_NAMES)
 
 
 @pytest.mark.parametrize("path", ALL_DUMPS, ids=lambda p: p.name)

@@ -22,7 +22,7 @@ from qpbench.solvers.registry import usable_solvers
 from qpbench.solvers.run import solve_and_judge
 
 ACCURACY = 1e-8
-DUMPS = Path(__file__).resolve().parents[1].parent / "shared" / "dumps"
+DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 CASES = {
     "k3": ("k3", None, 0), "k3-rotated": ("k3", None, 1), "k4": ("k4", None, 1),
     "k4-middle": ("k4-middle", None, 1), "cradle": ("cradle", 6, 0), "grid": ("grid", 3, 2),
@@ -35,7 +35,9 @@ CASES = {
 def hard_problems() -> tuple[ImpactProblem, ...]:
     problems = [generate(family, size=size, seed=seed)[0]
                 for family, size, seed in CASES.values()]
-    problems += [import_dump(path) for path in sorted(DUMPS.glob("*"))]
+    dumps = sorted(DUMPS.glob("*"))
+    assert len(dumps) == 4, f"the four SCISim dumps belong in {DUMPS}"
+    problems += [import_dump(path) for path in dumps]
     return tuple(attach_reference(problem) for problem in problems)
 
 
