@@ -27,6 +27,7 @@ from collections.abc import Iterator
 import numpy as np
 from bench_problems import exact_impulses
 
+from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy, registry
 from qpbench.solvers.base import SolverOutput, SolverSpec
@@ -96,16 +97,16 @@ for _name, _solve in (("test-exact", _exact), ("test-slow", _slow), ("test-abort
 def registered() -> Iterator[None]:
     """Within the block: the test solvers are registered here and, through
     $QPBENCH_EXTRA_SOLVERS, in every worker process the runner starts."""
-    previous = os.environ.get(registry.EXTRA_SOLVERS_ENV)
-    os.environ[registry.EXTRA_SOLVERS_ENV] = __name__
+    previous = os.environ.get(EXTRA_SOLVERS_ENV)
+    os.environ[EXTRA_SOLVERS_ENV] = __name__
     registry.all_solvers()
     try:
         yield
     finally:
         if previous is None:
-            os.environ.pop(registry.EXTRA_SOLVERS_ENV, None)
+            os.environ.pop(EXTRA_SOLVERS_ENV, None)
         else:
-            os.environ[registry.EXTRA_SOLVERS_ENV] = previous
+            os.environ[EXTRA_SOLVERS_ENV] = previous
         for key in [key for key, spec in registry._SOLVERS.items() if spec.backend == BACKEND]:
             accuracy.OPTIONS.pop(registry._SOLVERS[key].name, None)
             del registry._SOLVERS[key]

@@ -10,14 +10,14 @@ import pandas as pd
 import pytest
 from bench_problems import write_tiny_problems
 
-from qpbench.bench import runner
+from qpbench.bench import isolation, runner
 from qpbench.bench.executors import DaskExecutor, ProcessExecutor, SerialExecutor, make_executor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
 from qpbench.cli import main
 from qpbench.errors import QpbenchError
 
-runner.start_fork_server()  # its imports overlap with this process's
+isolation.start_fork_server()  # its imports overlap with this process's
 
 SETTINGS = RunSettings(solvers=("test-exact/lcp", "clarabel/dual", "osqp/dual", "test-abort/lcp"),
                        accuracies=(1e-4, 1e-8), limits=Limits(timeout_s=30))

@@ -15,14 +15,14 @@ import pandas as pd
 import pytest
 from bench_problems import write_tiny_problems
 
-from qpbench.bench import runner
+from qpbench.bench import isolation, runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
 
-runner.start_fork_server()  # its imports overlap with this process's
+isolation.start_fork_server()  # its imports overlap with this process's
 
 TESTS = Path(__file__).parent
 

@@ -9,12 +9,12 @@ from pathlib import Path
 import pytest
 from bench_problems import write_tiny_problems
 
-from qpbench.bench import runner
+from qpbench.bench import isolation, runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import Cell, Limits, RunSettings
 
-runner.start_fork_server()  # its imports overlap with this process's
+isolation.start_fork_server()  # its imports overlap with this process's
 
 
 @pytest.fixture
@@ -69,7 +69,7 @@ def test_a_worker_started_as_a_program_is_isolated_too(
         tmp_path: Path, misbehaving_solvers: None) -> None:
     # the way a daemonic process (a Dask worker under a nanny) runs cells: no fork server
     (path,) = write_tiny_problems(tmp_path, count=1)
-    worker = runner.IsolatedWorker(program=True)
+    worker = isolation.IsolatedWorker(program=True)
     limits = Limits(timeout_s=5.0)
     try:
         crashed = worker.solve(Cell(str(path), "row3", "test-abort", "lcp", 1e-8, "cold"), limits)

@@ -1,6 +1,6 @@
 """Where the cells run: in order on one worker, on N local workers, or on a Dask cluster.
 
-Every executor hands each cell to an :class:`~qpbench.bench.runner.IsolatedWorker`
+Every executor hands each cell to an :class:`~qpbench.bench.isolation.IsolatedWorker`
 (a child process), so all three give the same rows; they differ only in how many
 cells run at once and on which machine. Cells are grouped (by problem file and
 solver locally, by problem file for Dask tasks) so a worker loads a problem once per
@@ -17,7 +17,8 @@ from collections.abc import Iterator
 from itertools import groupby
 from typing import Any, Protocol
 
-from qpbench.bench.runner import IsolatedWorker, solve_serially
+from qpbench.bench.isolation import IsolatedWorker
+from qpbench.bench.runner import solve_serially
 from qpbench.bench.settings import Cell, Limits
 from qpbench.errors import QpbenchError
 

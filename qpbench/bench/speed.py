@@ -28,8 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from qpbench import metrics
-from qpbench.bench.runner import SINGLE_THREAD_ENV
+from qpbench import SINGLE_THREAD_ENV, metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference

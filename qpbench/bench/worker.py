@@ -35,13 +35,13 @@ from typing import Any
 
 import numpy as np
 
-from qpbench import __version__
+from qpbench import EXTRA_SOLVERS_ENV, __version__
 from qpbench.bench.lock import lock_label
 from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec
-from qpbench.solvers.registry import EXTRA_SOLVERS_ENV, all_solvers, resolve
+from qpbench.solvers.registry import all_solvers, resolve
 from qpbench.solvers.run import call_solver, judge
 
 

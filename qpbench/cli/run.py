@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from qpbench.bench import runner
+from qpbench.bench import isolation, runner
 from qpbench.bench.executors import DaskExecutor, make_executor
 from qpbench.bench.settings import (
     DEFAULT_ACCURACIES,
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     executor = make_executor(args.executor, args.workers)
     if not isinstance(executor, DaskExecutor):
         # started before this process imports the solver backends, so both import at once
-        runner.start_fork_server()
+        isolation.start_fork_server()
     from qpbench.solvers.registry import resolve, usable_solvers
 
     specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()

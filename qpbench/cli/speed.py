@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
                                              if parent.exists()), os.W_OK):
         raise InputError(str(output), "cannot write here")
-    from qpbench.bench.runner import SINGLE_THREAD_ENV
+    from qpbench import SINGLE_THREAD_ENV
 
     if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
         command = [sys.executable, "-m", "qpbench.cli", "speed",

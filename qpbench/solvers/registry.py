@@ -4,6 +4,7 @@ import fails registers its solvers as unusable with the reason, so it drops out 
 
 from __future__ import annotations
 
+from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.errors import QpbenchError
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverSpec
@@ -32,7 +33,6 @@ def register_unusable(name: str, formulations: tuple[str, ...], backend: str, re
                             reason=reason))
 
 
-EXTRA_SOLVERS_ENV = "QPBENCH_EXTRA_SOLVERS"
 
 
 def _import_extra_solvers() -> None:
