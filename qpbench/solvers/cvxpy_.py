@@ -32,7 +32,8 @@ from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.qpsolvers_ import c_stdout_silenced, problem_scale
+from qpbench.solvers.qpsolvers_ import problem_scale
+from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
 if TYPE_CHECKING:
@@ -162,10 +163,11 @@ def _installed(package: str) -> bool:
 
 
 def _register_all() -> None:
-    if not _installed("cvxpy"):
-        raise ImportError("No module named 'cvxpy'")
     for solver, package in SOLVERS.items():
         name = qpbench_name(solver)
+        if not _installed("cvxpy"):
+            register_unusable(name, FORMULATIONS, BACKEND, "import failed: no module 'cvxpy'")
+            continue
         if not _installed(package):
             register_unusable(name, FORMULATIONS, BACKEND,
                               f"cvxpy's {solver} needs the package '{package}'")

@@ -21,16 +21,22 @@ from collections.abc import Callable
 from importlib import metadata
 from typing import Any
 
-import cyipopt
 import numpy as np
 import scipy.sparse as sp
+
+try:
+    import cyipopt
+except ImportError as _error:  # ipopt drops out and says why
+    cyipopt = None
+    IMPORT_ERROR = f"import failed: {_error}"
 
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.qpsolvers_ import c_stdout_silenced, problem_scale
-from qpbench.solvers.registry import register
+from qpbench.solvers.qpsolvers_ import problem_scale
+from qpbench.solvers.quiet import c_stdout_silenced
+from qpbench.solvers.registry import register, register_unusable
 
 BACKEND = "cyipopt"
 NAME = "ipopt"
@@ -136,7 +142,10 @@ def _version() -> str:
     return f"Ipopt {ipopt} (cyipopt {metadata.version('cyipopt')})"
 
 
-for _formulation in FORMULATIONS:
-    register(SolverSpec(name=NAME, formulation=_formulation, backend=BACKEND,
-                        solve=make_solve(_formulation), version=_version(), warm_start=True,
-                        description="IPOPT through cyipopt, configured as SCISim"))
+if cyipopt is None:
+    register_unusable(NAME, FORMULATIONS, BACKEND, IMPORT_ERROR)
+else:
+    for _formulation in FORMULATIONS:
+        register(SolverSpec(name=NAME, formulation=_formulation, backend=BACKEND,
+                            solve=make_solve(_formulation), version=_version(), warm_start=True,
+                            description="IPOPT through cyipopt, configured as SCISim"))

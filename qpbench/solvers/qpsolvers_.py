@@ -16,20 +16,23 @@ from the accuracy table: a different problem, named as such.
 from __future__ import annotations
 
 import contextlib
-import os
-import sys
-import threading
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import qpsolvers
+
+try:
+    import qpsolvers
+except ImportError as _error:  # every solver of this family drops out and says why
+    qpsolvers = None
+    IMPORT_ERROR = f"import failed: {_error}"
 
 from qpbench.problem.formulations import factored_dual_qp, primal_qp, regularized
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
 BACKEND = "qpsolvers"
@@ -43,37 +46,6 @@ POSITIVE_DEFINITE_ONLY = frozenset({"quadprog", "ecos"})
 # regularized variants: name -> the backend that solves Q + delta I
 REGULARIZED = {"quadprog-reg": "quadprog", "ecos-reg": "ecos"}
 NOT_POSITIVE_DEFINITE = "unsupported: not positive definite"
-
-
-_SILENCE_LOCK = threading.Lock()
-_silence_depth = 0
-_saved_stdout: int | None = None
-
-
-@contextlib.contextmanager
-def c_stdout_silenced() -> Iterator[None]:
-    """Sends file descriptor 1 to /dev/null for the block: OSQP's and IPOPT's C code print
-    ("Polishing not needed ...") even when not verbose, which would corrupt ``--json``.
-    Nested and concurrent blocks share one redirection; the last to leave restores fd 1."""
-    global _silence_depth, _saved_stdout
-    with _SILENCE_LOCK:
-        if _silence_depth == 0:
-            sys.stdout.flush()
-            _saved_stdout = os.dup(1)
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, 1)
-            os.close(devnull)
-        _silence_depth += 1
-    try:
-        yield
-    finally:
-        with _SILENCE_LOCK:
-            _silence_depth -= 1
-            if _silence_depth == 0 and _saved_stdout is not None:
-                sys.stdout.flush()
-                os.dup2(_saved_stdout, 1)
-                os.close(_saved_stdout)
-                _saved_stdout = None
 
 
 def problem_scale(problem: ImpactProblem) -> float:
@@ -228,6 +200,11 @@ def _version(solver: str) -> str:
 
 
 def _register_all() -> None:
+    if qpsolvers is None:
+        for name in (*SOLVERS, *REGULARIZED):
+            register_unusable(name, ("dual",) if name in REGULARIZED else FORMULATIONS,
+                              BACKEND, IMPORT_ERROR)
+        return
     for solver in SOLVERS:
         if solver not in qpsolvers.available_solvers:
             register_unusable(solver, FORMULATIONS, BACKEND,
