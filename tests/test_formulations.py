@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from test_backends_cases import ALL_CASES, balls
+from backend_cases import ALL_CASES, balls
 
 from qpbench.problem import formulations
 from qpbench.problem.formulations import (
