@@ -28,7 +28,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from qpbench import SINGLE_THREAD_ENV, metrics
+from qpbench import SINGLE_THREAD_ENV
+from qpbench.problem import metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
@@ -50,7 +51,7 @@ ORDERINGS = {
 
 def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
     """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC (SuperLU's input)."""
-    shift = FACTOR_SHIFT * max(float(np.max(problem.diag_Q, initial=0.0)), 1e-300)
+    shift = FACTOR_SHIFT * metrics.vector_scale(problem.diag_Q)
     return sp.csc_matrix(problem.Q + shift * sp.identity(problem.n_contacts, format="csc"))
 
 

@@ -16,9 +16,14 @@ from qpbench.problem.impact import ImpactProblem
 TINY = 1e-300
 
 
-def _scale(problem: ImpactProblem) -> float:
-    """max(||b||_inf, TINY)."""
-    return max(float(np.max(np.abs(problem.b), initial=0.0)), TINY)
+def vector_scale(values: np.ndarray) -> float:
+    """max(||values||_inf, TINY)."""
+    return max(float(np.max(np.abs(values), initial=0.0)), TINY)
+
+
+def scale(problem: ImpactProblem) -> float:
+    """max(||b||_inf, TINY): the velocity unit of every scaled metric."""
+    return vector_scale(problem.b)
 
 
 def is_finite(impulses: np.ndarray | None, problem: ImpactProblem) -> bool:
@@ -39,12 +44,12 @@ def residual(problem: ImpactProblem, impulses: np.ndarray) -> float:
     """residual = ||min(D l, Q l + b)||_inf / max(||b||_inf, tiny)."""
     if problem.n_contacts == 0:
         return 0.0
-    return float(np.max(np.abs(natural_map(problem, impulses)))) / _scale(problem)
+    return float(np.max(np.abs(natural_map(problem, impulses)))) / scale(problem)
 
 
 def complementarity(problem: ImpactProblem, impulses: np.ndarray) -> float:
     """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity)."""
-    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / _scale(problem) ** 2
+    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / scale(problem) ** 2
 
 
 def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
@@ -52,7 +57,7 @@ def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
     if problem.n_contacts == 0:
         return 0.0
     worst = max(0.0, -float(np.min(problem.diag_Q * impulses)), -float(np.min(problem.w(impulses))))
-    return worst / _scale(problem)
+    return worst / scale(problem)
 
 
 def v_error(problem: ImpactProblem, impulses: np.ndarray, v_plus_ref: np.ndarray) -> float:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-TINY = 1e-300
+from qpbench.problem.metrics import TINY
 
 
 def energy(masses: np.ndarray, inertia: np.ndarray, free: np.ndarray, positions: np.ndarray,

@@ -3,7 +3,7 @@
 A solver is a :class:`SolverSpec`: a name, the formulation it poses, the backend
 family that runs it, and a ``solve(problem, accuracy, warm_start)`` function
 returning a :class:`SolverOutput`. qpbench judges the output with its own
-metrics (``qpbench.metrics``); ``claimed_success`` is only recorded, to measure
+metrics (``qpbench.problem.metrics``); ``claimed_success`` is only recorded, to measure
 status honesty.
 """
 

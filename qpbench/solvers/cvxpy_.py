@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from qpbench.problem import metrics
 from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.qpsolvers_ import problem_scale
 from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
@@ -109,7 +109,7 @@ def make_solve(solver: str, formulation: str) -> Callable[..., SolverOutput]:
               ) -> SolverOutput:
         import cvxpy as cp
 
-        scale = problem_scale(problem)
+        scale = metrics.scale(problem)
         options = accuracy.options_for(name, eps, scale)
         model = Model(problem, formulation)
         if warm_start is not None and solver in NLP_SOLVERS:

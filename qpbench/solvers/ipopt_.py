@@ -30,11 +30,11 @@ except ImportError as _error:  # ipopt drops out and says why
     cyipopt = None
     IMPORT_ERROR = f"import failed: {_error}"
 
+from qpbench.problem import metrics
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.qpsolvers_ import problem_scale
 from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
@@ -115,7 +115,7 @@ def make_solve(formulation: str) -> Callable[..., SolverOutput]:
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
-        scale = problem_scale(problem)
+        scale = metrics.scale(problem)
         options = accuracy.options_for(NAME, eps, scale)
         program, bounds, start, impulses_of = _posed(formulation, problem, warm_start)
         nlp = cyipopt.Problem(n=start.size, m=bounds["cl"].size, problem_obj=program, **bounds)

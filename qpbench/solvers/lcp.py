@@ -14,8 +14,8 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
-from qpbench import __version__, metrics
-from qpbench.metrics import TINY
+from qpbench import __version__
+from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput
 
@@ -45,7 +45,7 @@ class Lcp:
         """The LCP of ``problem``; ``op`` dense when it has at most ``dense_limit`` contacts."""
         Q = sp.csr_matrix(problem.Q)
         b = np.asarray(problem.b, dtype=float)
-        scale = max(float(np.max(np.abs(b), initial=0.0)), TINY)
+        scale = metrics.vector_scale(b)
         op = Q.toarray() if Q.shape[0] <= dense_limit else Q
         return cls(Q=Q, b=b, diag=np.asarray(problem.diag_Q, dtype=float), scale=scale, op=op,
                    problem=problem)

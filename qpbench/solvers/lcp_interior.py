@@ -21,6 +21,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from qpbench.problem import metrics
 from qpbench.solvers.lcp import Lcp
 
 
@@ -68,7 +69,7 @@ def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
     Q = sp.csr_matrix(sp.diags(root) @ lcp.Q @ sp.diags(root))
     op = lcp.op * root[:, None] * root[None, :] if lcp.dense else Q
     b = lcp.b * root
-    scale = max(float(np.max(np.abs(b), initial=0.0)), 1e-300)
+    scale = metrics.vector_scale(b)
     return Lcp(Q=Q, b=b, diag=np.ones(lcp.n), scale=scale, op=op), root
 
 

@@ -28,6 +28,7 @@ except ImportError as _error:  # every solver of this family drops out and says 
     qpsolvers = None
     IMPORT_ERROR = f"import failed: {_error}"
 
+from qpbench.problem import metrics
 from qpbench.problem.formulations import factored_dual_qp, primal_qp, regularized
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
@@ -46,11 +47,6 @@ POSITIVE_DEFINITE_ONLY = frozenset({"quadprog", "ecos"})
 # regularized variants: name -> the backend that solves Q + delta I
 REGULARIZED = {"quadprog-reg": "quadprog", "ecos-reg": "ecos"}
 NOT_POSITIVE_DEFINITE = "unsupported: not positive definite"
-
-
-def problem_scale(problem: ImpactProblem) -> float:
-    """scale = max(||b||_inf, tiny), the velocity unit of qpbench's residual."""
-    return max(float(np.max(np.abs(problem.b), initial=0.0)), 1e-300)
 
 
 def _claim(solver: str, solution: qpsolvers.Solution) -> tuple[str, int | None]:
@@ -130,12 +126,12 @@ def make_solve(name: str, solver: str, formulation: str) -> Callable[..., Solver
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
-        scale = problem_scale(problem)
+        scale = metrics.scale(problem)
         options = accuracy.options_for(name, eps, scale)
         delta = None
         if "regularization" in options:
             delta = float(options.pop("regularization")) * max(
-                float(np.max(problem.diag_Q, initial=0.0)), 1e-300)
+                float(np.max(problem.diag_Q, initial=0.0)), metrics.TINY)
         qp, impulses_of = _build(formulation, problem, solver, delta)
         initvals = _initial_values(formulation, problem, warm_start)
         messages: list[str] = []

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from qpbench import metrics
+from qpbench.problem import metrics
 from qpbench.problem.formulations import pose
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec, Stopwatch
