@@ -152,7 +152,7 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
     qpbench's exactly, even on masses over 1e-6 .. 1e6; the rounding bound covers any order."""
     from qpbench.solvers.lcp import Lcp
     from qpbench.solvers.pi_robust import csc_arrays
-    from qpbench.solvers.pi_robust_dense import natural_residual, residual_rounding_bound
+    from qpbench.solvers.pi_robust_envelope import natural_residual, residual_rounding_bound
 
     rng = np.random.default_rng(7)
     for problem in [generate("mass-ratio", 10, seed=3)[0], generate("grid", 7, seed=0)[0],
@@ -171,19 +171,19 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
 def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor() -> None:
     """A block that Cholesky refuses (here: a kernel made to raise) sends the solve to the
     Python path, which still converges and says so."""
-    from qpbench.solvers import pi_robust_dense
+    from qpbench.solvers import pi_robust_envelope
 
     problem = hard_problem("grid", 5, seed=0)
-    kernel = pi_robust_dense.dense_pi_robust
+    kernel = pi_robust_envelope.envelope_pi_robust
 
     def refusing(*args: object, **kwargs: object) -> None:
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
-    pi_robust_dense.dense_pi_robust = refusing
+    pi_robust_envelope.envelope_pi_robust = refusing
     try:
         row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     finally:
-        pi_robust_dense.dense_pi_robust = kernel
+        pi_robust_envelope.envelope_pi_robust = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
@@ -205,7 +205,7 @@ def test_pi_robust_compiled_path_declines_a_too_wide_envelope() -> None:
 
 
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
-    from qpbench.solvers.pi_robust_dense import (
+    from qpbench.solvers.pi_robust_envelope import (
         _envelope_pattern,
         _permuted,
         reverse_cuthill_mckee,

@@ -36,7 +36,7 @@ by LU) or sparse SuperLU; the last factors of policy blocks are kept, so prox
 steps on a settled policy cost triangular solves only.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
-(``qpbench.solvers.pi_robust_dense``: numba, contacts in reverse Cuthill-McKee order,
+(``qpbench.solvers.pi_robust_envelope``: numba, contacts in reverse Cuthill-McKee order,
 envelope Cholesky factors); its answer is reported when a rounding bound or qpbench's own
 residual confirms it, otherwise (or when a factor fails) this Python path runs, and the time
 of both counts. The kernel is loaded from numba's cache (compiled once, ``cache=True``) by
@@ -256,15 +256,16 @@ def csc_arrays(lcp: Lcp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
               start: np.ndarray, options: dict, work_limit: float
               ) -> tuple[np.ndarray, bool, str, int, dict] | None:
-    """The compiled path (``pi_robust_dense``): its answer when qpbench's residual confirms
+    """The compiled path (``pi_robust_envelope``): its answer when qpbench's residual confirms
     it, else None (the caller then runs the Python path)."""
-    from qpbench.solvers import pi_robust_dense as dense
+    from qpbench.solvers import pi_robust_envelope as envelope
 
-    settings = {key: value for key, value in options.items() if key != "lemke_limit"}
+    settings = envelope.Options(**{key: value for key, value in options.items()
+                                   if key != "lemke_limit"})
     try:
-        impulses, converged, path, solves, interior, factorizations = dense.dense_pi_robust(
-            *csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start, ORDERING_ABOVE,
-            work_limit, **settings)
+        impulses, converged, path, solves, interior, factorizations = \
+            envelope.envelope_pi_robust(csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start,
+                                        ORDERING_ABOVE, work_limit, settings)
     except np.linalg.LinAlgError:
         return None
     if not converged:
@@ -272,14 +273,14 @@ def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
     tol = options["tol"]
     # the kernel's residual is qpbench's formula in the same summation order; accepted when
     # even a worst-case rounding difference keeps it within tol, else qpbench's own metric
-    certified = dense.natural_residual(csc, lcp.b, lcp.diag, lcp.scale, impulses) \
-        + dense.residual_rounding_bound(csc, lcp.b, lcp.scale, impulses) <= tol
+    certified = envelope.natural_residual(csc, lcp.b, lcp.diag, lcp.scale, impulses) \
+        + envelope.residual_rounding_bound(csc, lcp.b, lcp.scale, impulses) <= tol
     if not (certified or lcp.converged(impulses, tol)):
         return None
-    info: dict = {"path": dense.PATH_NAMES[path], "compiled": True,
+    info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
                   "factorizations": int(factorizations),
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
-    if path == dense.PATH_INTERIOR:
+    if path == envelope.PATH_INTERIOR:
         info["interior_iterations"] = int(interior)
     return impulses, True, "converged", int(solves), info
 
@@ -308,7 +309,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 def prepare() -> None:
     """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
-    from qpbench.solvers.pi_robust_dense import warm_up
+    from qpbench.solvers.pi_robust_envelope import warm_up
 
     warm_up()
 

@@ -1,30 +1,51 @@
-"""pi-robust compiled with numba: the same algorithm as ``qpbench.solvers.pi_robust``
-(proximal policy iteration with block principal pivoting, then the Mehrotra interior point of
-``qpbench.solvers.lcp_interior`` whose close iterates are finished by policy iteration), for
-problems with at most the accuracy table's ``compiled_limit`` contacts, without per-step
-Python overhead.
+"""pi-robust compiled with numba, on envelope (skyline, profile) Cholesky factors.
 
-Linear algebra: Q stays in CSC (products are sparse). Above ``order_above`` contacts the
-contacts are put in reverse Cuthill-McKee order (Q's graph is the line graph of the contact
-graph, so this order keeps every block's envelope narrow: a few tens of columns on grids and
-packings). Blocks ``Q_FF + rho D_F`` and the interior point's ``Q~ + diag(d)`` are factored
-by an envelope (profile) Cholesky and solved by envelope substitutions; the last two block
-factors are kept, so prox steps on a settled policy cost two triangular solves. A factor
-that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
+The same algorithm as ``qpbench.solvers.pi_robust`` (proximal policy iteration with block
+principal pivoting, then the Mehrotra interior point of ``qpbench.solvers.lcp_interior`` whose
+close iterates are finished by policy iteration), for problems with at most the accuracy
+table's ``compiled_limit`` contacts, without per-step Python overhead. Nothing here is dense:
+Q stays sparse throughout.
 
-Every residual is qpbench's formula ``||min(D l, Q l + b)||_inf / scale`` summed over the
-problem's own CSC Q in scipy's order; the caller certifies a claimed convergence with a
-rounding bound, or qpbench's own metric, before reporting it. One addition to the Python
-path: when the interior point stalls (its residual not cut by 10% in five iterations, as
-rounding makes it on extreme mass ratios) its best iterate is handed to the finishing policy
-iteration too; and a converged answer whose residual is above tol / 10 gets one more prox
-step on its own policy (``_polish``), so that it is certified without a second residual pass.
+What it computes: l >= 0 with ``min(D l, Q l + b) = 0`` (D = diag Q), to qpbench's residual
+``||min(D l, Q l + b)||_inf / scale <= tol``. Each prox step around a centre z solves
+LCP(Q + rho D, b - rho D z) by block pivoting; each pivot solves, for the policy's free set F,
+
+    (Q_FF + rho D_F) x_F = -q_F
+
+by the envelope Cholesky factor ``L L^T = Q_FF + rho D_F``; the interior point solves its
+Jacobi-scaled Newton system ``(S Q S + diag(max(w / l, 1e-14))) dl = r`` (S = D^-1/2) by the
+same factorization of the whole matrix.
+
+Linear algebra: Q stays in CSC (products are sparse, summed column by column). Above
+``order_above`` contacts the contacts are put in reverse Cuthill-McKee order (Q's graph is the
+line graph of the contact graph, so this order keeps every block's envelope narrow: a few tens
+of columns on grids and packings). Row i of a factor is stored contiguously, its columns
+``first(i) .. i`` (the diagonal last), with ``first(i)`` the leftmost nonzero of row i of the
+block; the factor has the same envelope (no fill outside it), so one factorization costs
+``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a solve ``2 sum_i w_i``. The
+last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho), so prox
+steps on a settled policy cost two triangular solves. A factor that fails raises
+``np.linalg.LinAlgError``; the caller then runs the Python path.
+
+Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
+caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
+reporting it. One addition to the Python path: when the interior point stalls (its residual
+not cut by 10% in five iterations, as rounding makes it on extreme mass ratios) its best
+iterate is handed to the finishing policy iteration too; and a converged answer whose residual
+is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it is
+certified without a second residual pass.
+
+Arguments travel in tuples (zero-cost in nopython mode): a CSC matrix as ``(indptr, indices,
+data)``, the ordered problem as :class:`OrderedLcp`, the problem as posed as :class:`Posed`,
+the options as :class:`Options` and :class:`Prox`, the kept factors as :class:`FactorCache`.
 
 Compilation: ``cache=True`` (machine code cached next to this file); ``warm_up()`` compiles or
 loads it once per process, and pi-robust calls it in its set-up, outside the timed solve.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -37,10 +58,92 @@ PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED = 0, 
 PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
               "interior point did not converge", "declined: envelope too wide")
 
+Csc = tuple[np.ndarray, np.ndarray, np.ndarray]  # (indptr, indices, data) of a CSC matrix
+
+
+class Options(NamedTuple):
+    """pi-robust's options (the keys of its accuracy-table row that the kernel uses)."""
+
+    tol: float  # converged when qpbench's residual <= tol
+    rho: float  # the first prox weight
+    rho_min: float
+    rho_decrease: float
+    stall_ratio: float
+    stall_steps: int
+    backup_steps: int
+    single_exchanges: bool
+    pi_budget: int  # linear solves of the first policy iteration
+    finish_budget: int  # linear solves of each finishing policy iteration
+    finish_below: float  # interior-point residual below which it is finished
+    ipm_iters: int
+
+
+class Prox(NamedTuple):
+    """Safeguards of one prox policy iteration: rho falls by ``rho_decrease`` (not below
+    ``rho_min``) after ``stall_steps`` steps that do not cut the residual by ``stall_ratio``;
+    block pivoting takes ``backup_steps`` non-improving full exchanges, then (when
+    ``single_exchanges``) Murty's single exchanges."""
+
+    rho_min: float
+    rho_decrease: float
+    stall_ratio: float
+    stall_steps: int
+    backup_steps: int
+    single_exchanges: bool
+
+
+class Posed(NamedTuple):
+    """The problem as posed, on which every residual is measured: ``csc`` its Q,
+    ``l[order] = impulses`` for impulses in the kernel's order."""
+
+    csc: Csc
+    b: np.ndarray
+    diag: np.ndarray
+    order: np.ndarray
+
+
+class OrderedLcp(NamedTuple):
+    """LCP(Q, b) in the kernel's order (a bandwidth-reducing permutation of the contacts, or
+    none): ``A`` is Q's CSC arrays, ``safe_diag`` is D with zeros replaced, ``scale`` the
+    residual's scale; ``original`` the problem as posed."""
+
+    A: Csc
+    original: Posed
+    b: np.ndarray
+    diag: np.ndarray
+    safe_diag: np.ndarray
+    scale: float
+
+
+class FactorCache(NamedTuple):
+    """The kept envelope Cholesky factors of blocks ``Q_FF + rho D_F``, one per slot s:
+    ``factors[s]`` (a typed list of arrays, regrown as needed) its rows, ``offsets[s]`` its row
+    starts (row i in ``factors[s][offsets[s, i]:offsets[s, i + 1]]``), ``policies[s]`` and
+    ``rhos[s]`` the key it belongs to (``rhos[s] = -1``: invalid), ``ages[s]`` its last use;
+    ``counters = [factorizations, uses]``. The least recently used slot is replaced."""
+
+    factors: List
+    offsets: np.ndarray
+    policies: np.ndarray
+    rhos: np.ndarray
+    ages: np.ndarray
+    counters: np.ndarray
+
 
 @njit(cache=True)
-def natural_residual(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: np.ndarray,
-                     diag: np.ndarray, scale: float, impulses: np.ndarray) -> float:
+def _factor_cache(n: int, slots: int) -> FactorCache:
+    """An empty cache of ``slots`` factors for blocks of at most n contacts."""
+    factors = List()
+    for _ in range(slots):
+        factors.append(np.empty(0))
+    return FactorCache(factors, np.zeros((slots, n + 1), dtype=np.int64),
+                       np.zeros((slots, n), dtype=np.bool_), np.full(slots, -1.0),
+                       np.zeros(slots, dtype=np.int64), np.zeros(2, dtype=np.int64))
+
+
+@njit(cache=True)
+def natural_residual(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
+                     impulses: np.ndarray) -> float:
     """||min(D l, Q l + b)||_inf / scale with Q l summed column by column over Q's CSC arrays
     ``(indptr, indices, data)`` in the order of scipy's CSC product, so that the value is
     qpbench's ``metrics.residual`` (even where rounding dominates, on extreme mass ratios)."""
@@ -59,8 +162,8 @@ def natural_residual(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: np.ndarr
 
 
 @njit(cache=True)
-def residual_rounding_bound(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: np.ndarray,
-                            scale: float, impulses: np.ndarray) -> float:
+def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
+                            impulses: np.ndarray) -> float:
     """A bound on how far any other summation order of ``Q l + b`` (another product, fused
     multiply-adds) can move the residual: ``2 gamma max_i (sum_k |Q_ik l_k| + |b_i|) / scale``
     with ``gamma = (m + 2) u / (1 - (m + 2) u)``, m the most entries in a column, u = 2^-53
@@ -80,17 +183,16 @@ def residual_rounding_bound(csc: tuple[np.ndarray, np.ndarray, np.ndarray], b: n
 
 
 @njit(cache=True)
-def _original_residual(original: tuple, scale: float, impulses: np.ndarray) -> float:
-    """qpbench's residual of ``impulses`` given in the kernel's order: ``original`` is
-    (indptr, indices, data, b, diag, order) of the problem as posed, ``l[order] = impulses``."""
-    indptr, indices, data, b, diag, order = original
+def _original_residual(original: Posed, scale: float, impulses: np.ndarray) -> float:
+    """qpbench's residual of ``impulses`` given in the kernel's order, on the problem as posed
+    (``l[original.order] = impulses``)."""
     unpermuted = np.empty(impulses.size)
-    unpermuted[order] = impulses
-    return natural_residual((indptr, indices, data), b, diag, scale, unpermuted)
+    unpermuted[original.order] = impulses
+    return natural_residual(original.csc, original.b, original.diag, scale, unpermuted)
 
 
 @njit(cache=True)
-def _matvec(csc: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray) -> np.ndarray:
+def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
     """Q x over Q's CSC arrays."""
     indptr, indices, data = csc
     product = np.zeros(x.size)
@@ -150,7 +252,7 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
 
 
 @njit(cache=True)
-def _envelope_pattern(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray,
+def _envelope_pattern(A: Csc, index: np.ndarray,
                       position: np.ndarray, offsets: np.ndarray) -> None:
     """Row offsets of the lower envelope of Q_II (``position[r]`` = r's place in I, or -1)."""
     indptr, indices, _ = A
@@ -166,7 +268,7 @@ def _envelope_pattern(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.nd
 
 
 @njit(cache=True)
-def _fill(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray,
+def _fill(A: Csc, index: np.ndarray,
           position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
           offsets: np.ndarray) -> None:
     """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``;
@@ -186,18 +288,14 @@ def _fill(A: tuple[np.ndarray, np.ndarray, np.ndarray], index: np.ndarray,
 
 
 @njit(cache=True)
-def _block_solve(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
-                 policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray,
-                 factors: List, offsets: np.ndarray, policies: np.ndarray, rhos: np.ndarray,
-                 ages: np.ndarray, counters: np.ndarray) -> np.ndarray:
-    """x_F with (Q_FF + rho D_F) x_F = rhs, from a kept factor when the key matches.
-
-    The cache of block factors: ``factors[s]`` (a typed list) holds slot s's envelope
-    Cholesky factor, ``offsets[s]`` its row offsets, ``policies[s]`` and ``rhos[s]`` its key,
-    ``ages[s]`` its last use; ``counters = [factorizations, uses]``; the least recently used
-    slot is replaced."""
+def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
+                 rho: float, rhs: np.ndarray, cache: FactorCache) -> np.ndarray:
+    """x_F with (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's free contacts), from
+    the cache's factor of (policy, rho) when it holds one, else by factoring
+    ``L L^T = Q_FF + rho D_F`` into the least recently used slot."""
     n = safe_diag.size
     size = index.size
+    factors, offsets, policies, rhos, ages, counters = cache
     counters[1] += 1
     for slot in range(rhos.size):
         if rhos[slot] == rho and np.all(policies[slot] == policy):
@@ -224,12 +322,13 @@ def _block_solve(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.nda
 
 
 @njit(cache=True)
-def _inner_lcp(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarray,
-               policy: np.ndarray, rho: float, q: np.ndarray, tol_l: np.ndarray, tol_w: float,
-               backup_steps: int, budget: int, single_exchanges: bool, factors: List,
-               firsts: np.ndarray, policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
-               counters: np.ndarray):
-    """Block principal pivoting on LCP(Q + rho D, q): (x, policy, linear solves, solved)."""
+def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
+               tol_l: np.ndarray, tol_w: float, prox: Prox, budget: int, cache: FactorCache):
+    """Block principal pivoting on LCP(Q + rho D, q), within ``budget`` linear solves:
+    (x, policy, linear solves, solved). Contact i is infeasible when it is free with
+    ``x_i < -tol_l[i]`` or fixed with ``y_i = (Q x + rho D x + q)_i < -tol_w``."""
+    A, safe_diag = lcp.A, lcp.safe_diag
+    backup_steps, single_exchanges = prox.backup_steps, prox.single_exchanges
     n = q.size
     shift = rho * safe_diag
     best = n + 1
@@ -240,8 +339,7 @@ def _inner_lcp(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarr
         index = np.flatnonzero(policy)
         x = np.zeros(n)
         if index.size:
-            x[index] = _block_solve(A, safe_diag, policy, index, rho, -q[index], factors,
-                                    firsts, policies, rhos, ages, counters)
+            x[index] = _block_solve(A, safe_diag, policy, index, rho, -q[index], cache)
         solves += 1
         y = _matvec(A, x) + shift * x + q
         infeasible = (policy & (x < -tol_l)) | (np.logical_not(policy) & (y < -tol_w))
@@ -264,16 +362,13 @@ def _inner_lcp(A: tuple[np.ndarray, np.ndarray, np.ndarray], safe_diag: np.ndarr
 
 
 @njit(cache=True)
-def _prox_policy_iteration(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple,
-                           b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
-                           scale: float, centre: np.ndarray, policy: np.ndarray, tol: float,
-                           rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
-                           stall_steps: int, backup_steps: int, single_exchanges: bool,
-                           budget: int, factors: List, firsts: np.ndarray,
-                           policies: np.ndarray, rhos: np.ndarray, ages: np.ndarray,
-                           counters: np.ndarray):
-    """Prox steps from ``centre``/``policy`` within ``budget`` solves:
+def _prox_policy_iteration(lcp: OrderedLcp, centre: np.ndarray, policy: np.ndarray,
+                           tol: float, rho: float, prox: Prox, budget: int,
+                           cache: FactorCache):
+    """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from
+    ``centre``/``policy`` within ``budget`` solves:
     (best l, converged, status code, solves, best residual)."""
+    original, b, safe_diag, scale = lcp.original, lcp.b, lcp.safe_diag, lcp.scale
     tol_l = 0.1 * tol * scale / safe_diag
     tol_w = 0.1 * tol * scale
     res = _original_residual(original, scale, centre)
@@ -283,9 +378,8 @@ def _prox_policy_iteration(A: tuple[np.ndarray, np.ndarray, np.ndarray], origina
     status = PROX_BUDGET
     while solves < budget:
         q = b - rho * safe_diag * centre
-        x, policy, used, solved = _inner_lcp(A, safe_diag, policy, rho, q, tol_l, tol_w,
-                                             backup_steps, budget - solves, single_exchanges,
-                                             factors, firsts, policies, rhos, ages, counters)
+        x, policy, used, solved = _inner_lcp(lcp, policy, rho, q, tol_l, tol_w, prox,
+                                             budget - solves, cache)
         solves += used
         centre = np.maximum(x, 0.0)
         previous = res
@@ -296,13 +390,13 @@ def _prox_policy_iteration(A: tuple[np.ndarray, np.ndarray, np.ndarray], origina
             return centre, True, PROX_CONVERGED, solves, res
         if not solved:
             break
-        stalls = stalls + 1 if res > stall_ratio * previous else 0
-        if stalls >= stall_steps:
+        stalls = stalls + 1 if res > prox.stall_ratio * previous else 0
+        if stalls >= prox.stall_steps:
             stalls = 0
-            if rho * rho_decrease < rho_min:
+            if rho * prox.rho_decrease < prox.rho_min:
                 status = PROX_STALLED
                 break
-            rho *= rho_decrease
+            rho *= prox.rho_decrease
     return best, False, status, solves, best_res
 
 
@@ -319,76 +413,57 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def _polish(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple, b: np.ndarray,
-            diag: np.ndarray, safe_diag: np.ndarray, scale: float, impulses: np.ndarray,
-            tol: float, rho: float, factors: List, firsts: np.ndarray, policies: np.ndarray,
-            rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray):
+def _polish(lcp: OrderedLcp, impulses: np.ndarray, tol: float, rho: float,
+            cache: FactorCache):
     """(l, solves): a converged l whose residual is above tol / 10 gets one more prox step on
-    its own policy (usually the kept factor: two triangular solves), kept if it lowers the
-    residual. A prox step ends at residual ~ rho |D (l - z)|, about tol when rho = tol; the
-    margin lets the caller certify the answer without a second residual pass."""
-    if _original_residual(original, scale, impulses) <= 0.1 * tol:
+    its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two triangular
+    solves), kept if it lowers the residual. A prox step ends at residual
+    ~ rho |D (l - z)|, about tol when rho = tol; the margin lets the caller certify the answer
+    without a second residual pass."""
+    if _original_residual(lcp.original, lcp.scale, impulses) <= 0.1 * tol:
         return impulses, 0
-    w = _matvec(A, impulses) + b
+    w = _matvec(lcp.A, impulses) + lcp.b
+    one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
     polished, _, _, used, _ = _prox_policy_iteration(
-        A, original, b, diag, safe_diag, scale, impulses, w < diag * impulses, 0.1 * tol, rho,
-        rho, 1.0, 0.5, 1, 0, False, 1, factors, firsts, policies, rhos, ages, counters)
+        lcp, impulses, w < lcp.diag * impulses, 0.1 * tol, rho, one_step, 1, cache)
     return polished, used
 
 
 @njit(cache=True)
-def _finish(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple, b: np.ndarray,
-            diag: np.ndarray, safe_diag: np.ndarray, scale: float, start: np.ndarray,
-            start_w: np.ndarray, tol: float, rho: float, rho_min: float, rho_decrease: float,
-            stall_ratio: float, stall_steps: int, backup_steps: int, single_exchanges: bool,
-            finish_budget: int, factors: List, firsts: np.ndarray, policies: np.ndarray,
-            rhos: np.ndarray, ages: np.ndarray, counters: np.ndarray):
+def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float, rho: float,
+            prox: Prox, finish_budget: int, cache: FactorCache):
     """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
     policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
     finished, done, _, used, _ = _prox_policy_iteration(
-        A, original, b, diag, safe_diag, scale, start, start_w < diag * start, tol, rho,
-        rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
-        finish_budget, factors, firsts, policies, rhos, ages, counters)
+        lcp, start, start_w < lcp.diag * start, tol, rho, prox, finish_budget, cache)
     if done:
-        finished, polished = _polish(A, original, b, diag, safe_diag, scale, finished, tol,
-                                     rho, factors, firsts, policies, rhos, ages, counters)
+        finished, polished = _polish(lcp, finished, tol, rho, cache)
         used += polished
     return finished, done, used
 
 
 @njit(cache=True)
-def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple,
-                    b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
-                    scale: float, start: np.ndarray, tol: float, rho: float, rho_min: float,
-                    rho_decrease: float, stall_ratio: float, stall_steps: int,
-                    backup_steps: int, single_exchanges: bool, pi_budget: int,
-                    finish_budget: int, finish_below: float, ipm_iters: int):
+def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0).
 
-    ``A`` is Q's CSC arrays in the kernel's order (a bandwidth-reducing permutation of the
-    contacts, or none); ``b``, ``diag``, ``safe_diag``, ``start`` and the answer are in that
-    order too; ``original`` = (indptr, indices, data, b, diag, order) of the problem as posed
-    (``l[order] = answer``), on which every residual is measured."""
+    ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
+    on ``lcp.original``."""
+    A, original, b, diag, safe_diag, scale = lcp
+    tol, rho = options.tol, options.rho
+    prox = Prox(options.rho_min, options.rho_decrease, options.stall_ratio,
+                options.stall_steps, options.backup_steps, options.single_exchanges)
+    finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
-    factors = List()
-    for _ in range(2):
-        factors.append(np.empty(0))
-    firsts = np.zeros((2, n + 1), dtype=np.int64)
-    policies = np.zeros((2, n), dtype=np.bool_)
-    rhos = np.full(2, -1.0)
-    ages = np.zeros(2, dtype=np.int64)
-    counters = np.zeros(2, dtype=np.int64)
+    cache = _factor_cache(n, 2)
+    counters = cache.counters
     if _original_residual(original, scale, start) <= tol:
         return start, True, PATH_START, 0, 0, 0
     w = _matvec(A, start) + b
     first, converged, _, solves, _ = _prox_policy_iteration(
-        A, original, b, diag, safe_diag, scale, start, w <= diag * start, tol, rho, rho_min,
-        rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges, pi_budget,
-        factors, firsts, policies, rhos, ages, counters)
+        lcp, start, w <= diag * start, tol, rho, prox, options.pi_budget, cache)
     if converged:
-        first, used = _polish(A, original, b, diag, safe_diag, scale, first, tol, rho, factors,
-                              firsts, policies, rhos, ages, counters)
+        first, used = _polish(lcp, first, tol, rho, cache)
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
@@ -404,7 +479,7 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
     best, best_res, best_w = impulses * root, np.inf, slack / root
     progress, stalled = np.inf, 0
     iterations = 0
-    for iteration in range(1, ipm_iters + 1):
+    for iteration in range(1, options.ipm_iters + 1):
         iterations = iteration - 1
         infeasibility = root * _matvec(A, root * impulses) + scaled_b - slack
         mu = float(impulses @ slack) / n
@@ -425,10 +500,8 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
         if res <= tol and _original_residual(original, scale, original_l) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
-            finished, done, used = _finish(
-                A, original, b, diag, safe_diag, scale, original_l, original_w, tol, rho,
-                rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
-                finish_budget, factors, firsts, policies, rhos, ages, counters)
+            finished, done, used = _finish(lcp, original_l, original_w, tol, rho, prox,
+                                           finish_budget, cache)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
@@ -437,9 +510,7 @@ def _solve_ordered(A: tuple[np.ndarray, np.ndarray, np.ndarray], original: tuple
         if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
             stalled = 0
             finished, done, used = _finish(  # from its best iterate
-                A, original, b, diag, safe_diag, scale, best, best_w, tol, rho, rho_min,
-                rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
-                finish_budget, factors, firsts, policies, rhos, ages, counters)
+                lcp, best, best_w, tol, rho, prox, finish_budget, cache)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
@@ -528,19 +599,17 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 
 
 @njit(cache=True)
-def dense_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
-                    diag: np.ndarray, safe_diag: np.ndarray, scale: float, start: np.ndarray,
-                    order_above: int, max_envelope_work: float, tol: float, rho: float,
-                    rho_min: float, rho_decrease: float, stall_ratio: float, stall_steps: int,
-                    backup_steps: int, single_exchanges: bool, pi_budget: int,
-                    finish_budget: int, finish_below: float, ipm_iters: int):
+def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
+                       scale: float, start: np.ndarray, order_above: int,
+                       max_envelope_work: float, options: Options):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
-    iterations, factorizations) of pi-robust on LCP(Q, b), Q given by its CSC arrays, from
-    ``start`` (l >= 0). Above ``order_above`` contacts the contacts are first put in reverse
-    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow.
-    When one factorization of the whole envelope would cost more than ``max_envelope_work``
-    multiply-adds (sum of squared row widths / 2: wide grids), it declines at once (path
-    ``PATH_DECLINED``) and the caller's sparse path runs."""
+    iterations, factorizations) of pi-robust on LCP(Q, b), Q given by its CSC arrays ``csc``,
+    from ``start`` (l >= 0). Above ``order_above`` contacts the contacts are first put in
+    reverse Cuthill-McKee order (inside the timed call), which keeps the envelope factors
+    narrow. When one factorization of the whole envelope would cost more than
+    ``max_envelope_work`` multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide
+    grids), it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs."""
+    indptr, indices, data = csc
     n = b.size
     order = np.arange(n)
     A = (indptr, indices, data)
@@ -555,11 +624,10 @@ def dense_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b
         work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
     if work > max_envelope_work:
         return start.copy(), False, PATH_DECLINED, 0, 0, 0
-    original = (indptr, indices, data, b, diag, order)
+    lcp = OrderedLcp(A, Posed((indptr, indices, data), b, diag, order), b[order], diag[order],
+                     safe_diag[order], scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
-        A, original, b[order], diag[order], safe_diag[order], scale, start[order], tol, rho,
-        rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, single_exchanges,
-        pi_budget, finish_budget, finish_below, ipm_iters)
+        lcp, start[order], options)
     impulses = np.empty(n)
     impulses[order] = answer
     return impulses, converged, path, solves, interior, factorizations
@@ -578,11 +646,12 @@ def warm_up() -> None:
     diag = np.diag(Q).copy()
     csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
            Q.T.ravel().copy())
+    options = Options(tol=1e-8, rho=1e-8, rho_min=1e-14, rho_decrease=0.01, stall_ratio=0.5,
+                      stall_steps=3, backup_steps=3, single_exchanges=True, pi_budget=10,
+                      finish_budget=3, finish_below=1e-3, ipm_iters=80)
     for order_above in (64, 0):  # both branches' types
-        impulses, _, _, _, _, _ = dense_pi_robust(*csc, b, diag, diag, 4.0, np.zeros(3),
-                                                  order_above, 1e9, 1e-8, 1e-8, 1e-14, 0.01,
-                                                  0.5,
-                                                  3, 3, True, 10, 3, 1e-3, 80)
+        impulses, _, _, _, _, _ = envelope_pi_robust(csc, b, diag, diag, 4.0, np.zeros(3),
+                                                     order_above, 1e9, options)
     natural_residual(csc, b, diag, 4.0, impulses)
     residual_rounding_bound(csc, b, 4.0, impulses)
     _warm = True
