@@ -12,9 +12,11 @@ from qpbench.bench import stats
 
 
 def _frame(rows: list[tuple[str, str, float, bool]], limit: float = 60.0) -> pd.DataFrame:
-    """(problem, solver, time_s, success) rows of one formulation at one level."""
+    """(problem, solver, time_s, success) rows of one formulation at one level; the solver
+    named ``ours`` has qpbench's own backend."""
     return pd.DataFrame([
         {"problem": problem, "solver": solver, "formulation": "dual", "accuracy": 1e-8,
+         "backend": stats.OWN_BACKEND if solver == "ours" else "external",
          "time_s": time_s, "success": success, "time_limit_s": limit, "status":
          "solved" if success else "inaccurate", "residual": 1e-9 if success else 1e-3,
          "v_error": 1e-9 if success else 1e-3, "claimed_success": True}
@@ -72,7 +74,10 @@ def test_paired_cost_of_accuracy_ignores_problems_failed_at_either_level() -> No
 
 
 def test_honesty_counts_claims_that_disagree_with_the_verdict() -> None:
-    frame = _frame([("p1", "a", 1.0, True), ("p2", "a", 1.0, False)])  # both claim success
+    frame = _frame([("p1", "a", 1.0, True), ("p2", "a", 1.0, False),  # both claim success
+                    ("p1", "ours", 1.0, True)])
     table = stats.honesty(frame).set_index("solver")
     assert table.loc["a/dual", "honesty_rate"] == 0.5
     assert table.loc["a/dual", "false_success_claims"] == 1
+    # a solver written here stops on qpbench's residual: marked, its 100% is by construction
+    assert table.loc["ours/dual", "ours"] == "ours" and table.loc["a/dual", "ours"] == ""
