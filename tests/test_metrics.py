@@ -1,4 +1,4 @@
-"""The metrics of DESIGN section 2 on answers whose truth is known."""
+"""The metrics of docs/design.md section 2 on answers whose truth is known."""
 
 from __future__ import annotations
 

@@ -7,7 +7,7 @@
 * ``mat``: one MATLAB file per problem (scipy.io.savemat) with sparse ``P``, ``q``,
   ``lb`` (dual) or ``P, q, G, h`` (primal), plus ``name``.
 
-Formulations (DESIGN section 1), both as ``min 1/2 x^T P x + q^T x``:
+Formulations (docs/design.md section 1), both as ``min 1/2 x^T P x + q^T x``:
 
 * ``dual``: ``P = Q``, ``q = b``, ``lb = 0`` (x = l, the impulses);
 * ``primal``: ``P = diag(M_free)``, ``q = -M_free v-_free``, ``G x <= h`` with

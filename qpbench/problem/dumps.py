@@ -1,6 +1,6 @@
 """Import of the LCP dumps printed by a research fork of SCISim at a scene's first impact.
 
-Two layouts (DESIGN section 5):
+Two layouts (docs/design.md section 5):
 
 * JSON-like: an object with trailing commas whose matrix entries (``N``, ``Q``, ``Minv``,
   ``v0``, ``b``, ``ipopt_sol``, ``policy_sol``) are ``{"shape": [r, c], "data": [[i, j, value],

@@ -1,4 +1,4 @@
-"""The formulations of one impact problem (DESIGN section 1), as plain arrays for backends.
+"""The formulations of one impact problem (docs/design.md section 1), as plain arrays for backends.
 
 * ``dual``: ``min 1/2 l^T Q l + b^T l  s.t.  l >= 0``.
 * ``lcp``: find ``l >= 0`` with ``w = Q l + b >= 0`` and ``l^T w = 0`` (same data as dual).

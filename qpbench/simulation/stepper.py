@@ -58,7 +58,7 @@ class StepEvent:
 
 @dataclass
 class SimulationResult:
-    """The summary ``qpbench simulate`` prints (DESIGN section 6) and a few more facts.
+    """The summary ``qpbench simulate`` prints (docs/design.md section 6) and a few more facts.
 
     ``impacts`` counts the steps where some contact approaches (``b < 0``; the others have
     l = 0 exactly); ``max_contacts`` the most contacts found in one step;
