@@ -44,6 +44,7 @@ def _rows(problems: Path, output: Path, executor: object) -> pd.DataFrame:
     return frame.sort_values(key)[key + COMPARED].reset_index(drop=True)
 
 
+@pytest.mark.slow
 def test_processes_and_dask_give_the_rows_of_a_serial_run(
         tmp_path: Path, problems: Path, misbehaving_solvers: None) -> None:
     distributed = pytest.importorskip("distributed")

@@ -35,6 +35,7 @@ def test_generate_writes_seeded_problems(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k4-4-s0.npz", "k4-4-s1.npz"]
 
 
+@pytest.mark.slow
 def test_generate_box_scene_writes_a_scene_that_simulates(tmp_path: Path) -> None:
     done = qpbench("generate", "box", "--scene", "--size", "50", "-o", str(tmp_path))
     assert done.returncode == 0, done.stderr

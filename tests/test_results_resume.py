@@ -67,6 +67,7 @@ def misbehaving_solvers() -> Iterator[None]:
         yield
 
 
+@pytest.mark.slow
 def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupted_run(
         tmp_path: Path, misbehaving_solvers: None) -> None:
     problems = tmp_path / "problems"

@@ -23,6 +23,7 @@ def misbehaving_solvers() -> Iterator[None]:
         yield
 
 
+@pytest.mark.slow
 def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
         tmp_path: Path, misbehaving_solvers: None) -> None:
     write_tiny_problems(tmp_path / "problems", count=1)  # K3 only
@@ -65,6 +66,7 @@ def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
     assert exact["time_s"] <= exact["time_median_s"]
 
 
+@pytest.mark.slow
 def test_a_worker_started_as_a_program_is_isolated_too(
         tmp_path: Path, misbehaving_solvers: None) -> None:
     # the way a daemonic process (a Dask worker under a nanny) runs cells: no fork server
