@@ -28,6 +28,16 @@ TIME_S_COVERS = ("`time_s` is the wall time, on one stopwatch around every solve
                  "answer back (cvxpy's compile step included); the minimum over repeats.")
 
 
+def reported_times(**seconds: Any) -> dict[str, float]:
+    """The backend-reported times among ``seconds`` (keys of BACKEND_TIMES) that are numbers;
+    a backend that recorded none of them gives an empty dict."""
+    unknown = set(seconds) - set(BACKEND_TIMES)
+    if unknown:
+        raise ValueError(f"not a backend time: {sorted(unknown)}")
+    return {key: float(value) for key, value in seconds.items()
+            if isinstance(value, int | float | np.floating) and not isinstance(value, bool)}
+
+
 @dataclass
 class SolverOutput:
     """One solve as the solver reported it, and the harness's two times of it.

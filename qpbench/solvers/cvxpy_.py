@@ -32,7 +32,7 @@ from qpbench.problem import metrics
 from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.base import SolverOutput, SolverSpec, reported_times
 from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
@@ -147,11 +147,9 @@ def _reported_times(problem: cp.Problem) -> dict[str, float]:
     """cvxpy's compilation time of the last solve and the solver's own set-up and solve times,
     where they were recorded."""
     stats = problem.solver_stats
-    pairs = {"compile_time_s": getattr(problem, "compilation_time", None),
-             "backend_setup_time_s": getattr(stats, "setup_time", None),
-             "backend_solve_time_s": getattr(stats, "solve_time", None)}
-    return {key: float(value) for key, value in pairs.items()
-            if isinstance(value, int | float | np.floating)}
+    return reported_times(compile_time_s=getattr(problem, "compilation_time", None),
+                          backend_setup_time_s=getattr(stats, "setup_time", None),
+                          backend_solve_time_s=getattr(stats, "solve_time", None))
 
 
 def _version(solver: str) -> str:

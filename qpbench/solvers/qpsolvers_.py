@@ -32,7 +32,7 @@ from qpbench.problem import metrics
 from qpbench.problem.formulations import factored_dual_qp, primal_qp, regularized
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
-from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.base import SolverOutput, SolverSpec, reported_times
 from qpbench.solvers.quiet import c_stdout_silenced
 from qpbench.solvers.registry import register, register_unusable
 
@@ -75,13 +75,11 @@ def _reported_times(solver: str, solution: qpsolvers.Solution) -> dict[str, floa
     info, else qpsolvers' ``build_time`` / ``solve_time`` where it records them."""
     extras: dict[str, Any] = getattr(solution, "extras", None) or {}
     info = extras.get("info")
-    pairs = {"backend_setup_time_s": getattr(solution, "build_time", None),
-             "backend_solve_time_s": getattr(solution, "solve_time", None)}
+    source, setup, solve = solution, "build_time", "solve_time"
     if solver == "osqp" and info is not None:
-        pairs = {"backend_setup_time_s": getattr(info, "setup_time", None),
-                 "backend_solve_time_s": getattr(info, "solve_time", None)}
-    return {key: float(value) for key, value in pairs.items()
-            if isinstance(value, int | float | np.floating)}
+        source, setup = info, "setup_time"
+    return reported_times(backend_setup_time_s=getattr(source, setup, None),
+                          backend_solve_time_s=getattr(source, solve, None))
 
 
 def _integer(value: Any) -> int | None:
