@@ -17,7 +17,6 @@ Formulations (docs/design.md section 1), both as ``min 1/2 x^T P x + q^T x``:
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ import pandas as pd
 import scipy.io
 import scipy.sparse as sp
 
+from qpbench.atomic import atomic_path
 from qpbench.errors import QpbenchError, UnsupportedError
 from qpbench.problem import files
 from qpbench.problem.formulations import primal_qp
@@ -57,16 +57,6 @@ def _dense_flat(matrix: sp.spmatrix, problem: ImpactProblem) -> np.ndarray:
     return np.asarray(matrix.toarray(), dtype=float).ravel()
 
 
-def _replace_atomically(write: Any, path: Path) -> None:
-    temporary = path.with_name(f".tmp-{uuid.uuid4().hex}-{path.name}")
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-
-
 def export_parquet(problems: Iterable[ImpactProblem], path: Path, formulation: str) -> int:
     """Writes qpbenchmark's problem list to ``path``; returns the number of problems."""
     columns: dict[str, list[Any]] = {key: [] for key in QPBENCHMARK_KEYS}
@@ -81,8 +71,8 @@ def export_parquet(problems: Iterable[ImpactProblem], path: Path, formulation: s
         raise QpbenchError("no problems to export")
     frame = pd.DataFrame(columns)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _replace_atomically(lambda target: frame.to_parquet(target, engine="pyarrow", index=False),
-                        path)
+    with atomic_path(path) as temporary:
+        frame.to_parquet(temporary, engine="pyarrow", index=False)
     return len(frame)
 
 
@@ -93,8 +83,8 @@ def export_mat(problems: Iterable[ImpactProblem], folder: Path, formulation: str
     for problem in problems:
         content = {**qp_matrices(problem, formulation), "name": problem.name}
         target = folder / f"{problem.name}.mat"
-        _replace_atomically(lambda temporary, content=content: scipy.io.savemat(
-            str(temporary), content, do_compression=True), target)
+        with atomic_path(target) as temporary:
+            scipy.io.savemat(str(temporary), content, do_compression=True)
         count += 1
     if not count:
         raise QpbenchError("no problems to export")

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from qpbench.atomic import atomic_path
 from qpbench.bench.stats import performance_profile, solver_keys  # noqa: E402
 
 DPI = 110
@@ -38,11 +39,11 @@ def slug(text: str) -> str:
 
 
 def _save(figure: plt.Figure, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".tmp-{path.name}")
-    figure.savefig(temporary, dpi=DPI, bbox_inches="tight", format="png")
-    plt.close(figure)
-    temporary.replace(path)
+    try:
+        with atomic_path(path) as temporary:
+            figure.savefig(temporary, dpi=DPI, bbox_inches="tight", format="png")
+    finally:
+        plt.close(figure)
     return path
 
 

@@ -23,6 +23,7 @@ from typing import Any
 import pandas as pd
 import pyarrow.parquet as pq
 
+from qpbench.atomic import atomic_path
 from qpbench.bench.settings import CELL_KEY
 from qpbench.errors import InputError, QpbenchError
 
@@ -69,31 +70,9 @@ def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def _write_atomically(frame: pd.DataFrame, path: Path) -> None:
-    """Writes ``frame`` to a temporary file beside ``path``, syncs it and renames it to ``path``."""
-    temporary = path.with_name(f".tmp-{uuid.uuid4().hex}-{path.name}")
-    try:
+    """Writes ``frame`` to ``path`` through a synced temporary file and a rename."""
+    with atomic_path(path, durable=True) as temporary:
         frame.to_parquet(temporary, engine="pyarrow", index=False)
-        with open(temporary, "rb") as stream:
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-    _sync_folder(path.parent)
-
-
-def _sync_folder(folder: Path) -> None:
-    """Makes a rename in ``folder`` durable (fsync of the directory, where supported)."""
-    try:
-        descriptor = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(descriptor)
-    except OSError:
-        pass
-    finally:
-        os.close(descriptor)
 
 
 class ResultStore:
