@@ -260,8 +260,7 @@ def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
     it, else None (the caller then runs the Python path)."""
     from qpbench.solvers import pi_robust_envelope as envelope
 
-    settings = envelope.Options(**{key: value for key, value in options.items()
-                                   if key != "lemke_limit"})
+    settings = envelope.options_of(options)
     try:
         impulses, converged, path, solves, interior, factorizations = \
             envelope.envelope_pi_robust(csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start,

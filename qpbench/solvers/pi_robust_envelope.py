@@ -45,7 +45,7 @@ loads it once per process, and pi-robust calls it in its set-up, outside the tim
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -61,23 +61,6 @@ PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
 Csc = tuple[np.ndarray, np.ndarray, np.ndarray]  # (indptr, indices, data) of a CSC matrix
 
 
-class Options(NamedTuple):
-    """pi-robust's options (the keys of its accuracy-table row that the kernel uses)."""
-
-    tol: float  # converged when qpbench's residual <= tol
-    rho: float  # the first prox weight
-    rho_min: float
-    rho_decrease: float
-    stall_ratio: float
-    stall_steps: int
-    backup_steps: int
-    single_exchanges: bool
-    pi_budget: int  # linear solves of the first policy iteration
-    finish_budget: int  # linear solves of each finishing policy iteration
-    finish_below: float  # interior-point residual below which it is finished
-    ipm_iters: int
-
-
 class Prox(NamedTuple):
     """Safeguards of one prox policy iteration: rho falls by ``rho_decrease`` (not below
     ``rho_min``) after ``stall_steps`` steps that do not cut the residual by ``stall_ratio``;
@@ -90,6 +73,25 @@ class Prox(NamedTuple):
     stall_steps: int
     backup_steps: int
     single_exchanges: bool
+
+
+class Options(NamedTuple):
+    """pi-robust's options that the kernel uses (see :func:`options_of`)."""
+
+    tol: float  # converged when qpbench's residual <= tol
+    rho: float  # the first prox weight
+    prox: Prox  # the safeguards of every prox policy iteration
+    pi_budget: int  # linear solves of the first policy iteration
+    finish_budget: int  # linear solves of each finishing policy iteration
+    finish_below: float  # interior-point residual below which it is finished
+    ipm_iters: int
+
+
+def options_of(settings: dict[str, Any]) -> Options:
+    """The kernel's :class:`Options` from pi-robust's accuracy-table row (other keys ignored)."""
+    prox = Prox(*(settings[name] for name in Prox._fields))
+    return Options(prox=prox, **{name: settings[name] for name in Options._fields
+                                 if name != "prox"})
 
 
 class Posed(NamedTuple):
@@ -451,8 +453,7 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options):
     on ``lcp.original``."""
     A, original, b, diag, safe_diag, scale = lcp
     tol, rho = options.tol, options.rho
-    prox = Prox(options.rho_min, options.rho_decrease, options.stall_ratio,
-                options.stall_steps, options.backup_steps, options.single_exchanges)
+    prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
     cache = _factor_cache(n, 2)
@@ -646,9 +647,10 @@ def warm_up() -> None:
     diag = np.diag(Q).copy()
     csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
            Q.T.ravel().copy())
-    options = Options(tol=1e-8, rho=1e-8, rho_min=1e-14, rho_decrease=0.01, stall_ratio=0.5,
-                      stall_steps=3, backup_steps=3, single_exchanges=True, pi_budget=10,
-                      finish_budget=3, finish_below=1e-3, ipm_iters=80)
+    options = options_of(dict(tol=1e-8, rho=1e-8, rho_min=1e-14, rho_decrease=0.01,
+                              stall_ratio=0.5, stall_steps=3, backup_steps=3,
+                              single_exchanges=True, pi_budget=10, finish_budget=3,
+                              finish_below=1e-3, ipm_iters=80))
     for order_above in (64, 0):  # both branches' types
         impulses, _, _, _, _, _ = envelope_pi_robust(csc, b, diag, diag, 4.0, np.zeros(3),
                                                      order_above, 1e9, options)
