@@ -1,0 +1,144 @@
+"""Metrics of a frictional answer r = (l_N, l_T), computed from the impulses alone
+(docs/design.md section 8).
+
+Per contact k, with ``u = W r + q``, the De Saxce velocity
+``u^_k = (u_N + mu |u_T|, u_T)`` (``coulomb``) or ``u^_k = u_k`` (``ccp``, Anitescu's
+relaxation, in which sliding contacts separate), ``d_k = diag(W_NN)_k`` and the cone
+``K = {|x_T| <= mu x_N}``, the natural map is
+
+    F_k = d_k r_k - P_K(d_k r_k - u^_k)
+
+and it is zero exactly at the solutions of that model. ``residual = ||F||_inf / scale`` with
+the problem's ``scale`` (``max(||q_N||_inf, ||q_T||_inf on contacts with mu > 0, tiny)``).
+At mu = 0, ``P_K(x) = (max(x_N, 0), 0)``, so ``F = (min(d l_N, u_N), d l_T)``: with l_T = 0
+this is the frictionless residual of section 2, to the last bit.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from qpbench.problem.friction import MODELS, FrictionalProblem
+from qpbench.problem.metrics import TINY
+
+
+def project_on_cone(normal: np.ndarray, tangential: np.ndarray, mu: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """P_K(x) per contact, K = {|x_T| <= mu x_N}:
+    x inside K; 0 where ``mu |x_T| <= -x_N`` (in the polar cone); otherwise the projection on
+    the nearer edge, ``(x_N + mu |x_T|) / (1 + mu^2) * (1, mu sign x_T)``."""
+    magnitude = np.abs(tangential)
+    inside = magnitude <= mu * normal
+    polar = mu * magnitude <= -normal
+    edge = (normal + mu * magnitude) / (1.0 + mu * mu)
+    projected_normal = np.where(inside, normal, np.where(polar, 0.0, edge))
+    projected_tangential = np.where(inside, tangential,
+                                    np.where(polar, 0.0, edge * mu * np.sign(tangential)))
+    return projected_normal, projected_tangential
+
+
+def natural_map(problem: FrictionalProblem, impulses: np.ndarray, model: str = "coulomb"
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(F_N, F_T) of the scaled natural map (module docstring) for ``model``."""
+    if model not in MODELS:
+        raise ValueError(f"unknown model {model!r} (known: {', '.join(MODELS)})")
+    normal, tangential = problem.split(impulses)
+    u_normal, u_tangential = problem.split(problem.u(impulses))
+    if model == "coulomb":
+        u_normal = u_normal + problem.mu * np.abs(u_tangential)
+    d = problem.diag_N
+    projected_normal, projected_tangential = project_on_cone(
+        d * normal - u_normal, d * tangential - u_tangential, problem.mu)
+    return d * normal - projected_normal, d * tangential - projected_tangential
+
+
+def residual(problem: FrictionalProblem, impulses: np.ndarray, model: str = "coulomb") -> float:
+    """||F||_inf / scale for ``model`` (module docstring)."""
+    if problem.n_contacts == 0:
+        return 0.0
+    F_normal, F_tangential = natural_map(problem, impulses, model)
+    worst = max(float(np.max(np.abs(F_normal))), float(np.max(np.abs(F_tangential))))
+    return worst / problem.scale
+
+
+def infeasibility(problem: FrictionalProblem, impulses: np.ndarray) -> float:
+    """max(0, -min(d l_N), max(d (|l_T| - mu l_N)), -min(u_N)) / scale."""
+    if problem.n_contacts == 0:
+        return 0.0
+    normal, tangential = problem.split(impulses)
+    u_normal = problem.split(problem.u(impulses))[0]
+    d = problem.diag_N
+    worst = max(0.0, -float(np.min(d * normal)),
+                float(np.max(d * (np.abs(tangential) - problem.mu * normal))),
+                -float(np.min(u_normal)))
+    return worst / problem.scale
+
+
+def complementarity(problem: FrictionalProblem, impulses: np.ndarray) -> float:
+    """|d r^T u^| / scale^2 with the De Saxce u^: the normal complementarity plus the
+    dissipation gap ``mu l_N |u_T| + l_T u_T`` (zero when sliding opposes the slip)."""
+    normal, tangential = problem.split(impulses)
+    u_normal, u_tangential = problem.split(problem.u(impulses))
+    d = problem.diag_N
+    gap = d * normal * (u_normal + problem.mu * np.abs(u_tangential)) \
+        + d * tangential * u_tangential
+    return abs(float(np.sum(gap))) / problem.scale ** 2
+
+
+def v_error(problem: FrictionalProblem, impulses: np.ndarray, v_plus_ref: np.ndarray) -> float:
+    """||v+(r) - v+_ref||_M / ||v-||_M."""
+    difference = problem.m_norm(problem.v_plus(impulses) - v_plus_ref)
+    return difference / max(problem.m_norm(problem.v_minus), TINY)
+
+
+def energy_gain(problem: FrictionalProblem, impulses: np.ndarray) -> float:
+    """(KE+ - KE-) / KE-, signed. With mu > 0 and e > 0 Newton's law may add energy when slip
+    reverses, so it is a diagnostic there, not a verdict."""
+    before = problem.kinetic_energy(problem.v_minus)
+    after = problem.kinetic_energy(problem.v_plus(impulses))
+    return (after - before) / max(before, TINY)
+
+
+def is_finite(impulses: np.ndarray | None, problem: FrictionalProblem) -> bool:
+    """r exists, has 2n entries and all are finite."""
+    return (impulses is not None and np.shape(impulses) == (2 * problem.n_contacts,)
+            and bool(np.all(np.isfinite(impulses))))
+
+
+def evaluate(problem: FrictionalProblem, impulses: np.ndarray | None, accuracy: float,
+             model: str = "coulomb") -> dict[str, Any]:
+    """Every metric of an answer and qpbench's verdict: finite r and the residual of ``model``
+    (the one the formulation solves) <= accuracy. ``coulomb_residual`` is always the exact
+    law's; for a ``ccp`` answer it is the model error, never the verdict. ``v_error`` only
+    where the reference is verified and unique. A problem with no solution is marked
+    (``solvable`` False) and no answer to it counts as a success or a failure."""
+    nan = math.nan
+    reference = problem.reference
+    solvable = reference is None or reference.solvable
+    if not is_finite(impulses, problem):
+        return {"success": False, "residual": nan, "coulomb_residual": nan,
+                "model_error": nan, "v_error": nan, "energy_gain": nan,
+                "complementarity": nan, "infeasibility": nan, "energy_identity_gap": nan,
+                "model": model, "solvable": solvable, "mu_max": problem.mu_max}
+    assert impulses is not None
+    own = residual(problem, impulses, model)
+    coulomb = own if model == "coulomb" else residual(problem, impulses, "coulomb")
+    return {
+        "success": bool(own <= accuracy),
+        "residual": own,
+        "coulomb_residual": coulomb,
+        "model_error": coulomb if model != "coulomb" else nan,
+        "v_error": (v_error(problem, impulses, reference.v_plus)
+                    if reference is not None and reference.verified and model == "coulomb"
+                    else nan),
+        "energy_gain": energy_gain(problem, impulses),
+        "complementarity": complementarity(problem, impulses),
+        "infeasibility": infeasibility(problem, impulses),
+        "energy_identity_gap": nan,
+        "model": model,
+        "solvable": solvable,
+        "mu_max": problem.mu_max,
+    }
