@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 
 FAMILIES = ("qpsolvers_", "cvxpy_", "ipopt_", "policy_iteration", "pi_robust", "pgs", "lemke",
-            "penalty", "apgd")
+            "penalty", "apgd", "nsgs")
 
 for _module in FAMILIES:
     importlib.import_module(f"qpbench.solvers.{_module}")

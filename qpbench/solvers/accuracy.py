@@ -206,6 +206,8 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "lemke": {"tol": _relative, "max_contacts": 1_500, "max_pivots_per_contact": 50},
     "penalty": {"tol": _relative, "kappa": 1e9, "max_iters": 100, "dense_limit": 300},
     "apgd": {"tol": _relative, "max_iters": 50_000, "check_every": 10},
+    # --- frictional solvers written here: tolerance on qpbench's Coulomb residual ---
+    "nsgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
 }
 
 

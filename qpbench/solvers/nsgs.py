@@ -1,0 +1,214 @@
+"""Nonsmooth Gauss-Seidel over contacts for 2D Coulomb friction (docs/design.md section 8).
+
+The method of So-bogus, SCISim's friction engine (Jourdan, Alart and Jean, "A Gauss-Seidel
+like algorithm to solve frictional contact problems", CMAME 155, 1998; the 2D local solver
+as in So-bogus' ``LocalSOCSolver`` and Siconos' ``fc2d_nsgs``): sweep over the contacts and
+give each, with every other contact's impulse fixed, the exact solution of its own 2x2
+problem. With ``W_kk`` the contact's 2x2 block of W and ``b_k = u_k - W_kk r_k`` its local
+free velocity (the other contacts' current impulses included), the local law is tried case
+by case:
+
+1. take-off: ``b_N >= 0`` gives ``r_k = 0``;
+2. stick: ``W_kk r_k = -b_k``, accepted when ``|r_T| <= mu r_N``;
+3. slide with ``u_T > 0``: ``l_T = -mu l_N``, so ``r_N = -b_N / (W_NN - mu W_NT)``, accepted
+   when ``r_N >= 0`` and ``u_T = (W_TN - mu W_TT) r_N + b_T >= 0``;
+4. slide with ``u_T < 0``: ``l_T = +mu l_N``, ``r_N = -b_N / (W_NN + mu W_NT)``, accepted when
+   ``r_N >= 0`` and ``u_T = (W_TN + mu W_TT) r_N + b_T <= 0``.
+
+(the sign convention of the law, ``l_T = -mu l_N sign(u_T)``, the one qpbench's natural map
+measures). A contact where rounding leaves no case accepted takes the candidate with the
+smallest local natural-map residual. At mu = 0 case 3 or 4 always applies with ``l_T = 0``,
+so the method is projected Gauss-Seidel on the normal problem.
+
+Sweep order: contacts are coloured greedily on their interaction graph (two contacts conflict
+when they share a body of finite mass) and a sweep visits the colours in order; contacts of
+one colour do not interact, so one colour is solved at once in numpy, which is exactly
+Gauss-Seidel in that order. Unlike So-bogus there is no skipping of contacts that moved
+little, and the stopping test is qpbench's own Coulomb residual
+(``friction_metrics.residual <= tol``), checked at the start, after the first sweep and then
+every ``check_every`` sweeps, at most ``max_sweeps``; the best iterate checked is returned.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench import __version__
+from qpbench.problem import friction_metrics
+from qpbench.problem.friction import FrictionalProblem
+from qpbench.solvers import accuracy
+from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.pgs import greedy_colours
+from qpbench.solvers.registry import register
+
+NAME = "nsgs"
+FORMULATION = "nsgs"
+BACKEND = "qpbench"
+VERSION = __version__
+
+
+def contact_graph(problem: FrictionalProblem) -> sp.csr_matrix:
+    """Contacts k, j are adjacent when a body of finite mass carries both (W's 2x2 block
+    (k, j) may be nonzero)."""
+    pattern = (abs(problem.normal.G) + abs(problem.T)).tocsc()
+    pattern.data[:] = 1.0
+    moving = sp.diags((problem.m_inv > 0).astype(float))
+    return sp.csr_matrix(pattern.T @ moving @ pattern)
+
+
+def start_in_cone(problem: FrictionalProblem, warm_start: np.ndarray | None) -> np.ndarray:
+    """The warm start clipped into the cone (l_N >= 0, |l_T| <= mu l_N) when it has 2n finite
+    entries, else 0."""
+    n = problem.n_contacts
+    if warm_start is not None:
+        warm = np.asarray(warm_start, dtype=float).ravel()
+        if warm.shape == (2 * n,) and np.all(np.isfinite(warm)):
+            normal = np.maximum(warm[:n], 0.0)
+            bound = problem.mu * normal
+            return np.concatenate([normal, np.clip(warm[n:], -bound, bound)])
+    return np.zeros(2 * n)
+
+
+def local_solve(block: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                b_normal: np.ndarray, b_tangential: np.ndarray, mu: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The exact solution (r_N, r_T) of each contact's 2x2 Coulomb problem
+    ``u = W_kk r + b`` (module docstring), vectorized over contacts. ``block`` is
+    (W_NN, W_NT, W_TN, W_TT) of each contact's W_kk."""
+    a, c_nt, c_tn, d = block
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # stick: W_kk r = -b by Cramer's rule
+        det = a * d - c_nt * c_tn
+        stick_n = (-b_normal * d + c_nt * b_tangential) / det
+        stick_t = (-a * b_tangential + c_tn * b_normal) / det
+        # slide with u_T > 0 (l_T = -mu l_N) and with u_T < 0 (l_T = +mu l_N)
+        plus_n = -b_normal / (a - mu * c_nt)
+        plus_u = (c_tn - mu * d) * plus_n + b_tangential
+        minus_n = -b_normal / (a + mu * c_nt)
+        minus_u = (c_tn + mu * d) * minus_n + b_tangential
+    take_off = b_normal >= 0.0
+    sticks = (det > 0.0) & (stick_n >= 0.0) & (np.abs(stick_t) <= mu * stick_n)
+    plus = (plus_n >= 0.0) & (plus_u >= 0.0)
+    minus = (minus_n >= 0.0) & (minus_u <= 0.0)
+    normal = np.where(take_off, 0.0, np.where(sticks, stick_n, np.where(plus, plus_n, minus_n)))
+    tangential = np.where(take_off, 0.0, np.where(sticks, stick_t,
+                                                  np.where(plus, -mu * plus_n, mu * minus_n)))
+    lost = ~(take_off | sticks | plus | minus)
+    if np.any(lost):
+        normal, tangential = _least_residual(block, b_normal, b_tangential, mu, lost,
+                                             normal, tangential,
+                                             [(stick_n, stick_t), (plus_n, -mu * plus_n),
+                                              (minus_n, mu * minus_n)])
+    return normal, tangential
+
+
+def _least_residual(block, b_normal, b_tangential, mu, lost, normal, tangential, candidates):
+    """Where no case was accepted (rounding at a case boundary, or a singular W_kk): the
+    candidate (0 included) with the smallest local natural-map residual."""
+    a, c_nt, c_tn, d = (part[lost] for part in block)
+    bn, bt, m = b_normal[lost], b_tangential[lost], mu[lost]
+    options = [(np.zeros_like(bn), np.zeros_like(bn))] + [
+        (np.nan_to_num(cn[lost], nan=0.0, posinf=0.0, neginf=0.0),
+         np.nan_to_num(ct[lost], nan=0.0, posinf=0.0, neginf=0.0)) for cn, ct in candidates]
+    best = np.full(bn.shape, np.inf)
+    best_n, best_t = np.zeros_like(bn), np.zeros_like(bn)
+    for rn, rt in options:
+        rn = np.maximum(rn, 0.0)
+        rt = np.clip(rt, -m * rn, m * rn)
+        un = a * rn + c_nt * rt + bn
+        ut = c_tn * rn + d * rt + bt
+        pn, pt = friction_metrics.project_on_cone(a * rn - (un + m * np.abs(ut)), a * rt - ut, m)
+        error = np.maximum(np.abs(a * rn - pn), np.abs(a * rt - pt))
+        better = error < best
+        best = np.where(better, error, best)
+        best_n = np.where(better, rn, best_n)
+        best_t = np.where(better, rt, best_t)
+    normal, tangential = normal.copy(), tangential.copy()
+    normal[lost], tangential[lost] = best_n, best_t
+    return normal, tangential
+
+
+class ContactSweep:
+    """The colour classes of a problem, each with its rows of W (normal and tangential), q
+    and 2x2 blocks, ready for sweeping."""
+
+    def __init__(self, problem: FrictionalProblem) -> None:
+        n = problem.n_contacts
+        W = sp.csr_matrix(problem.W)
+        q = problem.q
+        diagonal = W.diagonal()
+        normal_tangent = np.asarray(W[np.arange(n), np.arange(n) + n]).ravel() if n else \
+            np.zeros(0)
+        movable = problem.diag_N > 0.0  # a contact that moves nothing keeps r = 0
+        self.colour = greedy_colours(contact_graph(problem)) if n else np.zeros(0, dtype=int)
+        self.classes = []
+        for c in range(int(self.colour.max(initial=-1)) + 1):
+            index = np.flatnonzero((self.colour == c) & movable)
+            if index.size == 0:
+                continue
+            rows = np.concatenate([index, index + n])
+            coupling = normal_tangent[index]
+            block = (diagonal[index], coupling, coupling, diagonal[index + n])
+            self.classes.append((index, index + n, W[rows], q[rows], block,
+                                 problem.mu[index]))
+
+    def __call__(self, impulses: np.ndarray) -> None:
+        """One sweep in place."""
+        for normal_index, tangent_index, rows, q, block, mu in self.classes:
+            k = normal_index.size
+            u = rows @ impulses + q
+            r_n, r_t = impulses[normal_index], impulses[tangent_index]
+            a, c_nt, c_tn, d = block
+            b_normal = u[:k] - a * r_n - c_nt * r_t
+            b_tangential = u[k:] - c_tn * r_n - d * r_t
+            normal, tangential = local_solve(block, b_normal, b_tangential, mu)
+            impulses[normal_index] = normal
+            impulses[tangent_index] = tangential
+
+
+def nsgs(problem: FrictionalProblem, sweep: ContactSweep, start: np.ndarray, tol: float,
+         max_sweeps: int, check_every: int
+         ) -> tuple[np.ndarray, bool, str, int, float]:
+    """(r, converged, status, sweeps, residual) with the best checked iterate."""
+    impulses = start.copy()
+    residual = friction_metrics.residual(problem, impulses)
+    best, best_residual = impulses.copy(), residual
+    if residual <= tol:
+        return impulses, True, "converged", 0, residual
+    sweeps = 0
+    while sweeps < max_sweeps:
+        # the first check comes after one sweep: all-stick and all-separating events end there
+        for _ in range(min(1 if sweeps == 0 else check_every, max_sweeps - sweeps)):
+            sweep(impulses)
+            sweeps += 1
+        if not np.all(np.isfinite(impulses)):
+            return best, False, "diverged: non-finite impulses", sweeps, best_residual
+        residual = friction_metrics.residual(problem, impulses)
+        if residual < best_residual:
+            best, best_residual = impulses.copy(), residual
+        if residual <= tol:
+            return impulses, True, "converged", sweeps, residual
+    return best, False, f"max_sweeps ({max_sweeps}) reached", sweeps, best_residual
+
+
+def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
+          ) -> SolverOutput:
+    options = accuracy.options_for(NAME, eps, problem.scale)
+    sweep = ContactSweep(problem)
+    start = start_in_cone(problem, warm_start)
+    impulses, converged, status, sweeps, residual = nsgs(
+        problem, sweep, start, options["tol"], options["max_sweeps"], options["check_every"])
+    return SolverOutput(impulses=impulses, status=status, claimed_success=bool(converged),
+                        iterations=sweeps,
+                        info={"outer_iterations": sweeps, "colours": len(sweep.classes),
+                              "residual": residual,
+                              "order": "greedy colouring of the contact graph, colours in "
+                                       "increasing order"})
+
+
+register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
+                    version=VERSION, warm_start=True, own_stopping_rule=True,
+                    kinds=("frictional",),
+                    description="nonsmooth Gauss-Seidel over contacts, exact 2x2 local solves "
+                                "(take-off, stick, slide), colour-ordered sweeps"))
