@@ -11,6 +11,7 @@ from bench_problems import write_tiny_problems
 
 from qpbench.bench import isolation, runner
 from qpbench.bench.executors import SerialExecutor
+from qpbench.bench.lock import lock_label
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import Cell, Limits, RunSettings
 
@@ -52,6 +53,8 @@ def test_crash_hang_and_memory_blowup_become_rows_while_the_others_finish(
         assert not rows.loc[failed, "success"]
         assert rows.loc[failed, "problem"] == "row3"
         assert rows.loc[failed, "family"] == "k3"  # the problem's summary is there too
+        assert rows.loc[failed, "lock_hash"] == lock_label()  # and where it was measured
+        assert rows.loc[failed, "python_version"]
 
     exact = rows.loc["test-exact"]
     assert exact["status"] == "solved" and exact["success"]

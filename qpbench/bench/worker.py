@@ -21,10 +21,8 @@ import datetime
 import json
 import math
 import os
-import platform
 import resource
 import signal
-import socket
 import statistics
 import sys
 import time
@@ -35,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from qpbench import EXTRA_SOLVERS_ENV, __version__
-from qpbench.bench.lock import lock_label
+from qpbench import EXTRA_SOLVERS_ENV
+from qpbench.bench.provenance import provenance
 from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
@@ -53,31 +51,6 @@ def timer_overhead_s(samples: int = 2000) -> float:
         start = time.perf_counter()
         best = min(best, time.perf_counter() - start)
     return best
-
-
-def cpu_model() -> str:
-    """The CPU's model name from /proc/cpuinfo, else platform.processor()."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as stream:
-            for line in stream:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def provenance() -> dict[str, Any]:
-    """Machine and version columns common to every row this process writes."""
-    return {
-        "qpbench_version": __version__,
-        "lock_hash": lock_label(),
-        "python_version": platform.python_version(),
-        "numpy_version": np.__version__,
-        "platform": platform.platform(),
-        "cpu_model": cpu_model(),
-        "hostname": socket.gethostname(),
-    }
 
 
 def virtual_memory_mb() -> float:
