@@ -32,11 +32,12 @@ FLOAT_COLUMNS = (
     "accuracy", "residual", "v_error", "energy_gain", "complementarity", "infeasibility",
     "energy_identity_gap", "time_s", "time_median_s", "time_max_s", "formulation_time_s",
     "compile_time_s", "backend_setup_time_s", "backend_solve_time_s",
-    "timer_overhead_s", "time_limit_s", "cell_wall_s",
+    "timer_overhead_s", "time_limit_s", "cell_wall_s", "mu_max", "coulomb_residual",
+    "model_error",
 )
 INT_COLUMNS = (
     "bodies", "contacts", "nnz", "rank_deficiency", "iterations", "repeats", "repeats_requested",
-    "memory_limit_mb",
+    "memory_limit_mb", "outer_iterations",
 )
 BOOL_COLUMNS = ("success", "claimed_success", "status_honest", "warm_start_used")
 COLUMNS = (
@@ -44,6 +45,7 @@ COLUMNS = (
     "rank_deficiency", "solver", "formulation", "backend", "solver_version", "accuracy", "mode",
     "status", "solver_status", "claimed_success", "status_honest", "success", "residual",
     "v_error", "energy_gain", "complementarity", "infeasibility", "energy_identity_gap",
+    "kind", "model", "mu_max", "coulomb_residual", "model_error", "outer_iterations",
     "iterations", "time_s", "time_median_s", "time_max_s", "repeats", "repeats_requested",
     "formulation_time_s", "compile_time_s", "backend_setup_time_s", "backend_solve_time_s",
     "warm_start_source", "warm_start_used", "time_limit_s", "memory_limit_mb",

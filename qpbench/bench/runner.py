@@ -18,17 +18,22 @@ from tqdm import tqdm
 
 from qpbench.bench.isolation import IsolatedWorker
 from qpbench.bench.lock import lock_label
+from qpbench.bench.provenance import provenance
 from qpbench.bench.settings import Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
+from qpbench.problem.friction import KIND as FRICTIONAL
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 
 
 def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limits: Limits,
                  solver: dict[str, str] | None = None) -> dict[str, Any]:
     """Adds the cell key, the problem's summary, the solver's backend and version (``solver``,
-    for rows of dead workers) and the limits to a row."""
+    for rows of dead workers), the limits, and (for rows of dead workers) this process's
+    provenance to a row."""
     return {
+        **provenance(),
         **summary,
         "problem_file": cell.problem_file,
         **(solver or {}),
@@ -44,21 +49,33 @@ def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limit
 
 
 # --- the problem set ---------------------------------------------------------------------
-def fingerprint(problem: ImpactProblem) -> str:
-    """A short SHA-256 of the numbers that define the problem (G, M^-1, v-, c, nrel): results
-    of a problem are only resumed for the same numbers."""
+def fingerprint(problem: ImpactProblem | FrictionalProblem) -> str:
+    """A short SHA-256 of the numbers that define the problem (G, M^-1, v-, c, nrel; and T,
+    mu, d_rel of a frictional one): results of a problem are only resumed for the same
+    numbers."""
     digest = hashlib.sha256()
-    G = problem.G.tocsc()
-    for array in (np.asarray(G.shape), G.data, G.indices, G.indptr, problem.m_inv,
-                  problem.v_minus, problem.restitution, problem.n_rel):
+    normal = problem.normal if isinstance(problem, FrictionalProblem) else problem
+    G = normal.G.tocsc()
+    arrays = [np.asarray(G.shape), G.data, G.indices, G.indptr, normal.m_inv,
+              normal.v_minus, normal.restitution, normal.n_rel]
+    if isinstance(problem, FrictionalProblem):
+        T = problem.T.tocsc()
+        arrays += [T.data, T.indices, T.indptr, problem.mu, problem.d_rel]
+    for array in arrays:
         digest.update(np.ascontiguousarray(array).tobytes())
     return digest.hexdigest()[:16]
 
 
-def problem_index(paths: Iterable[str | os.PathLike[str]]) -> list[tuple[str, str, str]]:
-    """(file, problem name, fingerprint) for every problem file named or found; InputError on
-    a name used twice (names identify rows)."""
-    index: list[tuple[str, str, str]] = []
+def kind_of(problem: ImpactProblem | FrictionalProblem) -> str:
+    """``frictional`` or ``impact``: which solvers a problem is offered to (SolverSpec.kinds)."""
+    return FRICTIONAL if isinstance(problem, FrictionalProblem) else "impact"
+
+
+def problem_index(paths: Iterable[str | os.PathLike[str]]
+                  ) -> list[tuple[str, str, str, str]]:
+    """(file, problem name, fingerprint, kind) for every problem file named or found;
+    InputError on a name used twice (names identify rows)."""
+    index: list[tuple[str, str, str, str]] = []
     seen: dict[str, str] = {}
     for path in files.find(paths):
         problem = files.load(path)
@@ -67,16 +84,17 @@ def problem_index(paths: Iterable[str | os.PathLike[str]]) -> list[tuple[str, st
                              f"{seen[problem.name]}; names identify results, so they must be "
                              "unique", attribute="name")
         seen[problem.name] = str(path)
-        index.append((str(path), problem.name, fingerprint(problem)))
+        index.append((str(path), problem.name, fingerprint(problem), kind_of(problem)))
     return index
 
 
-def check_same_problems(index: list[tuple[str, str, str]], stored: Any, output: Path) -> None:
+def check_same_problems(index: list[tuple[str, str, str, str]], stored: Any, output: Path
+                        ) -> None:
     """Refuses to resume when a problem of the same name was stored with other numbers."""
     if stored.empty or "problem_hash" not in stored:
         return
     known = dict(zip(stored["problem"].astype(str), stored["problem_hash"], strict=True))
-    for path, name, digest in index:
+    for path, name, digest, _ in index:
         previous = known.get(name)
         if isinstance(previous, str) and previous != digest:
             raise InputError(path, f"problem '{name}' differs from the one whose results are in "
@@ -121,10 +139,15 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     index = problem_index(problem_paths)
     if not index:
         raise QpbenchError("no problem files found in " + ", ".join(problem_paths))
-    matrix = cells([(path, name) for path, name, _ in index], list(settings.solvers), settings)
-    digests = {path: digest for path, _, digest in index}
+    kinds = {path: kind for path, _, _, kind in index}
+    specs = resolve(list(settings.solvers))
+    takes = {spec.key: spec.kinds for spec in specs}
+    matrix = [cell for cell in cells([(path, name) for path, name, _, _ in index],
+                                     list(settings.solvers), settings)
+              if kinds[cell.problem_file] in takes[cell.solver_key]]
+    digests = {path: digest for path, _, digest, _ in index}
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
-                      for spec in resolve(list(settings.solvers))}
+                      for spec in specs}
     with store.exclusive():
         check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
                             store.path)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 
 FORMULATIONS = ("dual", "primal", "dual-factored", "lcp")
@@ -125,12 +126,15 @@ def _factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
     )
 
 
-def pose(problem: ImpactProblem, formulation: str) -> None:
+def pose(problem: ImpactProblem | FrictionalProblem, formulation: str) -> None:
     """Builds the matrices ``formulation`` hands a solver, kept on ``problem``: ``Q``, ``b``
     and ``diag(Q)`` for ``dual`` and ``lcp``; :func:`primal_qp` for ``primal``;
     :func:`factored_dual_qp` (with L) for ``dual-factored``. The same for every solver of a
-    formulation, so it is timed apart (``formulation_time_s``)."""
-    if formulation in ("dual", "lcp"):
+    formulation, so it is timed apart (``formulation_time_s``). A frictional problem's
+    formulations are posed by :func:`_pose_frictional`."""
+    if isinstance(problem, FrictionalProblem):
+        _pose_frictional(problem, formulation)
+    elif formulation in ("dual", "lcp"):
         _ = problem.Q, problem.b, problem.diag_Q
     elif formulation == "primal":
         primal_qp(problem)
@@ -138,6 +142,25 @@ def pose(problem: ImpactProblem, formulation: str) -> None:
         factored_dual_qp(problem)
     else:
         raise ValueError(f"unknown formulation {formulation!r}")
+
+
+FRICTIONAL_FORMULATIONS = ("staggered", "lcp", "nsgs", "ccp")
+
+
+def _pose_frictional(problem: FrictionalProblem, formulation: str) -> None:
+    """``W``, ``q`` and ``diag(W_NN)`` for ``staggered`` and ``nsgs``; the relaxed impact
+    problem with its ``Q``, ``b`` for ``ccp``; the Stewart-Trinkle LCP for ``lcp``."""
+    if formulation in ("staggered", "nsgs"):
+        _ = problem.W, problem.q, problem.diag_N, problem.scale
+    elif formulation == "ccp":
+        relaxed = problem.relaxed()
+        _ = relaxed.Q, relaxed.b, relaxed.diag_Q
+    elif formulation == "lcp":
+        if "lcp" not in problem.posed:
+            problem.posed["lcp"] = problem.stewart_trinkle()
+    else:
+        raise ValueError(f"unknown frictional formulation {formulation!r} (known: "
+                         f"{', '.join(FRICTIONAL_FORMULATIONS)})")
 
 
 @dataclass(frozen=True)

@@ -83,6 +83,9 @@ class SolverSpec:
     prepare: Callable[[], None] | None = None
     # stops on qpbench's own residual, so its claim agrees with the verdict by construction
     own_stopping_rule: bool = False
+    # the problem kinds it takes: "impact" (ImpactProblem) and/or "frictional"
+    # (FrictionalProblem, whose impulses are r = (l_N, l_T))
+    kinds: tuple[str, ...] = ("impact",)
 
     @property
     def key(self) -> str:

@@ -13,13 +13,18 @@ from typing import Any
 
 import numpy as np
 
-from qpbench.problem import metrics
+from qpbench.problem import friction_metrics, metrics
 from qpbench.problem.formulations import pose
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec, Stopwatch
 
+# the verdict on a problem that has no solution (a wedged contact with e > 0): no solver is
+# charged for it, and it counts neither as a success nor as a failure
+NO_SOLUTION = "no-solution"
 
-def call_solver(spec: SolverSpec, problem: ImpactProblem, accuracy: float,
+
+def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, accuracy: float,
                 warm_start: np.ndarray | None = None) -> SolverOutput:
     """``spec.solve`` on a blind copy of ``problem``, timed, with any exception turned into an
     output with status ``error: ...``.
@@ -62,22 +67,36 @@ def _error_status(error: Exception | None) -> str:
     return f"error: {type(error).__name__}: {error}{where}"
 
 
-def judge(spec: SolverSpec, problem: ImpactProblem, output: SolverOutput,
+def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: SolverOutput,
           accuracy: float) -> dict[str, Any]:
     """The result row of one solve: qpbench's metrics and verdict next to the solver's claim.
 
     ``problem`` must be the untouched original (never the copy the solver was given).
 
-    ``status`` is qpbench's verdict (``solved`` / ``inaccurate`` / ``failed``);
+    A frictional problem is judged by the natural map of the model its formulation solves
+    (``ccp``: Anitescu's relaxation; every other: Coulomb's law), see
+    ``qpbench.problem.friction_metrics``.
+
+    ``status`` is qpbench's verdict (``solved`` / ``inaccurate`` / ``failed``, or
+    ``no-solution`` for a problem known to have none);
     ``solver_status`` is the backend's own; ``status_honest`` is whether its claim agreed.
     """
-    measured = metrics.evaluate(problem, output.impulses, accuracy)
-    if measured["success"]:
+    if isinstance(problem, FrictionalProblem):
+        model = "ccp" if spec.formulation == "ccp" else "coulomb"
+        measured = friction_metrics.evaluate(problem, output.impulses, accuracy, model)
+        finite = friction_metrics.is_finite(output.impulses, problem)
+    else:
+        measured = metrics.evaluate(problem, output.impulses, accuracy)
+        finite = metrics.is_finite(output.impulses, problem)
+    if not measured.pop("solvable", True):
+        status = NO_SOLUTION
+    elif measured["success"]:
         status = "solved"
-    elif metrics.is_finite(output.impulses, problem):
+    elif finite:
         status = "inaccurate"
     else:
         status = "failed"
+    outer = output.info.get("outer_iterations")
     return {
         "solver": spec.name,
         "formulation": spec.formulation,
@@ -90,13 +109,15 @@ def judge(spec: SolverSpec, problem: ImpactProblem, output: SolverOutput,
         "status_honest": bool(output.claimed_success == measured["success"]),
         **measured,
         "iterations": output.iterations,
+        "outer_iterations": int(outer) if isinstance(outer, int | np.integer) else None,
         "time_s": output.time_s,
         "formulation_time_s": output.formulation_time_s,
         **{column: output.backend_times.get(column, math.nan) for column in BACKEND_TIMES},
     }
 
 
-def solve_and_judge(spec: SolverSpec, problem: ImpactProblem, accuracy: float,
+def solve_and_judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
+                    accuracy: float,
                     warm_start: np.ndarray | None = None) -> tuple[dict[str, Any], SolverOutput]:
     """call_solver then judge."""
     output = call_solver(spec, problem, accuracy, warm_start)
