@@ -12,7 +12,9 @@ from __future__ import annotations
 import importlib
 
 FAMILIES = ("qpsolvers_", "cvxpy_", "ipopt_", "policy_iteration", "pi_robust", "pgs", "lemke",
-            "penalty", "apgd", "nsgs")
+            "penalty", "apgd", "nsgs",
+            # twins of the frictionless dual/lcp solvers: after every family they twin
+            "friction_ccp")
 
 for _module in FAMILIES:
     importlib.import_module(f"qpbench.solvers.{_module}")

@@ -1,0 +1,93 @@
+"""Anitescu's convex relaxation (``ccp``) of a frictional problem, run by every frictionless
+solver of the ``dual`` or ``lcp`` formulation (docs/design.md section 8).
+
+In 2D the relaxed cone problem is an ordinary impact problem in ``z = (z+, z-) >= 0`` with the
+columns ``n + mu t`` and ``n - mu t`` (:meth:`FrictionalProblem.relaxed`), so each such solver
+``X`` gets a twin ``X/ccp`` that hands ``problem.relaxed()`` to X's own solve function, with
+X's own accuracy row, and maps its answer back with :meth:`FrictionalProblem.from_relaxed`.
+The twin is judged by the ccp model's natural map; its Coulomb residual is the model error.
+Its claim is X's claim on the relaxed problem, whose residual is measured with other weights
+(the relaxed problem's ``diag(Q)`` and scale), so it is not qpbench's ccp verdict by
+construction.
+
+A warm start r = (l_N, l_T) enters as ``z+- = (l_N +- l_T / mu) / 2`` (``l_N / 2`` each where
+mu = 0), clipped to z >= 0. This module must be imported after the frictionless families
+(``qpbench/solvers/__init__.py``): it twins what is registered when it runs, and an unusable
+X gives an unusable twin with X's reason.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from qpbench.problem.friction import FrictionalProblem
+from qpbench.solvers import registry
+from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
+
+FORMULATION = "ccp"
+INNER_FORMULATIONS = ("dual", "lcp")  # the forms whose solvers take an ImpactProblem's Q, b
+
+
+def frictionless_solvers() -> list[SolverSpec]:
+    """Every registered impact solver of a ``dual`` or ``lcp`` formulation, usable or not,
+    one per name (its ``dual`` form where it has both), in key order."""
+    chosen: dict[str, SolverSpec] = {}
+    for key in sorted(registry._SOLVERS):
+        spec = registry._SOLVERS[key]
+        if "impact" not in spec.kinds or spec.formulation not in INNER_FORMULATIONS:
+            continue
+        if spec.name not in chosen or spec.formulation == "dual":
+            chosen[spec.name] = spec
+    return list(chosen.values())
+
+
+def relaxed_start(problem: FrictionalProblem, warm_start: np.ndarray | None
+                  ) -> np.ndarray | None:
+    """z of the relaxed problem from a warm start r (module docstring), or None."""
+    n = problem.n_contacts
+    if warm_start is None:
+        return None
+    warm = np.asarray(warm_start, dtype=float).ravel()
+    if warm.shape != (2 * n,) or not np.all(np.isfinite(warm)):
+        return None
+    normal, tangential = warm[:n], warm[n:]
+    mu = problem.mu
+    ratio = np.divide(tangential, mu, out=np.zeros(n), where=mu > 0)
+    return np.maximum(np.concatenate([normal + ratio, normal - ratio]) / 2.0, 0.0)
+
+
+def make_solve(inner: SolveFunction) -> Callable[..., SolverOutput]:
+    """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r."""
+
+    def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
+              ) -> SolverOutput:
+        output = inner(problem.relaxed(), eps, relaxed_start(problem, warm_start))
+        z = output.impulses
+        impulses = None
+        if z is not None and np.shape(z) == (2 * problem.n_contacts,):
+            impulses = problem.from_relaxed(np.asarray(z, dtype=float))
+        return SolverOutput(impulses=impulses, status=output.status,
+                            claimed_success=output.claimed_success,
+                            iterations=output.iterations, backend_times=output.backend_times,
+                            info={**output.info, "relaxed_contacts": 2 * problem.n_contacts})
+
+    return solve
+
+
+def twin(spec: SolverSpec) -> SolverSpec:
+    """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is)."""
+    common = {"name": spec.name, "formulation": FORMULATION, "backend": spec.backend,
+              "version": spec.version, "kinds": ("frictional",)}
+    if not spec.usable:
+        return SolverSpec(**common, solve=None, reason=spec.reason)
+    assert spec.solve is not None
+    return SolverSpec(**common, solve=make_solve(spec.solve), warm_start=spec.warm_start,
+                      prepare=spec.prepare,
+                      description=f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved "
+                                  f"by {spec.key}")
+
+
+for _spec in frictionless_solvers():
+    registry.register(twin(_spec))
