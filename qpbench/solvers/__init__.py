@@ -14,7 +14,7 @@ import importlib
 FAMILIES = ("qpsolvers_", "cvxpy_", "ipopt_", "policy_iteration", "pi_robust", "pgs", "lemke",
             "penalty", "apgd", "nsgs",
             # twins of the frictionless dual/lcp solvers: after every family they twin
-            "friction_ccp")
+            "friction_ccp", "friction_staggered")
 
 for _module in FAMILIES:
     importlib.import_module(f"qpbench.solvers.{_module}")

@@ -48,6 +48,11 @@ def _gap(eps: float, scale: float) -> float:
     return eps * scale * scale
 
 
+def _tenth(eps: float, scale: float) -> float:
+    """0.1 * eps: the accuracy level of an inner solve (staggered projections' two QPs)"""
+    return 0.1 * eps
+
+
 def _ipm_gap(eps: float, scale: float) -> float:
     """max(eps^2, 1e-15) * scale^2
 
@@ -208,6 +213,10 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "apgd": {"tol": _relative, "max_iters": 50_000, "check_every": 10},
     # --- frictional solvers written here: tolerance on qpbench's Coulomb residual ---
     "nsgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
+    # staggered projections X/staggered: its outer loop and the box Gauss-Seidel written here
+    # (the box QP of X = pi, pgs, lemke, ...); each inner solve reads X's own row at inner_accuracy
+    "staggered": {"max_outer": 200, "inner_accuracy": _tenth, "box_max_sweeps": 100_000,
+                  "box_check_every": 10},
 }
 
 

@@ -1,0 +1,374 @@
+"""Staggered projections (``staggered``) for 2D Coulomb friction, with a frictionless solver
+inside (docs/design.md section 8).
+
+Source: Kaufman, Sueda, James and Pai, "Staggered projections for frictional contact in
+multibody systems", SIGGRAPH Asia 2008; the loop follows SCISim's ``StaggeredProjections``
+(keep the best iterate, end with one normal solve). A two-block Gauss-Seidel:
+
+1. normal QP for the current l_T: :meth:`FrictionalProblem.normal_given` (the impact problem
+   with ``b + W_NT l_T``), solved by X's own solve function;
+2. friction box QP for that l_N: :meth:`FrictionalProblem.friction_box`,
+   ``min 1/2 l_T^T W_TT l_T + (q_T + W_TN l_N)^T l_T`` over ``-mu l_N <= l_T <= mu l_N``,
+   solved by X's backend with bounds (qpsolvers ``lb``/``ub``, cvxpy box constraints, IPOPT
+   variable bounds); for the LCP solvers written here, which take no bounds, by projected
+   Gauss-Seidel on the box (:func:`box_gauss_seidel`). Contacts with an empty box
+   (``l_N = 0`` or ``mu = 0``) keep ``l_T = 0`` and are not handed to the backend. The answer
+   is clipped into the box (IPOPT relaxes bounds slightly);
+3. qpbench's Coulomb residual (``friction_metrics.residual``) of ``(l_N, l_T)``; stop at
+   ``<= eps``, or after ``max_outer`` rounds (the accuracy table's ``staggered`` row).
+
+A warm start r is checked first (returned as it is when it already meets eps) and its l_T
+starts the loop. Both inner solves run at accuracy ``inner_accuracy`` (eps / 10, as Acary,
+Bremond and Huber 2018 do). The best iterate is kept; at the end one normal solve given the
+best l_T restores the normal law ("to prevent penetration"), and the better of that answer
+and the best iterate, by the Coulomb residual, is returned. A fixed point is exact Coulomb
+friction; convergence is not guaranteed. ``iterations`` is the sum of the inner solvers'
+iterations (where they report them), ``info["outer_iterations"]`` the rounds. The claim is
+the Coulomb residual's test, qpbench's own.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from qpbench.problem import friction_metrics
+from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.metrics import TINY
+from qpbench.solvers import accuracy, registry
+from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
+from qpbench.solvers.friction_ccp import frictionless_solvers
+from qpbench.solvers.pgs import greedy_colours
+from qpbench.solvers.quiet import c_stdout_silenced
+
+FORMULATION = "staggered"
+ROW = "staggered"  # the accuracy row of the outer loop and of the box Gauss-Seidel
+
+
+@dataclass
+class BoxQP:
+    """``min 1/2 x^T P x + c^T x`` over ``lower <= x <= upper`` (every box non-empty)."""
+
+    P: sp.csc_matrix
+    c: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.c.shape[0])
+
+
+@dataclass
+class BoxAnswer:
+    x: np.ndarray | None
+    status: str
+    claimed_success: bool
+    iterations: int | None = None
+
+
+# a box solver: (box QP, inner accuracy, scale, start) -> answer
+BoxSolver = Callable[[BoxQP, float, float, np.ndarray], BoxAnswer]
+
+
+# --- the box QP solved here: projected Gauss-Seidel ---------------------------------------
+def box_residual(box: BoxQP, x: np.ndarray) -> float:
+    """``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
+    (1 where it is 0): the box QP's natural map, a velocity."""
+    if box.n == 0:
+        return 0.0
+    d = box.P.diagonal()
+    d = np.where(d > 0.0, d, 1.0)
+    g = box.P @ x + box.c
+    return float(np.max(np.abs(d * x - np.clip(d * x - g, d * box.lower, d * box.upper))))
+
+
+def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every: int,
+                     start: np.ndarray) -> BoxAnswer:
+    """Coordinate descent with clamping, ``x_i <- clip(x_i - g_i / P_ii, lower_i, upper_i)``,
+    colour by colour on the graph of P (as ``qpbench.solvers.pgs``), until the box residual
+    (:func:`box_residual`) is at most ``tolerance`` (checked every ``check_every`` sweeps). A
+    coordinate with ``P_ii = 0`` has a zero row (P is PSD) and a constant gradient c_i: it goes
+    to the bound that gradient points to, once."""
+    P = sp.csr_matrix(box.P)
+    x = np.clip(start, box.lower, box.upper)
+    d = P.diagonal()
+    flat = d <= 0.0
+    x[flat] = np.where(box.c[flat] > 0.0, box.lower[flat],
+                       np.where(box.c[flat] < 0.0, box.upper[flat], x[flat]))
+    colour = greedy_colours(P)
+    classes = []
+    for c in range(int(colour.max(initial=-1)) + 1):
+        index = np.flatnonzero((colour == c) & ~flat)
+        if index.size:
+            classes.append((index, P[index], box.c[index], d[index], box.lower[index],
+                            box.upper[index]))
+    if box_residual(box, x) <= tolerance:
+        return BoxAnswer(x, "converged", True, 0)
+    sweeps = 0
+    while sweeps < max_sweeps:
+        for _ in range(min(check_every, max_sweeps - sweeps)):
+            for index, rows, linear, diag, lower, upper in classes:
+                gradient = rows @ x + linear
+                x[index] = np.clip(x[index] - gradient / diag, lower, upper)
+            sweeps += 1
+        if box_residual(box, x) <= tolerance:
+            return BoxAnswer(x, "converged", True, sweeps)
+    return BoxAnswer(x, f"max_sweeps ({max_sweeps}) reached", False, sweeps)
+
+
+def _own_box_solver(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
+    options = accuracy.options_for(ROW, eps, scale)
+    return box_gauss_seidel(box, eps * scale, options["box_max_sweeps"],
+                            options["box_check_every"], start)
+
+
+# --- the box QP through the backends --------------------------------------------------------
+def _qpsolvers_box_solver(name: str) -> BoxSolver:
+    from qpbench.solvers import qpsolvers_
+
+    solver = qpsolvers_.REGULARIZED.get(name, name)
+    qpsolvers = qpsolvers_.qpsolvers
+
+    def solve(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
+        options = accuracy.options_for(name, eps, scale)
+        P = box.P
+        if "regularization" in options:
+            delta = float(options.pop("regularization")) * max(
+                float(np.max(P.diagonal(), initial=0.0)), TINY)
+            P = sp.csc_matrix(P + delta * sp.identity(box.n, format="csc"))
+        if solver in ("quadprog", "daqp"):
+            P = P.toarray()
+        qp = qpsolvers.Problem(P=P, q=box.c, lb=box.lower, ub=box.upper)
+        initvals = start if solver in qpsolvers_.WARM_START else None
+        quiet = c_stdout_silenced() if solver == "osqp" else contextlib.nullcontext()
+        with warnings.catch_warnings(), quiet:
+            warnings.simplefilter("ignore")
+            try:
+                solution = qpsolvers.solve_problem(qp, solver=solver, initvals=initvals,
+                                                   **options)
+            except (qpsolvers.ProblemError, qpsolvers.SolverError, ValueError) as error:
+                return BoxAnswer(None, f"error: {error}", False)
+        status, iterations = qpsolvers_._claim(solver, solution)
+        x = solution.x if solution.x is not None and np.size(solution.x) == box.n else None
+        return BoxAnswer(x, status, bool(solution.found), iterations)
+
+    return solve
+
+
+def _cvxpy_box_solver(name: str) -> BoxSolver:
+    from qpbench.solvers import cvxpy_
+
+    solver = next(key for key in cvxpy_.SOLVERS if cvxpy_.qpbench_name(key) == name)
+
+    def solve(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
+        import cvxpy as cp
+
+        options = accuracy.options_for(name, eps, scale)
+        x = cp.Variable(box.n, name="l_T")
+        objective = 0.5 * cp.quad_form(x, cp.psd_wrap(box.P)) + box.c @ x
+        model = cp.Problem(cp.Minimize(objective), [x >= box.lower, x <= box.upper])
+        extra = {}
+        if solver in cvxpy_.NLP_SOLVERS:
+            extra["nlp"] = True
+            x.value = start
+        quiet = c_stdout_silenced() if solver in ("OSQP", "IPOPT") else contextlib.nullcontext()
+        with warnings.catch_warnings(), quiet:
+            warnings.simplefilter("ignore")
+            try:
+                model.solve(solver=solver, **extra, **options)
+            except (cp.error.SolverError, ValueError, ArithmeticError) as error:
+                return BoxAnswer(None, f"error: {type(error).__name__}: {error}", False)
+        stats = model.solver_stats
+        iterations = getattr(stats, "num_iters", None) if stats is not None else None
+        value = None if x.value is None else np.asarray(x.value, dtype=float).ravel()
+        return BoxAnswer(value, str(model.status), model.status == cp.OPTIMAL,
+                         int(iterations) if isinstance(iterations, int | np.integer) else None)
+
+    return solve
+
+
+def _ipopt_box_solver(name: str) -> BoxSolver:
+    from qpbench.solvers import ipopt_
+
+    def solve(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
+        options = accuracy.options_for(name, eps, scale)
+        program = ipopt_.QuadraticProgram(box.P, box.c, sp.csr_matrix((0, box.n)))
+        nlp = ipopt_.cyipopt.Problem(n=box.n, m=0, problem_obj=program, lb=box.lower,
+                                     ub=box.upper, cl=np.zeros(0), cu=np.zeros(0))
+        for key, value in options.items():
+            nlp.add_option(key, value)
+        with c_stdout_silenced():
+            x, info = nlp.solve(np.clip(start, box.lower, box.upper))
+        code = int(info.get("status", -199))
+        return BoxAnswer(np.asarray(x, dtype=float), f"{code}", code == 0, program.iterations)
+
+    return solve
+
+
+def box_solver_for(spec: SolverSpec) -> tuple[BoxSolver, str]:
+    """The friction box QP solver that goes with the frictionless solver ``spec``, and how the
+    description names it."""
+    if spec.backend == "qpsolvers":
+        return _qpsolvers_box_solver(spec.name), f"{spec.name} with lb/ub"
+    if spec.backend == "cvxpy":
+        return _cvxpy_box_solver(spec.name), f"{spec.name} with box constraints"
+    if spec.backend == "cyipopt":
+        return _ipopt_box_solver(spec.name), "ipopt with variable bounds"
+    return _own_box_solver, "projected Gauss-Seidel on the box (written here)"
+
+
+# --- the outer loop --------------------------------------------------------------------
+class Inner:
+    """The two inner solves of one staggered run, counting their iterations."""
+
+    def __init__(self, problem: FrictionalProblem, normal_solve: SolveFunction,
+                 box_solver: BoxSolver, warm_normal: bool, accuracy_level: float) -> None:
+        self.problem = problem
+        self.normal_solve = normal_solve
+        self.box_solver = box_solver
+        self.warm_normal = warm_normal
+        self.eps = accuracy_level
+        self.iterations = 0
+        self.known = False  # whether any inner solver reported an iteration count
+        self.solves = 0
+
+    def _count(self, iterations: int | None) -> None:
+        self.solves += 1
+        if iterations is not None:
+            self.iterations += int(iterations)
+            self.known = True
+
+    def normal(self, tangential: np.ndarray, start: np.ndarray | None
+               ) -> tuple[np.ndarray | None, str]:
+        problem = self.problem
+        sub = problem.normal_given(tangential)
+        _share_matrices(sub, problem.normal)
+        output = self.normal_solve(sub, self.eps, start if self.warm_normal else None)
+        self._count(output.iterations)
+        impulses = output.impulses
+        if impulses is None or np.shape(impulses) != (problem.n_contacts,) or \
+                not np.all(np.isfinite(impulses)):
+            return None, output.status
+        return np.maximum(np.asarray(impulses, dtype=float), 0.0), output.status
+
+    def friction(self, normal: np.ndarray, start: np.ndarray) -> tuple[np.ndarray | None, str]:
+        W_TT, linear, lower, upper = self.problem.friction_box(normal)
+        tangential = np.zeros(self.problem.n_contacts)
+        free = np.flatnonzero(upper > lower)
+        if free.size == 0:
+            return tangential, "empty boxes"
+        box = BoxQP(P=sp.csc_matrix(W_TT[free][:, free]), c=linear[free], lower=lower[free],
+                    upper=upper[free])
+        answer = self.box_solver(box, self.eps, self.problem.scale,
+                                 np.clip(start[free], box.lower, box.upper))
+        self._count(answer.iterations)
+        if answer.x is None or not np.all(np.isfinite(answer.x)):
+            return None, answer.status
+        tangential[free] = np.clip(answer.x, box.lower, box.upper)
+        return tangential, answer.status
+
+
+def _share_matrices(sub: ImpactProblem, normal: ImpactProblem) -> None:
+    """Q, M^-1 G and diag(Q) of the normal problem do not depend on l_T: the sub-problem of
+    every round reuses them (cached properties) instead of forming them again."""
+    for name in ("M_inv_G", "Q", "diag_Q"):
+        sub.__dict__[name] = getattr(normal, name)
+
+
+def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: int,
+              warm_start: np.ndarray | None) -> SolverOutput:
+    n = problem.n_contacts
+    normal = np.zeros(n)
+    tangential = np.zeros(n)
+    best, best_residual = None, np.inf
+    if warm_start is not None:
+        warm = np.asarray(warm_start, dtype=float).ravel()
+        if warm.shape == (2 * n,) and np.all(np.isfinite(warm)):
+            normal, tangential = np.maximum(warm[:n], 0.0), warm[n:].copy()
+            residual = friction_metrics.residual(problem, warm)
+            best, best_residual = warm, residual
+            if residual <= eps:
+                return _output(warm, residual, eps, "warm start already converged", 0, inner)
+    status = f"max_outer ({max_outer}) reached"
+    rounds = 0
+    while rounds < max_outer:
+        rounds += 1
+        solved_normal, normal_status = inner.normal(tangential, normal)
+        if solved_normal is None:
+            status = f"normal QP failed: {normal_status}"
+            break
+        normal = solved_normal
+        solved_tangential, box_status = inner.friction(normal, tangential)
+        if solved_tangential is None:
+            status = f"friction QP failed: {box_status}"
+            break
+        tangential = solved_tangential
+        impulses = np.concatenate([normal, tangential])
+        residual = friction_metrics.residual(problem, impulses)
+        if residual < best_residual:
+            best, best_residual = impulses, residual
+        if residual <= eps:
+            status = "converged"
+            break
+    if best is None:
+        return SolverOutput(impulses=None, status=status, claimed_success=False,
+                            iterations=inner.iterations if inner.known else None,
+                            info={"outer_iterations": rounds, "inner_solves": inner.solves})
+    # one normal solve given the best friction impulse (SCISim: "to prevent penetration")
+    chosen, chosen_residual, ending = best, best_residual, "best iterate"
+    final_normal, _ = inner.normal(best[n:], best[:n])
+    if final_normal is not None:
+        final = np.concatenate([final_normal, best[n:]])
+        final_residual = friction_metrics.residual(problem, final)
+        if final_residual <= best_residual or final_residual <= eps:
+            chosen, chosen_residual, ending = final, final_residual, "final normal solve"
+    if status != "converged" and chosen_residual <= eps:
+        status = "converged"
+    return _output(chosen, chosen_residual, eps, status, rounds, inner, ending)
+
+
+def _output(impulses: np.ndarray, residual: float, eps: float, status: str, rounds: int,
+            inner: Inner, ending: str = "warm start") -> SolverOutput:
+    return SolverOutput(impulses=impulses, status=status, claimed_success=bool(residual <= eps),
+                        iterations=inner.iterations if inner.known else None,
+                        info={"outer_iterations": rounds, "inner_solves": inner.solves,
+                              "residual": residual, "returned": ending})
+
+
+def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverOutput]:
+    """The solve function of ``spec.name/staggered``."""
+    assert spec.solve is not None
+    normal_solve = spec.solve
+
+    def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
+              ) -> SolverOutput:
+        options = accuracy.options_for(ROW, eps, problem.scale)
+        inner = Inner(problem, normal_solve, box_solver, spec.warm_start,
+                      options["inner_accuracy"])
+        return staggered(problem, inner, eps, options["max_outer"], warm_start)
+
+    return solve
+
+
+def twin(spec: SolverSpec) -> SolverSpec:
+    """``NAME/staggered`` of a frictionless solver ``spec`` (unusable with its reason)."""
+    common = {"name": spec.name, "formulation": FORMULATION, "backend": spec.backend,
+              "version": spec.version, "kinds": ("frictional",)}
+    if not spec.usable:
+        return SolverSpec(**common, solve=None, reason=spec.reason)
+    box_solver, box_name = box_solver_for(spec)
+    return SolverSpec(**common, solve=make_solve(spec, box_solver), warm_start=True,
+                      prepare=spec.prepare, own_stopping_rule=True,
+                      description=f"staggered projections: normal QP by {spec.key}, friction "
+                                  f"box QP by {box_name}")
+
+
+for _spec in frictionless_solvers():
+    registry.register(twin(_spec))
