@@ -22,8 +22,7 @@ from qpbench.bench.provenance import provenance
 from qpbench.bench.settings import Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
-from qpbench.problem.friction import KIND as FRICTIONAL
-from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.friction import FrictionalProblem, kind_of
 from qpbench.problem.impact import ImpactProblem
 
 
@@ -65,10 +64,6 @@ def fingerprint(problem: ImpactProblem | FrictionalProblem) -> str:
         digest.update(np.ascontiguousarray(array).tobytes())
     return digest.hexdigest()[:16]
 
-
-def kind_of(problem: ImpactProblem | FrictionalProblem) -> str:
-    """``frictional`` or ``impact``: which solvers a problem is offered to (SolverSpec.kinds)."""
-    return FRICTIONAL if isinstance(problem, FrictionalProblem) else "impact"
 
 
 def problem_index(paths: Iterable[str | os.PathLike[str]]

@@ -6,6 +6,8 @@ import argparse
 
 from qpbench.cli.output import print_json
 from qpbench.problem import files
+from qpbench.problem.friction import KIND as FRICTIONAL
+from qpbench.problem.friction import kind_of
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
 
@@ -21,7 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     problem = files.load(args.problem)
-    spec = get(args.solver)
+    spec = get(args.solver, kind_of(problem))
     row, output = solve_and_judge(spec, problem, args.accuracy)
     result = {
         "problem": problem.name,
@@ -36,13 +38,17 @@ def run(args: argparse.Namespace) -> int:
         "iterations": row["iterations"],
         "time_s": row["time_s"],
     }
+    if kind_of(problem) == FRICTIONAL:  # r = (l_N, l_T); the model its formulation solves
+        for key in ("model", "mu_max", "coulomb_residual", "model_error", "outer_iterations"):
+            result[key] = row.get(key)
     if problem.reference is not None and problem.reference.verified:
         result["v_error"] = row["v_error"]
     if args.json:
         print_json(result)
     else:
         for key in ("problem", "solver", "status", "solver_status", "residual", "v_error",
-                    "energy_gain", "iterations", "time_s"):
+                    "model", "coulomb_residual", "model_error", "energy_gain", "iterations",
+                    "outer_iterations", "time_s"):
             if key in result:
-                print(f"{key:>14}: {result[key]}")
+                print(f"{key:>16}: {result[key]}")
     return 0 if row["success"] else 1

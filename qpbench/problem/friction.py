@@ -311,5 +311,6 @@ def relaxed_n_rel(problem: FrictionalProblem) -> np.ndarray:
     return np.concatenate([n_rel + shift, n_rel - shift])
 
 
-def is_frictional(problem: Any) -> bool:
-    return isinstance(problem, FrictionalProblem)
+def kind_of(problem: ImpactProblem | FrictionalProblem) -> str:
+    """``frictional`` or ``impact``: which solvers a problem is offered to (SolverSpec.kinds)."""
+    return KIND if isinstance(problem, FrictionalProblem) else "impact"

@@ -84,12 +84,17 @@ def resolve(names: list[str] | str) -> list[SolverSpec]:
     return chosen
 
 
-DEFAULT_FORMULATIONS = ("dual", "lcp", "primal", "dual-factored")
+DEFAULT_FORMULATIONS = {"impact": ("dual", "lcp", "primal", "dual-factored"),
+                        "frictional": ("nsgs", "staggered", "lcp", "ccp")}
 
 
-def get(name: str) -> SolverSpec:
-    """The usable solver ``NAME/FORMULATION``; ``NAME`` alone means its default formulation,
-    the first it has of DEFAULT_FORMULATIONS."""
-    specs = resolve([name])
-    rank = {formulation: i for i, formulation in enumerate(DEFAULT_FORMULATIONS)}
+def get(name: str, kind: str = "impact") -> SolverSpec:
+    """The usable solver ``NAME/FORMULATION`` for problems of ``kind``; ``NAME`` alone means
+    its default formulation for that kind, the first it has of DEFAULT_FORMULATIONS[kind].
+    QpbenchError when it takes no problems of that kind."""
+    specs = [spec for spec in resolve([name]) if kind in spec.kinds]
+    if not specs:
+        raise QpbenchError(f"solver '{name}' takes no {kind} problems")
+    order = DEFAULT_FORMULATIONS.get(kind, ())
+    rank = {formulation: i for i, formulation in enumerate(order)}
     return min(specs, key=lambda spec: rank.get(spec.formulation, len(rank)))
