@@ -11,12 +11,21 @@ Tableau of ``w - Q z - e z0 = b`` (covering vector e = 1) on the Jacobi-scaled L
 small problems and as a reference method; above ``max_contacts`` it declines and
 says so. Its answer is polished: on the final set F of basic z, ``Q_FF z_F = -b_F``
 is solved again by least squares and kept when qpbench's residual improves.
+
+The same pivoting (:func:`complementary_pivoting`, any dense A) solves a frictional problem's
+exact 2D law as one LCP, Stewart-Trinkle's ``z = (l_N, b+, b-, s) >= 0`` with
+``l_T = b+ - b-`` (:meth:`FrictionalProblem.stewart_trinkle`; Stewart and Trinkle, IJNME 39,
+1996; Anitescu and Potra, Nonlinear Dynamics 14, 1997): A is not symmetric and its slip rows
+have a zero diagonal, so termination at a solution is not guaranteed (it is for e = 0 without
+kinematic terms); ray termination is reported as such. One spec serves both kinds.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from qpbench.problem import friction_metrics
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
@@ -45,26 +54,20 @@ def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
     return int(tied[0])
 
 
-def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str, int]:
-    """(l, converged, status, pivots). Variables: w_0..w_{n-1}, z_n..z_{2n-1}, z0 = 2n."""
-    n = lcp.n
-    b = lcp.b
-    if n == 0 or np.all(b >= 0.0):
-        return np.zeros(n), True, "converged", 0
-    # Jacobi scaling, l = S l~ with S = D^-1/2: the LCP (S Q S, S b) has a unit diagonal and
-    # the same complementary bases, so one pivot tolerance fits every mass ratio
-    root = 1.0 / np.sqrt(lcp.safe_diag)
-    Q = lcp.Q.toarray() * root[:, None] * root[None, :]
-    b = b * root
-    # columns: w (identity), z (-Q), z0 (-e); each row reads w_i - (Q z)_i - z0 = b_i
-    tableau = np.hstack([np.eye(n), -Q, -np.ones((n, 1))])
-    rhs = b.astype(float).copy()
+def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
+                           pivot_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, str, int]:
+    """Lemke's method on a general LCP ``w = A z + c >= 0, z >= 0, z^T w = 0`` (dense A, not
+    necessarily symmetric): (z, the indices of the basic z, status, pivots). Variables:
+    w_0..w_{n-1}, z_n..z_{2n-1}, z0 = 2n."""
+    n = c.shape[0]
+    # columns: w (identity), z (-A), z0 (-e); each row reads w_i - (A z)_i - z0 = c_i
+    tableau = np.hstack([np.eye(n), -A, -np.ones((n, 1))])
+    rhs = c.astype(float).copy()
     basis = np.arange(n)
-    pivot_tol = 1e-9
     artificial = 2 * n
     entering = artificial
-    # first pivot: z0 enters at level -min(b); the row of the lexicographically smallest
-    # (b_i, e_i) leaves: the most negative b_i, ties to the largest index
+    # first pivot: z0 enters at level -min(c); the row of the lexicographically smallest
+    # (c_i, e_i) leaves: the most negative c_i, ties to the largest index
     most_negative = float(rhs.min())
     tied = np.flatnonzero(rhs <= most_negative + 1e-12 * max(1.0, abs(most_negative)))
     row = int(tied[-1])
@@ -90,10 +93,26 @@ def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str,
         if row < 0:
             status = "ray termination"
             break
-    impulses = np.zeros(n)
+    z = np.zeros(n)
     in_z = (basis >= n) & (basis < 2 * n)
-    impulses[basis[in_z] - n] = np.maximum(rhs[in_z], 0.0) * root[basis[in_z] - n]
-    impulses = _polish(lcp, impulses, basis[in_z] - n, Q, root)
+    z[basis[in_z] - n] = np.maximum(rhs[in_z], 0.0)
+    return z, basis[in_z] - n, status, pivots
+
+
+def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str, int]:
+    """(l, converged, status, pivots)."""
+    n = lcp.n
+    b = lcp.b
+    if n == 0 or np.all(b >= 0.0):
+        return np.zeros(n), True, "converged", 0
+    # Jacobi scaling, l = S l~ with S = D^-1/2: the LCP (S Q S, S b) has a unit diagonal and
+    # the same complementary bases, so one pivot tolerance fits every mass ratio
+    root = 1.0 / np.sqrt(lcp.safe_diag)
+    Q = lcp.Q.toarray() * root[:, None] * root[None, :]
+    b = b * root
+    scaled, basic, status, pivots = complementary_pivoting(Q, b, max_pivots)
+    impulses = scaled * root
+    impulses = _polish(lcp, impulses, basic, Q, root)
     converged = status == "converged" and lcp.converged(impulses, tol)
     if status == "converged" and not converged:
         status = "pivoting ended above tolerance"
@@ -117,8 +136,61 @@ def _polish(lcp: Lcp, impulses: np.ndarray, basic: np.ndarray, scaled_Q: np.ndar
     return polished if lcp.residual(polished) < lcp.residual(impulses) else impulses
 
 
-def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
-          ) -> SolverOutput:
+def _polish_frictional(problem: FrictionalProblem, A: np.ndarray, c: np.ndarray,
+                       z: np.ndarray, basic: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """As :func:`_polish`, on the scaled Stewart-Trinkle LCP: ``A~_FF z~_F = -c~_F`` on the
+    final basic set F, kept when qpbench's Coulomb residual improves; returns r."""
+    impulses = problem.from_stewart_trinkle(z * root)
+    if basic.size == 0:
+        return impulses
+    block = A[np.ix_(basic, basic)]
+    rhs = -c[basic]
+    solution = z[basic]
+    for _ in range(2):
+        solution = solution + np.linalg.lstsq(block, rhs - block @ solution, rcond=None)[0]
+    polished = np.zeros_like(z)
+    polished[basic] = np.maximum(solution, 0.0)
+    candidate = problem.from_stewart_trinkle(polished * root)
+    if friction_metrics.residual(problem, candidate) < friction_metrics.residual(problem,
+                                                                                impulses):
+        return candidate
+    return impulses
+
+
+def solve_frictional(problem: FrictionalProblem, eps: float) -> SolverOutput:
+    """Lemke on the Stewart-Trinkle LCP (4n unknowns, not symmetric, zero diagonal in the slip
+    rows), Jacobi-scaled where the diagonal is positive; converged means qpbench's Coulomb
+    residual <= tol."""
+    options = accuracy.options_for(NAME, eps, problem.scale)
+    n = problem.n_contacts
+    if 4 * n > options["max_contacts"]:
+        return output(None, False, f"declined: {4 * n} Stewart-Trinkle unknowns > "
+                      f"max_contacts {options['max_contacts']} (dense tableau)", 0)
+    if "lcp" not in problem.posed:
+        problem.posed["lcp"] = problem.stewart_trinkle()
+    A, c = problem.posed["lcp"]
+    if n == 0 or np.all(c >= 0.0):
+        impulses = np.zeros(2 * n)
+        return output(impulses, True, "converged", 0)
+    diagonal = np.diag(A)
+    root = 1.0 / np.sqrt(np.where(diagonal > 0.0, diagonal, 1.0))
+    A = A * root[:, None] * root[None, :]
+    c = c * root
+    z, basic, status, pivots = complementary_pivoting(
+        A, c, options["max_pivots_per_contact"] * 4 * n + 100)
+    impulses = _polish_frictional(problem, A, c, z, basic, root)
+    converged = status == "converged" and \
+        friction_metrics.residual(problem, impulses) <= options["tol"]
+    if status == "converged" and not converged:
+        status = "pivoting ended above tolerance"
+    return output(impulses, converged, status, pivots)
+
+
+def solve(problem: ImpactProblem | FrictionalProblem, eps: float,
+          warm_start: np.ndarray | None = None) -> SolverOutput:
+    """The impact LCP, or for a frictional problem its Stewart-Trinkle LCP."""
+    if isinstance(problem, FrictionalProblem):
+        return solve_frictional(problem, eps)
     lcp = Lcp.of(problem)
     options = accuracy.options_for(NAME, eps, lcp.scale)
     if lcp.n > options["max_contacts"]:
@@ -130,5 +202,6 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
-                    version=VERSION, warm_start=False,
-                    description="Lemke's method, lexicographic, dense tableau"))
+                    version=VERSION, warm_start=False, kinds=("impact", "frictional"),
+                    description="Lemke's method, lexicographic, dense tableau; for a "
+                                "frictional problem on its Stewart-Trinkle LCP"))
