@@ -130,20 +130,106 @@ BAD_SCENES = [
     (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 1"'), UnsupportedError,
      "not supported: box geometry"),
     (ONE_CIRCLE.replace('v="1 0"', 'v="1"'), InputError, "expected two numbers"),
-    (TWO_BALLS.replace('<impact_operator type="lcp" CoR="1.0" v_tol="1.0e-9" cache_impulses="0">'
-                       '\n    <solver name="policy_iteration" max_iters="100" tol="1e-8"/>\n'
-                       '  </impact_operator>',
-                       '<sobogus_friction_solver mu="0.5" CoR="1"/>'),
-     UnsupportedError, "not supported: friction"),
     (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
                        'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="1"/></ball2d_scene>'),
      UnsupportedError, "not supported: periodic boundaries"),
-    (TWO_BALLS.replace('<impact_operator type="lcp" CoR="1.0" v_tol="1.0e-9" cache_impulses="0">'
-                       '\n    <solver name="policy_iteration" max_iters="100" tol="1e-8"/>\n'
-                       '  </impact_operator>',
-                       '<sobogus_friction_solver mu="0" CoR="0" staggering="stabilized"/>'),
-     UnsupportedError, "attribute 'staggering': not supported"),
 ]
+
+SOBOGUS = ('<sobogus_friction_solver mu="0.5" CoR="0" max_iters="50" eval_every="1" tol="1e-12" '
+           'cache_impulses="none" staggering="geometric"/>')
+
+
+def with_friction(element: str, scene: str = TWO_BALLS) -> str:
+    """``scene`` with its impact operator replaced by a friction solver element."""
+    start, end = scene.index("  <impact_operator"), scene.index("</impact_operator>")
+    return scene[:start] + "  " + element + scene[end + len("</impact_operator>"):]
+
+
+FRICTION_CIRCLE = ONE_CIRCLE.replace("</rigidbody2d_scene>", SOBOGUS + "</rigidbody2d_scene>")
+BAD_SCENES += [
+    (with_friction(SOBOGUS.replace('mu="0.5"', 'mu="-0.1"')), InputError,
+     "<sobogus_friction_solver> attribute 'mu': must be >= 0"),
+    (with_friction(SOBOGUS.replace('mu="0.5"', 'mu="nan"')), InputError,
+     "<sobogus_friction_solver> attribute 'mu': must be finite"),
+    (with_friction(SOBOGUS.replace(' tol="1e-12"', '')), InputError,
+     "<sobogus_friction_solver> attribute 'tol': missing"),
+    (with_friction(SOBOGUS.replace(' cache_impulses="none"', '')), InputError,
+     "<sobogus_friction_solver> attribute 'cache_impulses': missing"),
+    (with_friction(SOBOGUS.replace('CoR="0"', 'CoR="1.2"')), InputError,
+     "<sobogus_friction_solver> attribute 'CoR': must lie in [0, 1]"),
+    (with_friction(SOBOGUS.replace('max_iters="50"', 'max_iters="0"')), InputError,
+     "<sobogus_friction_solver> attribute 'max_iters': must be a positive integer"),
+    (with_friction(SOBOGUS.replace('eval_every="1"', 'eval_every="51"')), InputError,
+     "<sobogus_friction_solver> attribute 'eval_every': must be <= max_iters"),
+    (with_friction(SOBOGUS.replace('tol="1e-12"', 'tol="-1"')), InputError,
+     "<sobogus_friction_solver> attribute 'tol': must be >= 0"),
+    (with_friction(SOBOGUS.replace('"none"', '"all"')), InputError,
+     "<sobogus_friction_solver> attribute 'cache_impulses': must be one of"),
+    (with_friction(SOBOGUS.replace('"geometric"', '"leapfrog"')), InputError,
+     "<sobogus_friction_solver> attribute 'staggering': must be one of"),
+    (with_friction(SOBOGUS.replace('"geometric"', '"symplectic_euler" stabilization="0" '
+                                   'penetration_threshold="1e-5"').replace('CoR="0"',
+                                                                           'CoR="0.5"')),
+     InputError, "<sobogus_friction_solver> attribute 'CoR': must be 0 for the "
+                 "symplectic_euler staggering"),
+    (with_friction(SOBOGUS.replace('"geometric"', '"symplectic_euler" stabilization="0"')),
+     InputError, "<sobogus_friction_solver> attribute 'penetration_threshold': missing"),
+    (with_friction(SOBOGUS.replace('"geometric"', '"stabilized"').replace(
+        '"none"', '"normal"')), InputError,
+     "<sobogus_friction_solver> attribute 'cache_impulses': must be none for the stabilized"),
+    (FRICTION_CIRCLE.replace('"geometric"', '"symplectic_euler" stabilization="0" '
+                             'penetration_threshold="1e-5"'), InputError,
+     "<sobogus_friction_solver> attribute 'staggering': must be one of geometric, stabilized"),
+    (with_friction('<staggered_projections_friction_solver mu="0.5" CoR="0" tol="1e-8" '
+                   'max_iters="20" staggering="geometric"><lcp_impact_solver name="ipopt"/>'
+                   '</staggered_projections_friction_solver>'), InputError,
+     "<mdp_friction_solver>: missing"),
+    (FRICTION_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 1"'), UnsupportedError,
+     "not supported: box geometry"),
+    (with_friction(SOBOGUS).replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/>'
+                                    '<static_plane x="0 5" n="0 -1"/><planar_portal planeA="0"'
+                                    ' planeB="1"/></ball2d_scene>'),
+     UnsupportedError, "not supported: periodic boundaries"),
+]
+
+
+def test_a_sobogus_solver_with_friction_reads_every_attribute() -> None:
+    scene = parse_scene(with_friction(SOBOGUS.replace('"geometric"', '"symplectic_euler" '
+                                                      'stabilization="1" '
+                                                      'penetration_threshold="1e-5"')),
+                        "rough.xml")
+    friction = scene.friction
+    assert scene.impact is None and scene.frictional and scene.staggering == "symplectic_euler"
+    assert (friction.kind, friction.mu, friction.restitution) == ("sobogus", 0.5, 0.0)
+    assert (friction.max_iters, friction.eval_every, friction.tol) == (50, 1, 1e-12)
+    assert friction.cache_impulses == "none" and friction.stabilization
+    assert friction.penetration_threshold == 1e-5
+    assert friction.residual_asked == pytest.approx(1e-6)
+
+
+def test_mu_zero_keeps_the_frictionless_lcp_and_records_the_staggering() -> None:
+    scene = parse_scene(with_friction(SOBOGUS.replace('mu="0.5"', 'mu="0"').replace(
+        '"geometric"', '"stabilized"')), "smooth.xml")
+    assert scene.impact.type == "lcp" and not scene.frictional
+    assert scene.staggering == "stabilized" and scene.friction.mu == 0.0
+
+
+def test_staggered_projections_name_their_inner_solvers() -> None:
+    scene = parse_scene(with_friction(
+        '<staggered_projections_friction_solver mu="0.3" CoR="0.5" tol="1e-8" max_iters="20" '
+        'staggering="geometric" internal_warm_start_alpha="1" internal_warm_start_beta="1">'
+        '<lcp_impact_solver name="ql" tol="1e-12"/><mdp_friction_solver name="ql" tol="1e-12"/>'
+        '</staggered_projections_friction_solver>'), "sp.xml")
+    friction = scene.friction
+    assert friction.kind == "staggered_projections" and friction.mu == 0.3
+    assert friction.impact_solver.qpbench_name == "pi-robust"
+    assert friction.friction_solver_name == "ql" and friction.residual_asked == 1e-8
+
+
+def test_a_frictional_scene_written_back_reads_the_same(tmp_path: Path) -> None:
+    scene = parse_scene(with_friction(SOBOGUS), "rough.xml")
+    again = load_scene(write_scene(scene, tmp_path / "rough.xml"))
+    assert again.friction == scene.friction
 
 
 @pytest.mark.parametrize(("text", "error", "message"), BAD_SCENES,

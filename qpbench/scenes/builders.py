@@ -17,7 +17,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from qpbench.atomic import atomic_path
-from qpbench.scenes.model import Bodies, ImpactOperator, Scene, SolverChoice
+from qpbench.scenes.model import Bodies, FrictionSolver, ImpactOperator, Scene, SolverChoice
 from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH
 
 BOX_SPACING = 1.25
@@ -80,17 +80,35 @@ def _operator_xml(operator: ImpactOperator, tag: str, indent: str) -> list[str]:
     return lines
 
 
+def _friction_xml(solver: FrictionSolver) -> list[str]:
+    """A friction solver element with every attribute SCISim requires."""
+    common = (f'mu="{_number(solver.mu)}" CoR="{_number(solver.restitution)}" '
+              f'max_iters="{solver.max_iters}" tol="{_number(solver.tol)}" '
+              f'staggering="{solver.staggering}"')
+    if solver.kind == "sobogus":
+        extra = ""
+        if solver.staggering == "symplectic_euler":
+            extra = (f' stabilization="{int(solver.stabilization)}" '
+                     f'penetration_threshold="{_number(solver.penetration_threshold)}"')
+        return [f'  <{solver.declared_by} {common} eval_every="{solver.eval_every}" '
+                f'cache_impulses="{solver.cache_impulses}"{extra}/>']
+    assert solver.impact_solver is not None
+    options = "".join(f' {key}="{value}"' for key, value in solver.impact_solver.options.items())
+    return [f"  <{solver.declared_by} {common}>",
+            f'    <lcp_impact_solver name="{solver.impact_solver.scisim_name}"{options}/>',
+            f'    <mdp_friction_solver name="{solver.friction_solver_name}"/>',
+            f"  </{solver.declared_by}>"]
+
+
 def scene_xml(scene: Scene) -> str:
     """The scene as SCISim XML in its own dialect."""
     bodies = scene.bodies
     lines = [f"<{scene.dialect}_scene>", f'  <integrator type="{scene.integrator}" '
                                          f'dt="{scene.dt}"/>']
-    if scene.impact is not None:
-        if scene.impact.declared_by == "impact_operator":
-            lines.extend(_operator_xml(scene.impact, "impact_operator", "  "))
-        else:
-            lines.append(f'  <{scene.impact.declared_by} mu="0" '
-                         f'CoR="{_number(scene.impact.restitution)}"/>')
+    if scene.friction is not None:
+        lines.extend(_friction_xml(scene.friction))
+    elif scene.impact is not None:
+        lines.extend(_operator_xml(scene.impact, "impact_operator", "  "))
     if scene.end_time is not None:
         lines.append(f'  <end_time t="{scene.end_time}"/>')
     if scene.gravity is not None:

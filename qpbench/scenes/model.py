@@ -4,7 +4,8 @@ A scene holds exactly what its file says; the simulator composes its step from
 these parts only (no gravity term without gravity, no plane test without planes).
 Bodies are circles. ``ball2d`` bodies have 2 degrees of freedom (x, y);
 ``rigidbody2d`` circles have a third, rotation, with moment of inertia
-``I = m r^2 / 2``, which frictionless impacts never touch.
+``I = m r^2 / 2``, which frictionless impacts never touch and friction does (through the
+arm ``r x t`` of each contact).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ import numpy as np
 
 INTEGRATORS = ("symplectic_euler", "verlet")
 OPERATORS = ("lcp", "gr", "grr", "gauss_seidel")
+STAGGERINGS = ("geometric", "stabilized", "symplectic_euler")
+CACHE_MODES = ("none", "normal", "normal_and_friction")
 
 
 @dataclass
@@ -79,6 +82,49 @@ class ImpactOperator:
 
 
 @dataclass
+class FrictionSolver:
+    """``<sobogus_friction_solver>`` or ``<staggered_projections_friction_solver>``.
+
+    ``mu`` and ``restitution`` hold for every contact. ``staggering`` picks SCISim's step map
+    (``geometric``: solve on the start-of-step velocity, then re-integrate from the start
+    positions; ``stabilized``: solve on the velocity after the forces, positions moved with
+    the new velocity; ``symplectic_euler``: solve on the start-of-step velocity with the force
+    increment in ``n_rel``/``d_rel``, plus ``g0/dt`` for gaps deeper than
+    ``penetration_threshold`` when ``stabilization``). ``cache_impulses`` warm-starts each
+    solve from the previous step's impulses of the same contact (``normal``: l_N only).
+    ``tol`` is So-bogus' bound on a SQUARED Fischer-Burmeister residual (so ``1e-12`` asks
+    for about ``1e-6``), ``max_iters`` its cap on Gauss-Seidel sweeps, ``eval_every`` how
+    often it measures. Staggered projections name their inner solvers: ``impact_solver``
+    (the normal QP, mapped like ``<solver>``) and ``friction_solver_name`` (the box QP).
+    """
+
+    kind: str  # "sobogus" or "staggered_projections"
+    mu: float
+    restitution: float
+    staggering: str
+    tol: float
+    max_iters: int
+    eval_every: int | None = None
+    cache_impulses: str = "none"
+    stabilization: bool = False
+    penetration_threshold: float = 0.0
+    impact_solver: SolverChoice | None = None
+    friction_solver_name: str | None = None
+    declared_by: str = "sobogus_friction_solver"
+
+    @property
+    def frictional(self) -> bool:
+        """mu > 0: the scene needs the frictional path (mu = 0 is frictionless impact)."""
+        return self.mu > 0
+
+    @property
+    def residual_asked(self) -> float:
+        """The residual the scene's own ``tol`` asks for: sqrt(tol) for So-bogus (a squared
+        measure), tol itself for staggered projections."""
+        return self.tol ** 0.5 if self.kind == "sobogus" else self.tol
+
+
+@dataclass
 class Scene:
     """One SCISim 2D scene, parsed as it is."""
 
@@ -93,6 +139,7 @@ class Scene:
     drum_centers: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     drum_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
     impact: ImpactOperator | None = None
+    friction: FrictionSolver | None = None  # a friction solver element (any mu)
     end_time: Fraction | None = None
     warnings: list[str] = field(default_factory=list)
 
@@ -112,6 +159,16 @@ class Scene:
     @property
     def has_drums(self) -> bool:
         return self.drum_centers.shape[0] > 0
+
+    @property
+    def staggering(self) -> str:
+        """SCISim's step map: the friction solver's staggering, else ``geometric``."""
+        return self.friction.staggering if self.friction is not None else "geometric"
+
+    @property
+    def frictional(self) -> bool:
+        """The scene declares friction with mu > 0."""
+        return self.friction is not None and self.friction.frictional
 
     @property
     def balls_alone(self) -> bool:

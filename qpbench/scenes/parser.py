@@ -3,9 +3,10 @@
 XML is parsed with defusedxml, so entity declarations (billion-laughs bombs) and
 external references are refused. Every fault in the input is one
 :class:`~qpbench.errors.InputError` naming the file, the element and the
-attribute; a feature qpbench does not simulate (box geometry, friction with
-mu > 0) is an :class:`~qpbench.errors.UnsupportedError`. Unknown elements and
-attributes are accepted, as SCISim does, and named once in ``Scene.warnings``.
+attribute; a feature qpbench does not simulate (box geometry, portals) is an
+:class:`~qpbench.errors.UnsupportedError`. Friction solvers are checked by SCISim's own
+rules (``Ball2DSceneParser.cpp::loadSobogusFrictionSolver`` and its rigidbody2d analogue).
+Unknown elements and attributes are accepted, as SCISim does, and named once in ``Scene.warnings``.
 A ``<scripting callback>`` is never run.
 """
 
@@ -24,9 +25,12 @@ import numpy as np
 
 from qpbench.errors import InputError, UnsupportedError
 from qpbench.scenes.model import (
+    CACHE_MODES,
     INTEGRATORS,
     OPERATORS,
+    STAGGERINGS,
     Bodies,
+    FrictionSolver,
     ImpactOperator,
     Scene,
     SolverChoice,
@@ -43,9 +47,14 @@ _COMMON: dict[str, frozenset[str] | None] = {
     "end_time": frozenset({"t"}),
     "static_plane": frozenset({"x", "n"}),
     "scripting": frozenset({"callback"}),
-    "sobogus_friction_solver": None,
-    "staggered_projections_friction_solver": None,
+    "sobogus_friction_solver": frozenset({
+        "mu", "CoR", "max_iters", "eval_every", "tol", "cache_impulses", "staggering",
+        "stabilization", "penetration_threshold"}),
+    "staggered_projections_friction_solver": frozenset({
+        "mu", "CoR", "tol", "max_iters", "staggering", "internal_warm_start_alpha",
+        "internal_warm_start_beta"}),
 }
+_SP_CHILDREN = frozenset({"lcp_impact_solver", "mdp_friction_solver"})
 _KNOWN: dict[str, dict[str, frozenset[str] | None]] = {
     "ball2d": {
         **_COMMON,
@@ -144,12 +153,24 @@ class _Reader:
             raise self.error(element, name, f"must be 0 or 1, got {raw!r}", index)
         return raw == "1"
 
-    def integer(self, element: Element, name: str, index: int | None = None) -> int:
+    def integer(self, element: Element, name: str, index: int | None = None,
+                check: str | None = None) -> int:
+        """An integer; ``check`` is ``positive`` or None."""
         raw = self.text(element, name, index)
         try:
-            return int(raw.strip())
+            value = int(raw.strip())
         except ValueError:
             raise self.error(element, name, f"not an integer: {raw!r}", index) from None
+        if check == "positive" and not value > 0:
+            raise self.error(element, name, f"must be a positive integer, got {raw!r}", index)
+        return value
+
+    def choice(self, element: Element, name: str, options: tuple[str, ...]) -> str:
+        """One of ``options``, spelled exactly."""
+        raw = self.text(element, name)
+        if raw.strip() not in options:
+            raise self.error(element, name, f"must be one of {', '.join(options)}, got {raw!r}")
+        return raw.strip()
 
     def fraction(self, element: Element, name: str, index: int | None = None) -> Fraction:
         """A positive exact rational from a decimal (``0.01``) or a fraction (``1/10080``)."""
@@ -242,7 +263,7 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     scene.plane_points, scene.plane_normals = _planes(reader, children)
     if dialect == "ball2d":
         scene.drum_centers, scene.drum_radii = _drums(reader, children)
-    scene.impact = _impact(reader, children)
+    scene.impact, scene.friction = _impact(reader, children, dialect)
     if "end_time" in children:
         scene.end_time = reader.fraction(children["end_time"][0], "t")
     for script in children.get("scripting", []):
@@ -363,7 +384,10 @@ def _drums(reader: _Reader, children: dict[str, list[Element]]
     return np.array(centers, dtype=float).reshape(-1, 2), np.array(radii, dtype=float)
 
 
-def _impact(reader: _Reader, children: dict[str, list[Element]]) -> ImpactOperator | None:
+def _impact(reader: _Reader, children: dict[str, list[Element]], dialect: str
+            ) -> tuple[ImpactOperator | None, FrictionSolver | None]:
+    """The impact operator, or the friction solver; a friction solver with mu = 0 also
+    declares the frictionless ``lcp`` with its CoR, which is what the simulator then runs."""
     friction = [element for tag in _FRICTION_SOLVERS for element in children.get(tag, [])]
     if "impact_operator" in children and friction:
         raise InputError(reader.path, f"a scene has an impact operator or <{friction[0].tag}>, "
@@ -372,27 +396,87 @@ def _impact(reader: _Reader, children: dict[str, list[Element]]) -> ImpactOperat
         raise InputError(reader.path, "appears twice; a scene has one friction solver",
                          element=friction[1].tag)
     if friction:
-        return _frictionless(reader, friction[0])
+        element = friction[0]
+        if element.tag == "sobogus_friction_solver":
+            solver = _sobogus(reader, element, dialect)
+        else:
+            solver = _staggered_projections(reader, element)
+        if solver.frictional:
+            return None, solver
+        return ImpactOperator(type="lcp", restitution=solver.restitution, v_tol=0.0,
+                              cache_impulses=solver.cache_impulses != "none",
+                              declared_by=element.tag), solver
     if "impact_operator" in children:
-        return _operator(reader, children["impact_operator"][0], restitution=None)
-    return None
+        return _operator(reader, children["impact_operator"][0], restitution=None), None
+    return None, None
 
 
-def _frictionless(reader: _Reader, element: Element) -> ImpactOperator:
-    """A friction solver with mu = 0 declares frictionless impact with its CoR (an ``lcp``)."""
+def _sobogus(reader: _Reader, element: Element, dialect: str) -> FrictionSolver:
+    """``<sobogus_friction_solver mu CoR max_iters eval_every tol cache_impulses staggering>``,
+    every attribute required, as SCISim reads it; ``symplectic_euler`` (ball2d only, CoR 0)
+    adds ``stabilization`` and ``penetration_threshold``; ``stabilized`` takes no cache in
+    ball2d (rigidbody2d accepts one and never uses it)."""
     mu = reader.number(element, "mu", check="nonnegative")
-    if mu > 0:
-        raise UnsupportedError(f"{reader.path}: <{element.tag}> attribute 'mu': not supported: "
-                               f"friction (mu = {mu:g} > 0); qpbench simulates frictionless "
-                               "impact only")
     restitution = reader.number(element, "CoR", check="unit")
-    staggering = element.get("staggering", "geometric").strip()
-    if staggering != "geometric":
-        raise UnsupportedError(f"{reader.path}: <{element.tag}> attribute 'staggering': not "
-                               f"supported: {staggering!r} (qpbench steps with SCISim's "
-                               "geometric splitting only)")
-    return ImpactOperator(type="lcp", restitution=restitution, v_tol=0.0,
-                          cache_impulses=_cache_impulses(reader, element),
+    max_iters = reader.integer(element, "max_iters", check="positive")
+    eval_every = reader.integer(element, "eval_every", check="positive")
+    if eval_every > max_iters:
+        raise reader.error(element, "eval_every", f"must be <= max_iters ({max_iters}), got "
+                                                  f"{eval_every}")
+    tol = reader.number(element, "tol", check="nonnegative")
+    cache = reader.choice(element, "cache_impulses", CACHE_MODES)
+    allowed = STAGGERINGS if dialect == "ball2d" else ("geometric", "stabilized")
+    staggering = reader.choice(element, "staggering", allowed)
+    solver = FrictionSolver(kind="sobogus", mu=mu, restitution=restitution,
+                            staggering=staggering, tol=tol, max_iters=max_iters,
+                            eval_every=eval_every, cache_impulses=cache,
+                            declared_by=element.tag)
+    if staggering == "symplectic_euler":
+        if restitution != 0.0:
+            raise reader.error(element, "CoR", "must be 0 for the symplectic_euler staggering "
+                                               f"(as SCISim requires), got "
+                                               f"{element.get('CoR')!r}")
+        solver.stabilization = reader.boolean(element, "stabilization")
+        solver.penetration_threshold = reader.number(element, "penetration_threshold",
+                                                     check="nonnegative")
+    if staggering == "stabilized":
+        if dialect == "ball2d" and cache != "none":
+            raise reader.error(element, "cache_impulses", "must be none for the stabilized "
+                                                          f"staggering (as SCISim requires), "
+                                                          f"got {cache!r}")
+        solver.cache_impulses = "none"  # SCISim's stabilized map always starts from zero
+    return solver
+
+
+def _staggered_projections(reader: _Reader, element: Element) -> FrictionSolver:
+    """``<staggered_projections_friction_solver mu CoR tol max_iters staggering>`` with its
+    ``<lcp_impact_solver name>`` (the normal QP's solver, mapped like ``<solver>``) and
+    ``<mdp_friction_solver name>`` (the friction box QP's) children."""
+    mu = reader.number(element, "mu", check="nonnegative")
+    restitution = reader.number(element, "CoR", check="unit")
+    tol = reader.number(element, "tol", check="nonnegative")
+    max_iters = reader.integer(element, "max_iters", check="positive")
+    staggering = reader.choice(element, "staggering", ("geometric", "stabilized"))
+    children: dict[str, list[Element]] = {}
+    for child in element:
+        if not isinstance(child.tag, str):
+            continue
+        if child.tag not in _SP_CHILDREN:
+            reader.unknown.append(f"<{element.tag}><{child.tag}>")
+            continue
+        children.setdefault(child.tag, []).append(child)
+    for tag in sorted(_SP_CHILDREN):
+        if tag not in children:
+            raise InputError(reader.path, f"missing: <{element.tag}> needs a <{tag} name=...> "
+                                          "child", element=tag)
+        if len(children[tag]) > 1:
+            raise InputError(reader.path, f"appears {len(children[tag])} times in "
+                                          f"<{element.tag}>", element=tag)
+    impact = _solver(reader, children["lcp_impact_solver"][0])
+    friction_name = reader.text(children["mdp_friction_solver"][0], "name").strip()
+    return FrictionSolver(kind="staggered_projections", mu=mu, restitution=restitution,
+                          staggering=staggering, tol=tol, max_iters=max_iters,
+                          impact_solver=impact, friction_solver_name=friction_name,
                           declared_by=element.tag)
 
 
