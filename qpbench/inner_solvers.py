@@ -6,6 +6,13 @@ solvers: :func:`choose_by_name` gives the ``choose_solve`` a
 lcp/gr operator uses that solver; without one each uses the qpbench solver its scene's
 SCISim solver maps to (:mod:`qpbench.scenes.solver_names`), or :data:`FALLBACK` when that
 one is not registered or not usable here, with a note saying so.
+
+A frictional scene (a friction solver with mu > 0) gets one solver for its whole frictional
+problems: ``--solver`` when given (it must take frictional problems), else
+:data:`SOBOGUS` for ``<sobogus_friction_solver>`` (So-bogus is a nonsmooth Gauss-Seidel) and,
+for ``<staggered_projections_friction_solver>``, ``X/staggered`` with X the qpbench solver
+its ``<lcp_impact_solver>`` maps to (as ``<solver>`` maps), or :data:`SOBOGUS` with a note
+when that one cannot run here.
 """
 
 from __future__ import annotations
@@ -13,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from qpbench.errors import QpbenchError
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.scenes.model import ImpactOperator
+from qpbench.scenes.model import FrictionSolver, ImpactOperator
 from qpbench.scenes.solver_names import FALLBACK
 from qpbench.simulation.operators import ChooseSolve, ChosenSolve, ImpactSolve, SolvedImpulses
 from qpbench.solvers.base import SolverSpec
@@ -26,7 +34,7 @@ def solve_with(spec: SolverSpec) -> ImpactSolve:
     """An inner solve by ``spec`` through :func:`call_solver` (so a raising backend is a
     failed answer); the warm start reaches only a solver that takes one."""
 
-    def solve(problem: ImpactProblem, accuracy: float,
+    def solve(problem: ImpactProblem | FrictionalProblem, accuracy: float,
               warm_start: np.ndarray | None) -> SolvedImpulses:
         output = call_solver(spec, problem, accuracy, warm_start if spec.warm_start else None)
         # time_s is the whole solve; a SolverOutput from before it existed split it in two
@@ -42,6 +50,27 @@ def chosen(spec: SolverSpec, note: str | None = None) -> ChosenSolve:
     return ChosenSolve(name=spec.key, solve=solve_with(spec), note=note)
 
 
+SOBOGUS = "nsgs/nsgs"
+FRICTIONAL = "frictional"
+
+
+def choose_frictional(solver: FrictionSolver, override: str | None) -> ChosenSolve:
+    """The inner solve of a frictional scene (see the module docstring)."""
+    if override is not None:
+        return chosen(get(override, FRICTIONAL))
+    if solver.kind == "sobogus":
+        return chosen(get(SOBOGUS, FRICTIONAL))
+    assert solver.impact_solver is not None
+    inner = f"{solver.impact_solver.qpbench_name}/staggered"
+    try:
+        return chosen(get(inner, FRICTIONAL))
+    except QpbenchError as error:
+        spec = get(SOBOGUS, FRICTIONAL)
+        return chosen(spec, f"<{solver.declared_by}> with <lcp_impact_solver "
+                            f"name='{solver.impact_solver.scisim_name}'> maps to '{inner}', "
+                            f"{error}; using {spec.key} instead")
+
+
 def choose_by_name(override: str | None = None) -> ChooseSolve:
     """The inner solve of each operator: ``override`` (``NAME[/FORMULATION]``) everywhere when
     given, else the scene's own solver, mapped, with :data:`FALLBACK` when it cannot run here.
@@ -49,7 +78,9 @@ def choose_by_name(override: str | None = None) -> ChooseSolve:
     An unknown or unusable ``override`` raises QpbenchError (one line) when first used.
     """
 
-    def choose_solve(operator: ImpactOperator) -> ChosenSolve:
+    def choose_solve(operator: ImpactOperator | FrictionSolver) -> ChosenSolve:
+        if isinstance(operator, FrictionSolver):
+            return choose_frictional(operator, override)
         if override is not None:
             return chosen(get(override))
         if operator.solver is None:  # a friction solver with mu = 0: no solver child

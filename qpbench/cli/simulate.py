@@ -1,8 +1,9 @@
 """``qpbench simulate SCENE [--end-time T] [--steps N] [--solver NAME] [--capture DIR] [--json]``.
 
-Without ``<end_time>`` in the scene and without ``--end-time``, the run stops after
-``DEFAULT_STEPS`` steps and says so. Exit 0 when the run ends; 1 when an inner solve
-failed (the JSON says which), 2 on bad input.
+``--json`` reports the final state: ``x_final``, ``v_final`` and, for rigid bodies,
+``theta_final`` and ``omega_final``. Without ``<end_time>`` in the scene and without
+``--end-time``, the run stops after ``DEFAULT_STEPS`` steps and says so. Exit 0 when the
+run ends; 1 when an inner solve failed (the JSON says which), 2 on bad input.
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--steps", type=int, default=None, help="at most this many steps")
     parser.add_argument("--solver", default=None,
                         help="inner solver NAME[/FORMULATION] (default: the scene's, mapped)")
-    parser.add_argument("--accuracy", type=float, default=DEFAULT_ACCURACY,
-                        help=f"residual asked of every inner solve ({DEFAULT_ACCURACY:g})")
+    parser.add_argument("--accuracy", type=float, default=None,
+                        help=f"residual asked of every inner solve (default {DEFAULT_ACCURACY:g};"
+                             " a friction solver's own tol when tighter)")
     parser.add_argument("--capture", default=None, metavar="DIR",
                         help="write every impact problem to DIR/<scene>_step<k>.npz")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -61,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         print_json(summary)
     else:
         for key, value in summary.items():
-            if key not in ("x_final", "v_final"):
+            if key not in ("x_final", "v_final", "theta_final", "omega_final"):
                 print(f"{key:>18}: {value}")
     if result.failure is not None:
         print(f"qpbench simulate: inner solve failed at step {result.failure['step']}: "

@@ -12,6 +12,13 @@
 
 A contact between two kinematic (fixed) bodies, or a kinematic body and a
 boundary, cannot take an impulse and is left out.
+
+For friction each contact also has a tangent ``t = (-n_y, n_x)`` and a contact point p at
+the start positions, where SCISim puts it: ``p = (r_b x_a + r_a x_b) / (r_a + r_b)``
+between two free circles (``RigidBody2DSim.cpp``), on the free body's surface,
+``x - r n_out``, against a kinematic body, a plane or a drum; T (:meth:`Contacts.tangent_jacobian`)
+carries the arms ``(p - x) x t`` on rigid bodies' rotation rows. ``gaps`` are SCISim's
+``evaluateGapFunction`` values (negative when overlapping).
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.errors import UnsupportedError
-from qpbench.problem.jacobian import contact_jacobian
+from qpbench.problem.jacobian import contact_jacobian, tangent_jacobian, tangents
 from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
 
 BALL, PLANE, DRUM = 0, 1, 2
@@ -56,10 +63,66 @@ class Contacts:
         """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k."""
         return contact_jacobian(self.body_a, self.body_b, self.normals, bodies, dofs_per_body)
 
+    def contact_points(self, x0: np.ndarray, radii: np.ndarray, fixed: np.ndarray
+                       ) -> np.ndarray:
+        """p per contact at the start positions x0 (module docstring)."""
+        a, b = self.body_a, self.body_b
+        points = x0[a] - radii[a][:, None] * self.normals
+        pair = self.kind == BALL
+        if np.any(pair):
+            pa, pb = a[pair], b[pair]
+            free = ~fixed[pa] & ~fixed[pb]
+            both = np.flatnonzero(pair)[free]
+            ra, rb = radii[a[both]], radii[b[both]]
+            points[both] = (rb[:, None] * x0[a[both]] + ra[:, None] * x0[b[both]]) / (
+                ra + rb)[:, None]
+            against_a = np.flatnonzero(pair)[fixed[pa] & ~fixed[pb]]  # b is the free body
+            points[against_a] = (x0[b[against_a]]
+                                 + radii[b[against_a]][:, None] * self.normals[against_a])
+        return points
+
+    def tangent_jacobian(self, x0: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
+                         bodies: int, dofs_per_body: int) -> sp.csc_matrix:
+        """T (bodies * dofs_per_body x n): tangents, with the arms on rotation rows."""
+        if dofs_per_body != 3:
+            return tangent_jacobian(self.body_a, self.body_b, self.normals, bodies,
+                                    dofs_per_body)
+        t = tangents(self.normals)
+        points = self.contact_points(x0, radii, fixed)
+        arm_a = _cross(points - x0[self.body_a], t)
+        arm_b = np.zeros(self.count)
+        pair = self.body_b >= 0
+        arm_b[pair] = _cross(points[pair] - x0[self.body_b[pair]], t[pair])
+        return tangent_jacobian(self.body_a, self.body_b, self.normals, bodies,
+                                dofs_per_body, arm_a, arm_b)
+
+    def gaps(self, x0: np.ndarray, radii: np.ndarray, plane_points: np.ndarray,
+             plane_normals: np.ndarray, drum_centers: np.ndarray, drum_radii: np.ndarray
+             ) -> np.ndarray:
+        """The gap of each contact at x0: ``|x_a - x_b| - r_a - r_b``, ``n . (x - p) - r`` for a
+        plane, ``R - r - |x - c|`` for a drum (negative when overlapping)."""
+        a, b, k = self.body_a, self.body_b, self.boundary
+        gaps = np.zeros(self.count)
+        pair = self.kind == BALL
+        gaps[pair] = (np.hypot(*(x0[a[pair]] - x0[b[pair]]).T)
+                      - radii[a[pair]] - radii[b[pair]])
+        plane = self.kind == PLANE
+        gaps[plane] = (np.einsum("ij,ij->i", x0[a[plane]] - plane_points[k[plane]],
+                                 plane_normals[k[plane]]) - radii[a[plane]])
+        drum = self.kind == DRUM
+        gaps[drum] = (drum_radii[k[drum]] - radii[a[drum]]
+                      - np.hypot(*(x0[a[drum]] - drum_centers[k[drum]]).T))
+        return gaps
+
     @staticmethod
     def concatenate(parts: list[Contacts]) -> Contacts:
         return Contacts(*(np.concatenate([getattr(part, name) for part in parts])
                           for name in ("body_a", "body_b", "kind", "boundary", "normals")))
+
+
+def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """u x w = u_x w_y - u_y w_x, row by row."""
+    return u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
 
 
 def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray,

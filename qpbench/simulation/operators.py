@@ -15,6 +15,11 @@ knows no solver registry; :mod:`qpbench.inner_solvers` builds one from a solver 
 every answer is judged with qpbench's own residual (``qpbench.problem.metrics``): above
 the accuracy asked it counts as inaccurate; not finite, or above :data:`REJECT_RESIDUAL`,
 it is a failure that stops the run (:class:`InnerSolveFailed`), never used silently.
+
+A frictional impact (a scene's friction solver with mu > 0) is one
+:class:`~qpbench.problem.friction.FrictionalProblem`, solved whole by its inner solver and
+judged the same way with the Coulomb natural-map residual
+(``qpbench.problem.friction_metrics``); its impulses are ``r = (l_N, l_T)``.
 """
 
 from __future__ import annotations
@@ -26,9 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from qpbench.problem import metrics
+from qpbench.problem import friction_metrics, metrics
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.scenes.model import ImpactOperator
+from qpbench.scenes.model import FrictionSolver, ImpactOperator
 
 REJECT_RESIDUAL = 1e-3
 MAX_GR_ROUNDS = 1000
@@ -44,9 +50,11 @@ class SolvedImpulses:
     status: str  # the solver's own word, reported when the answer is rejected
 
 
-ImpactSolve = Callable[[ImpactProblem, float, np.ndarray | None], SolvedImpulses]
+ImpactSolve = Callable[[ImpactProblem | FrictionalProblem, float, np.ndarray | None],
+                       SolvedImpulses]
 """``solve(problem, accuracy, warm_start)``: the impulses of the LCP of ``problem`` at the
-residual ``accuracy``; ``warm_start`` is a guess of l (or None), which it may ignore."""
+residual ``accuracy`` (``r = (l_N, l_T)`` of a frictional problem); ``warm_start`` is a
+guess of them (or None), which it may ignore."""
 
 
 @dataclass(frozen=True)
@@ -59,8 +67,9 @@ class ChosenSolve:
     note: str | None = None
 
 
-ChooseSolve = Callable[[ImpactOperator], ChosenSolve]
-"""The inner solve of each lcp/gr operator of a scene (nested in a grr too)."""
+ChooseSolve = Callable[[ImpactOperator | FrictionSolver], ChosenSolve]
+"""The inner solve of each lcp/gr operator of a scene (nested in a grr too), or of its
+friction solver when mu > 0."""
 
 
 class InnerSolveFailed(Exception):
@@ -101,21 +110,27 @@ class InnerSolver:
     accuracy: float
     log: SolveLog
 
-    def solve(self, problem: ImpactProblem, warm_start: np.ndarray | None = None) -> np.ndarray:
-        """Impulses l of the LCP of ``problem``; raises InnerSolveFailed on an unusable answer."""
+    def solve(self, problem: ImpactProblem | FrictionalProblem,
+              warm_start: np.ndarray | None = None) -> np.ndarray:
+        """Impulses of the LCP of ``problem`` (``r = (l_N, l_T)`` of a frictional one); raises
+        InnerSolveFailed on an unusable answer."""
+        frictional = isinstance(problem, FrictionalProblem)
+        size = 2 * problem.n_contacts if frictional else problem.n_contacts
         if problem.n_contacts == 0:
             return np.zeros(0)
-        if np.all(problem.b >= 0):  # nothing approaches: l = 0 solves the LCP exactly
+        b = problem.normal.b if frictional else problem.b
+        if np.all(b >= 0):  # nothing approaches: l = 0 (r = 0) solves the problem exactly
             self.log.trivial += 1
-            return np.zeros(problem.n_contacts)
+            return np.zeros(size)
         answer = self.chosen.solve(problem, self.accuracy, warm_start)
         self.log.solves += 1
         self.log.solvers.add(self.chosen.name)
         if math.isfinite(answer.time_s):
             self.log.solve_time_s += answer.time_s
         impulses = answer.impulses
-        finite = metrics.is_finite(impulses, problem)
-        residual = metrics.residual(problem, impulses) if finite else math.nan
+        measure = friction_metrics if frictional else metrics
+        finite = measure.is_finite(impulses, problem)
+        residual = measure.residual(problem, impulses) if finite else math.nan
         if finite:
             self.log.max_residual = max(self.log.max_residual, residual)
         if not finite or not residual <= REJECT_RESIDUAL:

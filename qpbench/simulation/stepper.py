@@ -12,8 +12,32 @@ One step from (x0, v0) with step h:
    let the impact operator find l, and re-integrate from x0 with
    ``v0 + M^-1 G l``.
 
+A scene with a friction solver follows that solver's ``staggering``, as SCISim's maps do
+(``scisim/ConstrainedMaps/*ImpactFrictionMap.cpp``):
+
+* ``geometric`` (``GeometricImpactFrictionMap``): as above;
+* ``stabilized`` (``StabilizedImpactFrictionMap``): solve on the predicted velocity v1
+  (forces included), with the contacts of (x0, x1) and their geometry at x0, then move
+  ``x1 = x0 + h v1_new``;
+* ``symplectic_euler`` (``SymplecticEulerImpactFrictionMap``, CoR 0): with the force
+  increment ``dv = h M^-1 F`` (zero on kinematic bodies), predict ``x0 + h (v0 + dv)`` for
+  the contacts, solve on v0 with ``n_rel = G^T dv`` and ``d_rel = T^T dv`` (plus ``g0 / h``
+  with ``g0 = min(0, gap)`` for gaps deeper than ``penetration_threshold`` when
+  ``stabilization="1"``), then ``v1 = v+ + dv`` and ``x1 = x0 + h v1``; without contacts
+  ``v1 = v0 + dv``, ``x1 = x0 + h v1`` (this map never calls the scene's integrator).
+
+With mu > 0 every impact is one :class:`~qpbench.problem.friction.FrictionalProblem`
+(tangents ``t = (-n_y, n_x)``, rigid circles' arms on the rotation rows, mu per contact),
+so rigid circles spin; with mu = 0 the problem is the frictionless ImpactProblem, exactly as
+for an ``<impact_operator type="lcp">``. ``cache_impulses`` warm-starts each solve from the
+previous step's impulses of the same contact (``normal``: l_N only, l_T from 0;
+``normal_and_friction``: both); a step without contacts forgets them, as SCISim's does.
+
 The inner solves come from a :data:`~qpbench.simulation.operators.ChooseSolve` the caller
-hands in; the simulator knows no solver by name.
+hands in; the simulator knows no solver by name. A friction solver's own ``tol`` sets the
+accuracy asked of its inner solve when the caller gives none: ``sqrt(tol)`` for So-bogus
+(whose ``tol`` bounds a squared residual), never looser than :data:`DEFAULT_ACCURACY` and
+never tighter than :data:`TIGHTEST_ACCURACY`.
 """
 
 from __future__ import annotations
@@ -30,8 +54,9 @@ import numpy as np
 
 from qpbench.errors import QpbenchError, UnsupportedError
 from qpbench.problem import files, metrics
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.scenes.model import ImpactOperator, Scene
+from qpbench.scenes.model import FrictionSolver, ImpactOperator, Scene
 from qpbench.simulation import checks, contacts, integrators
 from qpbench.simulation.operators import (
     ChooseSolve,
@@ -42,6 +67,7 @@ from qpbench.simulation.operators import (
 )
 
 DEFAULT_ACCURACY = 1e-8
+TIGHTEST_ACCURACY = 1e-13  # what the inner solvers reach in double precision
 
 
 @dataclass
@@ -52,8 +78,26 @@ class StepEvent:
     time: float
     positions: np.ndarray  # start-of-step positions (bodies, 2)
     contacts: contacts.Contacts
-    impulses: np.ndarray
-    problem: ImpactProblem | None = None
+    impulses: np.ndarray  # l, or r = (l_N, l_T) of a frictional problem
+    problem: ImpactProblem | FrictionalProblem | None = None
+    velocity_shift: np.ndarray | None = None  # dv added after the impulses (symplectic_euler)
+
+    @property
+    def approaching(self) -> bool:
+        """Some contact approaches (``b < 0``): an impact; otherwise l = 0 exactly."""
+        if self.problem is None:
+            return False
+        return bool(np.any(_normal(self.problem).b < 0))
+
+    def energy_gain(self) -> float:
+        """(KE+ - KE-) / KE- of the impulses, measured on the velocities they act on (for
+        symplectic_euler: ``v0 + dv`` before, ``v+ + dv`` after)."""
+        assert self.problem is not None
+        problem = self.problem
+        shift = 0.0 if self.velocity_shift is None else self.velocity_shift
+        before = problem.kinetic_energy(problem.v_minus + shift)
+        after = problem.kinetic_energy(problem.v_plus(self.impulses) + shift)
+        return (after - before) / max(before, metrics.TINY)
 
 
 @dataclass
@@ -79,6 +123,8 @@ class SimulationResult:
     captured: int = 0
     x_final: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     v_final: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    theta_final: np.ndarray | None = None  # rigid bodies only
+    omega_final: np.ndarray | None = None  # rigid bodies only
     operator: str | None = None
     solver: str | None = None
     failure: dict[str, Any] | None = None
@@ -93,10 +139,28 @@ class SimulationResult:
             "max_energy_gain": self.max_energy_gain, "momentum_drift": self.momentum_drift,
             "wall_s": self.wall_s, "captured": self.captured,
             "x_final": self.x_final, "v_final": self.v_final,
+            **({"theta_final": self.theta_final, "omega_final": self.omega_final}
+               if self.theta_final is not None else {}),
             "operator": self.operator, "solver": self.solver,
             "success": self.failure is None, "failure": self.failure,
             **self.log.as_dict(),
         }
+
+
+def _normal(problem: ImpactProblem | FrictionalProblem) -> ImpactProblem:
+    return problem.normal if isinstance(problem, FrictionalProblem) else problem
+
+
+def inner_accuracy(scene: Scene, accuracy: float | None) -> float:
+    """The residual asked of every inner solve: ``accuracy`` when given; else, for a
+    frictional scene, its friction solver's own (``FrictionSolver.residual_asked``) within
+    [TIGHTEST_ACCURACY, DEFAULT_ACCURACY]; else DEFAULT_ACCURACY."""
+    if accuracy is not None:
+        return accuracy
+    if scene.frictional:
+        assert scene.friction is not None
+        return min(DEFAULT_ACCURACY, max(scene.friction.residual_asked, TIGHTEST_ACCURACY))
+    return DEFAULT_ACCURACY
 
 
 def solver_operators(operator: ImpactOperator | None) -> list[ImpactOperator]:
@@ -109,13 +173,17 @@ def solver_operators(operator: ImpactOperator | None) -> list[ImpactOperator]:
     return [operator] if operator.type in ("lcp", "gr") else []
 
 
-def choose_solvers(operator: ImpactOperator | None, choose_solve: ChooseSolve | None,
-                   accuracy: float, log: SolveLog) -> tuple[dict[int, InnerSolver], list[str]]:
-    """The inner solver of each operator that needs one (keyed by ``id(operator)``), and the
-    notes of the choice; ValueError when some operator needs one and ``choose_solve`` is None."""
+def choose_solvers(operator: ImpactOperator | FrictionSolver | None,
+                   choose_solve: ChooseSolve | None, accuracy: float, log: SolveLog
+                   ) -> tuple[dict[int, InnerSolver], list[str]]:
+    """The inner solver of each operator that needs one (keyed by ``id(operator)``; a
+    frictional scene's friction solver is one), and the notes of the choice; ValueError when
+    some operator needs one and ``choose_solve`` is None."""
     inner: dict[int, InnerSolver] = {}
     notes: list[str] = []
-    for op in solver_operators(operator):
+    needing = ([operator] if isinstance(operator, FrictionSolver)
+               else solver_operators(operator))
+    for op in needing:
         if choose_solve is None:
             raise ValueError(f"the <{op.declared_by}> operator needs an inner solver: "
                              "give the Simulator a choose_solve")
@@ -127,10 +195,11 @@ def choose_solvers(operator: ImpactOperator | None, choose_solve: ChooseSolve | 
 
 
 class Simulator:
-    """Steps a scene; every impact event becomes an ImpactProblem (optionally captured)."""
+    """Steps a scene; every impact event becomes an ImpactProblem, or a FrictionalProblem when
+    the scene has friction (optionally captured)."""
 
     def __init__(self, scene: Scene, choose_solve: ChooseSolve | None = None,
-                 accuracy: float = DEFAULT_ACCURACY, capture: str | Path | None = None) -> None:
+                 accuracy: float | None = None, capture: str | Path | None = None) -> None:
         self.scene = scene
         bodies = scene.bodies
         self.positions = bodies.positions.copy()
@@ -142,11 +211,14 @@ class Simulator:
         self.dt = float(scene.dt)
         self.step_index = 0
         self.log = SolveLog()
-        self.inner, self.notes = choose_solvers(scene.impact, choose_solve, accuracy,
-                                                self.log)
+        self.accuracy = inner_accuracy(scene, accuracy)
+        self.friction = scene.friction if scene.frictional else None
+        self.inner, self.notes = choose_solvers(
+            self.friction if self.friction is not None else scene.impact, choose_solve,
+            self.accuracy, self.log)
         self.capture = Path(capture) if capture is not None else None
         self.captured = 0
-        self._cache: dict[int, float] = {}
+        self._cache: dict[int, Any] = {}
         gravity = scene.gravity
         self.gravity = gravity if gravity is not None and np.any(gravity != 0) else None
         self.acceleration = None
@@ -169,13 +241,22 @@ class Simulator:
         """The names of the inner solvers, sorted and comma-separated; None when there is none."""
         return ", ".join(sorted({inner.chosen.name for inner in self.inner.values()})) or None
 
+    @property
+    def collides(self) -> bool:
+        """The scene has contacts to resolve: an impact operator or a friction solver."""
+        return self.scene.impact is not None or self.friction is not None
+
     # --- state -------------------------------------------------------------------------
-    def dof_velocity(self) -> np.ndarray:
-        """v over all degrees of freedom, body by body: (vx, vy[, omega])."""
-        columns = [self.velocities[:, 0], self.velocities[:, 1]]
+    def dof_velocity(self, velocities: np.ndarray | None = None,
+                     omega: np.ndarray | None = None) -> np.ndarray:
+        """v over all degrees of freedom, body by body: (vx, vy[, omega]); the current state's
+        unless ``velocities`` (and ``omega``) are given."""
+        velocities = self.velocities if velocities is None else velocities
+        columns = [velocities[:, 0], velocities[:, 1]]
         if self.dofs_per_body == 3:
-            assert self.omega is not None
-            columns.append(self.omega)
+            omega = self.omega if omega is None else omega
+            assert omega is not None
+            columns.append(omega)
         return np.stack(columns, axis=1).ravel()
 
     def energy(self) -> float:
@@ -197,52 +278,159 @@ class Simulator:
                                             scene.drum_radii, self._where))
         return contacts.Contacts.concatenate(parts)
 
-    def impact_problem(self, found: contacts.Contacts) -> ImpactProblem:
-        """The impact problem of this step: G over every body's dofs, v- = start velocities."""
+    def _metadata(self, kind: str) -> dict[str, Any]:
+        scene = self.scene
+        data = {"scene": scene.path, "step": self.step_index, "time": self.step_index * self.dt,
+                "operator": kind, "dialect": scene.dialect}
+        if scene.friction is not None:
+            data["staggering"] = scene.friction.staggering
+        return data
+
+    def impact_problem(self, found: contacts.Contacts, v_minus: np.ndarray | None = None,
+                       n_rel: np.ndarray | None = None) -> ImpactProblem:
+        """The impact problem of this step: G over every body's dofs, v- = start velocities
+        (unless ``v_minus`` is given), with ``n_rel`` (default none)."""
         scene = self.scene
         assert scene.impact is not None
         name = f"{scene.name}_step{self.step_index:06d}"
         return ImpactProblem.build(
             name, found.jacobian(scene.bodies.count, self.dofs_per_body), self.m_inv,
-            self.dof_velocity(), scene.impact.restitution, None,
-            family=f"scene:{scene.name}", source=scene.path, dofs_per_body=self.dofs_per_body,
-            metadata={"scene": scene.path, "step": self.step_index,
-                      "time": self.step_index * self.dt, "operator": scene.impact.type,
-                      "dialect": scene.dialect},
+            self.dof_velocity() if v_minus is None else v_minus, scene.impact.restitution,
+            n_rel, family=f"scene:{scene.name}", source=scene.path,
+            dofs_per_body=self.dofs_per_body, metadata=self._metadata(scene.impact.type),
         )
+
+    def tangents(self, found: contacts.Contacts, x0: np.ndarray) -> Any:
+        """T of this step's contacts at the start positions x0."""
+        bodies = self.scene.bodies
+        return found.tangent_jacobian(x0, bodies.radii, bodies.fixed, bodies.count,
+                                      self.dofs_per_body)
+
+    def frictional_problem(self, found: contacts.Contacts, x0: np.ndarray,
+                           v_minus: np.ndarray, n_rel: np.ndarray | None = None,
+                           d_rel: np.ndarray | None = None, T: Any = None
+                           ) -> FrictionalProblem:
+        """The frictional problem of this step: G and T at x0, mu and CoR per contact."""
+        scene = self.scene
+        assert self.friction is not None
+        name = f"{scene.name}_step{self.step_index:06d}"
+        return FrictionalProblem.build(
+            name, found.jacobian(scene.bodies.count, self.dofs_per_body),
+            self.tangents(found, x0) if T is None else T, self.m_inv, v_minus,
+            self.friction.mu, self.friction.restitution, n_rel, d_rel,
+            family=f"scene:{scene.name}", source=scene.path, dofs_per_body=self.dofs_per_body,
+            metadata={**self._metadata(self.friction.kind), "mu": self.friction.mu,
+                      "tol": self.friction.tol, "max_iters": self.friction.max_iters,
+                      "eval_every": self.friction.eval_every,
+                      "cache_impulses": self.friction.cache_impulses},
+        )
+
+    def _symplectic_terms(self, found: contacts.Contacts, x0: np.ndarray, shift: np.ndarray,
+                          T: Any) -> tuple[np.ndarray, np.ndarray | None]:
+        """n_rel = G^T dv (+ g0 / h) and d_rel = T^T dv of the symplectic_euler map."""
+        scene = self.scene
+        assert scene.friction is not None
+        G = found.jacobian(scene.bodies.count, self.dofs_per_body)
+        n_rel = G.T @ shift
+        if scene.friction.stabilization:
+            gaps = found.gaps(x0, scene.bodies.radii, scene.plane_points, scene.plane_normals,
+                              scene.drum_centers, scene.drum_radii)
+            g0 = np.minimum(0.0, gaps)
+            g0[np.abs(g0) < scene.friction.penetration_threshold] = 0.0
+            n_rel = n_rel + g0 / self.dt
+        return n_rel, (None if T is None else T.T @ shift)
+
+    def _warm_start(self, keys: np.ndarray, frictional: bool) -> np.ndarray | None:
+        """The previous step's impulses of the same contacts (zeros for new ones), or None
+        when the scene caches nothing."""
+        scene = self.scene
+        if frictional:
+            assert self.friction is not None
+            mode = self.friction.cache_impulses
+            if mode == "none":
+                return None
+            cached = np.array([self._cache.get(int(key), (0.0, 0.0)) for key in keys],
+                              dtype=float).reshape(-1, 2)
+            tangential = cached[:, 1] if mode == "normal_and_friction" else np.zeros(len(keys))
+            return np.concatenate([cached[:, 0], tangential])
+        if scene.impact is not None and scene.impact.cache_impulses:
+            return np.array([self._cache.get(int(key), 0.0) for key in keys])
+        return None
+
+    def _remember(self, keys: np.ndarray, impulses: np.ndarray, frictional: bool) -> None:
+        scene = self.scene
+        if frictional:
+            assert self.friction is not None
+            if self.friction.cache_impulses != "none":
+                n = len(keys)
+                self._cache = {int(key): (float(impulses[k]), float(impulses[n + k]))
+                               for k, key in enumerate(keys)}
+        elif scene.impact is not None and scene.impact.cache_impulses:
+            self._cache = dict(zip(keys.tolist(), impulses.tolist(), strict=True))
+
+    def _solve(self, problem: ImpactProblem | FrictionalProblem,
+               warm: np.ndarray | None) -> np.ndarray:
+        if isinstance(problem, FrictionalProblem):
+            assert self.friction is not None
+            return self.inner[id(self.friction)].solve(problem, warm)
+        assert self.scene.impact is not None
+        return apply(self.scene.impact, problem, self.inner, self.log, warm)
 
     def step(self) -> StepEvent:
         """Advances one step; raises InnerSolveFailed when the inner solver fails."""
         scene = self.scene
+        staggering = scene.staggering
         x0, v0 = self.positions, self.velocities
-        x1, v1 = integrators.flow(scene.integrator, x0, v0, self.dt, self.acceleration)
+        shift: np.ndarray | None = None
+        if staggering == "symplectic_euler":  # the map's own update, never the integrator
+            v1 = v0 if self.acceleration is None else v0 + self.dt * self.acceleration
+            x1 = x0 + self.dt * v1
+        else:
+            x1, v1 = integrators.flow(scene.integrator, x0, v0, self.dt, self.acceleration)
         found = contacts.Contacts.empty()
         impulses = np.zeros(0)
-        problem = None
-        if scene.impact is not None and scene.bodies.count:
+        problem: ImpactProblem | FrictionalProblem | None = None
+        if self.collides and scene.bodies.count:
             found = self.find_contacts(x0, x1)
         if not found.count:
             self._cache.clear()  # as SCISim: a step without contacts forgets cached impulses
         if found.count:
-            problem = self.impact_problem(found)
-            if self.capture is not None and np.any(problem.b < 0):  # b >= 0: l = 0, no impact
+            frictional = self.friction is not None
+            T = self.tangents(found, x0) if frictional else None
+            n_rel = d_rel = None
+            # the stabilized map solves on the predicted velocity, the others on v0
+            v_minus = self.dof_velocity(v1 if staggering == "stabilized" else None)
+            if staggering == "symplectic_euler":
+                increment = (np.zeros_like(v0) if self.acceleration is None
+                             else self.dt * self.acceleration)
+                shift = self.dof_velocity(increment, np.zeros(scene.bodies.count))
+                n_rel, d_rel = self._symplectic_terms(found, x0, shift, T)
+            if frictional:
+                problem = self.frictional_problem(found, x0, v_minus, n_rel, d_rel, T)
+            elif staggering == "geometric":
+                problem = self.impact_problem(found)
+            else:
+                problem = self.impact_problem(found, v_minus, n_rel)
+            if self.capture is not None and np.any(_normal(problem).b < 0):  # else l = 0
                 files.save(problem, self.capture / problem.name)
                 self.captured += 1
             keys = found.keys()
-            warm = None
-            if scene.impact is not None and scene.impact.cache_impulses:
-                warm = np.array([self._cache.get(int(key), 0.0) for key in keys])
-            assert scene.impact is not None
-            impulses = apply(scene.impact, problem, self.inner, self.log, warm)
-            if scene.impact.cache_impulses:
-                self._cache = dict(zip(keys.tolist(), impulses.tolist(), strict=True))
-            v_plus = problem.v_plus(impulses).reshape(-1, self.dofs_per_body)
-            x1, v1 = integrators.flow(scene.integrator, x0, v_plus[:, :2], self.dt,
-                                      self.acceleration)
+            impulses = self._solve(problem, self._warm_start(keys, frictional))
+            self._remember(keys, impulses, frictional)
+            v_plus = problem.v_plus(impulses)
+            if shift is not None:
+                v_plus = v_plus + shift
+            v_plus = v_plus.reshape(-1, self.dofs_per_body)
+            if staggering == "geometric":
+                x1, v1 = integrators.flow(scene.integrator, x0, v_plus[:, :2], self.dt,
+                                          self.acceleration)
+            else:
+                v1 = v_plus[:, :2].copy()
+                x1 = x0 + self.dt * v1
             if self.omega is not None:
                 self.omega = v_plus[:, 2].copy()
         event = StepEvent(self.step_index, self.step_index * self.dt, x0, found, impulses,
-                          problem)
+                          problem, shift)
         if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))):
             raise UnsupportedError(f"{self._where}the state is no longer finite at step "
                                    f"{self.step_index} (values beyond floating point range)")
@@ -274,7 +462,8 @@ class Simulator:
         scene = self.scene
         total = self.step_count(end_time, max_steps)
         result = SimulationResult(scene=scene.path, log=self.log, notes=list(self.notes))
-        result.operator = scene.impact.type if scene.impact is not None else None
+        result.operator = (self.friction.kind if self.friction is not None
+                           else scene.impact.type if scene.impact is not None else None)
         result.solver = self.solver_names
         v_start = self.velocities.copy()
         result.energy_initial = self.energy()
@@ -288,9 +477,12 @@ class Simulator:
                 break
             if event.problem is not None:
                 result.max_contacts = max(result.max_contacts, event.contacts.count)
-            if event.problem is not None and np.any(event.problem.b < 0):
+            if event.approaching:
                 result.impacts += 1
-                gain = metrics.energy_gain(event.problem, event.impulses)
+                if isinstance(event.problem, FrictionalProblem) or event.velocity_shift is not None:
+                    gain = event.energy_gain()
+                else:
+                    gain = metrics.energy_gain(event.problem, event.impulses)
                 if result.max_energy_gain is None or gain > result.max_energy_gain:
                     result.max_energy_gain = gain
             if on_step is not None:
@@ -306,4 +498,7 @@ class Simulator:
         result.captured = self.captured
         result.x_final = self.positions.copy()
         result.v_final = self.velocities.copy()
+        if self.theta is not None and self.omega is not None:
+            result.theta_final = self.theta.copy()
+            result.omega_final = self.omega.copy()
         return result
