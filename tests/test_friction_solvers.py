@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from qpbench.problem import friction_metrics as fm
 from qpbench.problem import metrics
@@ -49,7 +50,7 @@ def pair_on_floor(mu: float, seed: int = 0) -> FrictionalProblem:
 
 def row_of(key: str, problem: FrictionalProblem, accuracy: float = 1e-10,
            warm_start: np.ndarray | None = None):
-    spec = registry.get(key)
+    spec = registry.get(key, "frictional")
     return solve_and_judge(spec, problem, accuracy, warm_start)
 
 
@@ -89,3 +90,121 @@ def test_nsgs_at_mu_zero_gives_the_frictionless_answer() -> None:
     assert np.all(tangential == 0.0)
     assert metrics.residual(problem.normal, normal) == fm.residual(problem, output.impulses)
     assert row["status"] == "solved"
+
+
+# --- Lemke on the Stewart-Trinkle LCP ----------------------------------------------------
+def test_one_lemke_spec_serves_both_problem_kinds() -> None:
+    spec = registry.get("lemke/lcp", "frictional")
+    assert set(spec.kinds) == {"impact", "frictional"}
+
+
+@pytest.mark.parametrize("u_normal, u_tangential, mu", BALLS)
+def test_lemke_finds_the_hand_answer_of_a_ball_on_the_floor(u_normal: float,
+                                                            u_tangential: float,
+                                                            mu: float) -> None:
+    row, output = row_of("lemke/lcp", ball_on_floor(u_normal, u_tangential, mu))
+    assert row["status"] == "solved" and row["status_honest"]
+    np.testing.assert_allclose(output.impulses, hand_answer(u_normal, u_tangential, mu),
+                               atol=1e-12)
+
+
+def test_lemke_on_three_coupled_contacts_agrees_with_nsgs_on_the_residual() -> None:
+    for seed in range(5):
+        row, _ = row_of("lemke/lcp", pair_on_floor(mu=0.6, seed=seed))
+        assert row["status"] == "solved" and row["residual"] <= 1e-10
+
+
+# --- staggered projections -----------------------------------------------------------------
+STAGGERED = ["osqp/staggered", "clarabel/staggered", "pi-robust/staggered", "pgs/staggered",
+             "lemke/staggered"]
+
+
+@pytest.mark.parametrize("key", STAGGERED)
+def test_staggered_finds_the_hand_answer_of_a_ball_on_the_floor(key: str) -> None:
+    for u_normal, u_tangential, mu in BALLS:
+        row, output = row_of(key, ball_on_floor(u_normal, u_tangential, mu), accuracy=1e-8)
+        assert row["status"] == "solved", (key, u_tangential, output.status)
+        assert row["residual"] <= 1e-8 and row["status_honest"]
+        np.testing.assert_allclose(output.impulses, hand_answer(u_normal, u_tangential, mu),
+                                   atol=1e-6)
+        assert row["outer_iterations"] == 1  # one contact: the two projections are exact
+
+
+@pytest.mark.parametrize("key", STAGGERED)
+def test_staggered_on_three_coupled_contacts_reports_its_rounds(key: str) -> None:
+    row, output = row_of(key, pair_on_floor(mu=0.6, seed=2), accuracy=1e-8)
+    assert row["status"] == "solved" and row["residual"] <= 1e-8
+    assert row["outer_iterations"] == output.info["outer_iterations"] >= 1
+
+
+def test_staggered_warm_started_from_an_answer_does_no_round() -> None:
+    problem = pair_on_floor(mu=0.6, seed=2)
+    _, answer = row_of("nsgs/nsgs", problem)
+    row, output = row_of("pi-robust/staggered", problem, accuracy=1e-8,
+                         warm_start=answer.impulses)
+    assert row["status"] == "solved" and output.info["outer_iterations"] == 0
+
+
+def test_staggered_with_empty_friction_boxes_is_the_frictionless_solve() -> None:
+    """mu = 0: every box is [0, 0], so no backend sees a friction QP (quadprog would refuse
+    it) and l_T stays exactly 0."""
+    problem = pair_on_floor(mu=0.0, seed=1)
+    row, output = row_of("quadprog/staggered", problem, accuracy=1e-8)
+    assert row["status"] == "solved"
+    assert np.all(problem.split(output.impulses)[1] == 0.0)
+
+
+def test_the_box_gauss_seidel_reaches_the_box_qp_optimum() -> None:
+    from qpbench.solvers.friction_staggered import BoxQP, box_gauss_seidel, box_residual
+
+    P = np.array([[2.0, 1.0, 0.0], [1.0, 2.0, 1.0], [0.0, 1.0, 2.0]])
+    box = BoxQP(P=sp.csc_matrix(P), c=np.array([-4.0, 1.0, 3.0]),
+                lower=np.full(3, -1.0), upper=np.full(3, 1.0))
+    answer = box_gauss_seidel(box, 1e-12, 10_000, 5, np.zeros(3))
+    assert answer.claimed_success and box_residual(box, answer.x) <= 1e-12
+    # x_0 at its upper bound (g_0 = -2.5 < 0), x_2 at its lower (g_2 = 0.5 > 0), x_1 inside
+    # with g_1 = 1 + 2 x_1 - 1 + 1 = 0
+    np.testing.assert_allclose(answer.x, [1.0, -0.5, -1.0], atol=1e-11)
+
+
+# --- Anitescu's relaxation ------------------------------------------------------------------
+CCP = ["pi-robust/ccp", "clarabel/ccp", "osqp/ccp", "lemke/ccp", "pgs/ccp"]
+
+
+@pytest.mark.parametrize("key", CCP)
+def test_ccp_twins_solve_the_relaxation_and_are_judged_on_it(key: str) -> None:
+    row, _ = row_of(key, pair_on_floor(mu=0.6, seed=0))
+    assert row["model"] == "ccp" and row["residual"] <= 1e-8
+
+
+@pytest.mark.parametrize("key", CCP)
+def test_ccp_on_a_sliding_ball_separates_which_is_model_error(key: str) -> None:
+    """A sliding ball: the relaxation lifts it off (u_N = mu |u_T| > 0), so its ccp residual is
+    zero and its Coulomb residual, the model error, is not."""
+    problem = ball_on_floor(u_normal=-1.0, u_tangential=3.0, mu=0.5)
+    row, output = row_of(key, problem)
+    assert row["status"] == "solved" and row["residual"] <= 1e-8
+    assert row["model_error"] > 1e-3
+    u_normal = problem.split(problem.u(output.impulses))[0]
+    assert u_normal[0] > 0.1
+
+
+def test_ccp_on_a_sticking_ball_is_the_coulomb_answer() -> None:
+    problem = ball_on_floor(u_normal=-2.0, u_tangential=0.6, mu=0.5)
+    row, output = row_of("pi-robust/ccp", problem)
+    assert row["status"] == "solved" and row["model_error"] <= 1e-10
+    np.testing.assert_allclose(output.impulses, hand_answer(-2.0, 0.6, 0.5), atol=1e-12)
+
+
+# --- the listing ------------------------------------------------------------------------
+def test_every_frictionless_dual_or_lcp_solver_has_its_ccp_and_staggered_twins() -> None:
+    listed = {spec.key: spec for spec in registry.all_solvers()}
+    inner = {spec.name: spec for spec in listed.values()
+             if "impact" in spec.kinds and spec.formulation in ("dual", "lcp")}
+    assert {"pi-robust", "pgs", "lemke", "apgd", "penalty", "pi", "pi-v2"} <= set(inner)
+    for name, spec in inner.items():
+        for formulation in ("ccp", "staggered"):
+            twin = listed[f"{name}/{formulation}"]
+            assert twin.kinds == ("frictional",)
+            assert twin.usable == spec.usable and twin.reason == spec.reason
+    assert listed["nsgs/nsgs"].kinds == ("frictional",)
