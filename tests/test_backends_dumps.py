@@ -19,7 +19,8 @@ from qpbench.solvers.run import solve_and_judge
 
 DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 DUMP_FILES = sorted(DUMPS.glob("*"))
-SPECS = [spec for spec in all_solvers() if spec.backend in ("qpsolvers", "cvxpy", "cyipopt")]
+SPECS = [spec for spec in all_solvers()
+         if spec.backend in ("qpsolvers", "cvxpy", "cyipopt") and "impact" in spec.kinds]
 ACCURACY = 1e-8
 # cvxpy's cone program for CVXOPT fails outright ("Solver 'CVXOPT' failed") below ~1e-4
 ACCURACY_FOR = {"cvxpy-cvxopt": 1e-4}

@@ -34,8 +34,7 @@ def frictionless_solvers() -> list[SolverSpec]:
     """Every registered impact solver of a ``dual`` or ``lcp`` formulation, usable or not,
     one per name (its ``dual`` form where it has both), in key order."""
     chosen: dict[str, SolverSpec] = {}
-    for key in sorted(registry._SOLVERS):
-        spec = registry._SOLVERS[key]
+    for spec in registry.registered_so_far():
         if "impact" not in spec.kinds or spec.formulation not in INNER_FORMULATIONS:
             continue
         if spec.name not in chosen or spec.formulation == "dual":

@@ -50,6 +50,12 @@ def _import_extra_solvers() -> None:
                                    f"{error}") from error
 
 
+def registered_so_far() -> list[SolverSpec]:
+    """The pairs registered until now, sorted by key, without importing any backend: for
+    backend modules that derive solvers from the ones registered before them."""
+    return [_SOLVERS[key] for key in sorted(_SOLVERS)]
+
+
 def all_solvers() -> list[SolverSpec]:
     """Every registered solver-formulation pair, usable or not, sorted by key."""
     from qpbench import solvers  # noqa: F401  (imports every backend module once)
