@@ -19,6 +19,7 @@ from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
 from qpbench.errors import InputError
 from qpbench.problem import files
+from qpbench.problem.friction import FrictionalProblem
 
 LEVELS = (1e-4, 1e-6, 1e-8)
 SOLVERS = ("test-exact/lcp", "clarabel/dual", "osqp/dual")
@@ -108,3 +109,58 @@ def test_report_takes_extra_sections_from_json_files_beside_the_results(
 def test_report_of_a_missing_file_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no such results file"):
         write_report(tmp_path / "missing.parquet")
+
+
+def ball_on_floor(name: str, u_tangential: float, mu: float) -> FrictionalProblem:
+    """A unit ball hitting a rough floor at u_N- = -2: it sticks iff |u_T-| <= 2 mu."""
+    return FrictionalProblem.build(name, G=[[0.0], [1.0]], T=[[-1.0], [0.0]], m_inv=[1, 1],
+                                   v_minus=[-u_tangential, -2.0], mu=mu, family="floor")
+
+
+@pytest.fixture(scope="module")
+def frictional_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Real solves of a sticking and a sliding ball by nsgs, Lemke, a staggered and a ccp
+    pair at two levels."""
+    folder = tmp_path_factory.mktemp("friction")
+    limits = Limits(timeout_s=10.0)
+    solver = CellSolver()
+    rows = []
+    for problem in (ball_on_floor("sticks", 0.6, 0.5), ball_on_floor("slides", 3.0, 0.5)):
+        path = files.save(problem, folder / problem.name)
+        for key in ("nsgs/nsgs", "lemke/lcp", "clarabel/staggered", "clarabel/ccp"):
+            name, formulation = key.split("/")
+            for accuracy in (1e-4, 1e-8):
+                cell = Cell(str(path), problem.name, name, formulation, accuracy, "cold")
+                rows.append(complete_row(solver.solve(cell, limits), cell, problem.summary(),
+                                         limits))
+    store = ResultStore(folder / "bench.parquet")
+    store.write_part(rows)
+    store.compact()
+    return store.path
+
+
+def test_a_friction_only_table_gets_its_friction_section(frictional_results: Path,
+                                                         tmp_path: Path) -> None:
+    text = write_report(frictional_results, tmp_path).read_text()
+    assert "_No frictionless problems in these results._" in text
+    friction = text.split("## Friction\n", 1)[1].split("\n## ", 1)[0]
+    assert "2 frictional problems (floor), 0 of them without a solution" in friction
+    for formulation in ("ccp", "lcp", "nsgs", "staggered"):
+        assert f"| 1e-08 | {formulation} |" in friction
+    assert "### Inner backends of `staggered`" in friction
+    # the sliding ball separates in the relaxed model: its Coulomb residual is not zero
+    assert "### Model error of `ccp`" in friction
+    row = friction.split("### Model error of `ccp`", 1)[1].split("| floor |", 1)[1]
+    assert float(row.split("|")[1]) > 1e-3
+
+
+def test_frictional_rows_stay_out_of_the_frictionless_tables(
+        results: Path, frictional_results: Path, tmp_path: Path) -> None:
+    both = ResultStore(tmp_path / "both.parquet")
+    both.write_part(pd.concat([ResultStore(results).read(),
+                               ResultStore(frictional_results).read()]).to_dict("records"))
+    both.compact()
+    text = write_report(both.path, tmp_path / "out").read_text()
+    levels = text.split("## Per accuracy level", 1)[1].split("## Friction", 1)[0]
+    assert "nsgs/nsgs" not in levels and "clarabel/dual" in levels
+    assert "2 frictional problems" in text

@@ -24,9 +24,11 @@ from qpbench.atomic import atomic_path
 from qpbench.bench import plots, stats
 from qpbench.bench.results import ResultStore
 from qpbench.errors import InputError
+from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers import defects as defect_table
 from qpbench.solvers.base import TIME_S_COVERS
+from qpbench.solvers.run import NO_SOLUTION
 
 HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
                  "near-duplicate", "dump")
@@ -298,6 +300,80 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
                                      "accuracy": level}))
 
 
+def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(frictionless rows, frictional rows); rows without a kind are frictionless."""
+    kind = frame["kind"].astype("string").fillna("impact") if "kind" in frame \
+        else pd.Series("impact", index=frame.index)
+    return frame[kind != FRICTIONAL], frame[kind == FRICTIONAL]
+
+
+def _friction(frame: pd.DataFrame, folder: Path) -> str:
+    """The frictional problems: per level and formulation the share solved and the SGM time,
+    the best pair of each formulation, which inner backend serves ``staggered`` best, the
+    outer-loop counts of ``staggered``, the model error of ``ccp`` and what accuracy costs.
+    Problems with no solution are counted apart, never against a solver."""
+    if frame.empty:
+        return "_No frictional problems in these results._\n"
+    unsolvable = frame["status"].astype(str) == NO_SOLUTION
+    problems = frame["problem"].nunique()
+    without = frame.loc[unsolvable, "problem"].nunique()
+    frame = frame[~unsolvable]
+    families = ", ".join(sorted(frame["family"].dropna().astype(str).unique()))
+    parts = [f"{problems} frictional problems ({families}), "
+             f"{without} of them without a solution (counted apart). `ccp` answers are judged "
+             "by the relaxed model's own residual (sliding contacts separate there); their "
+             "Coulomb residual is the model error. Every other formulation is judged by the "
+             "natural map of Coulomb's law with the De Saxce term.\n"]
+    if frame.empty:
+        return "".join(parts)
+    shift = stats.time_scale_shift(frame)
+    summary = stats.level_summary(frame, shift)
+    split = summary["solver"].str.split("/", n=1, expand=True)
+    summary = summary.assign(name=split[0], formulation=split[1])
+    rows = []
+    for (accuracy, formulation), group in summary.groupby(["accuracy", "formulation"]):
+        best = group.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True]).iloc[0]
+        rows.append({"level": level(accuracy), "formulation": formulation,
+                     "pairs": len(group), "best pair": f"`{best['solver']}`",
+                     "solved by it": percent(best["success_rate"]),
+                     "its SGM [s]": number(best["sgm_time_s"]),
+                     "median pair solved": percent(group["success_rate"].median())})
+    table = pd.DataFrame(rows).sort_values(["level", "formulation"], ascending=[False, True])
+    parts.append("\n### Formulations at each level\n\n"
+                 + markdown_table(table, {column: str for column in table.columns}))
+    staggered = summary[summary["formulation"] == "staggered"]
+    if not staggered.empty:
+        tightest = staggered[staggered["accuracy"] == staggered["accuracy"].min()]
+        ranked = tightest.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True])
+        ranked = ranked[["solver", "ours", "success_rate", "sgm_time_s"]].head(12)
+        outer = frame[frame["formulation"].astype(str) == "staggered"]
+        counts = outer.groupby("solver")["outer_iterations"].median() \
+            if "outer_iterations" in outer else pd.Series(dtype=float)
+        ranked = ranked.assign(median_outer_iterations=[
+            counts.get(key.split("/")[0], math.nan) for key in ranked["solver"]])
+        parts.append(f"\n### Inner backends of `staggered` at {level(tightest['accuracy'].iloc[0])}"
+                     "\n\n" + markdown_table(ranked, {"success_rate": percent}))
+    ccp = frame[frame["formulation"].astype(str) == "ccp"]
+    if not ccp.empty and "model_error" in ccp:
+        errors = ccp[ccp["success"].fillna(False).astype(bool)].groupby("family")["model_error"]
+        table = pd.DataFrame({"median model error": errors.median(),
+                              "max model error": errors.max()}).reset_index()
+        parts.append("\n### Model error of `ccp` (Coulomb residual of its solved answers)\n\n"
+                     + markdown_table(table))
+    cost = stats.cost_of_accuracy(frame, shift)
+    if not cost.empty:
+        best = summary[summary["accuracy"] == summary["accuracy"].min()].sort_values(
+            ["success_rate", "sgm_time_s"], ascending=[False, True])["solver"].head(8)
+        cost = cost.loc[[key for key in best if key in cost.index]]
+        parts.append("\n### What accuracy costs (the 8 most reliable pairs at the tightest "
+                     "level)\n\n" + markdown_table(cost.reset_index().rename(
+                         columns={"index": "solver"})))
+    path = plots.success_by_level(summary.drop(columns=["name", "formulation"]),
+                                  folder / "figures" / "friction_success_by_level.png")
+    parts.append("\n" + _image(path, folder, "frictional success by level"))
+    return "".join(parts)
+
+
 def _defects() -> str:
     """The table of known defects (qpbench/solvers/defects.toml), with whether each applies to
     the versions installed here."""
@@ -338,17 +414,9 @@ SUMMARY_SUCCESS = 0.95
 
 
 # --- the report -----------------------------------------------------------------------------
-def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
-                 budget_s: float | None = None) -> Path:
-    """Writes ``folder/REPORT.md`` (default: beside the results) and its PNGs; returns the path."""
-    results = Path(results)
-    if not results.exists() and not ResultStore(results).part_files():
-        raise InputError(str(results), "no such results file")
-    frame = ResultStore(results).read()
-    if frame.empty:
-        raise InputError(str(results), "the results table has no rows")
-    folder = Path(folder) if folder is not None else results.parent
-    folder.mkdir(parents=True, exist_ok=True)
+def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
+                  ) -> tuple[list[str], list[str]]:
+    """(summary sections, the rest) of the frictionless rows (cold starts where there are)."""
     figures = folder / "figures"
     main = frame[frame["mode"].astype(str) == "cold"]
     if main.empty:
@@ -356,11 +424,9 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     shift = stats.time_scale_shift(main)
     budget = budget_s if budget_s is not None else shift
     summary = stats.level_summary(main, shift)
-
-    out: list[str] = ["# qpbench report\n\n", _overview(frame, results)]
-    out.append("\n## Summary\n\n" + _summary(summary) + f"\n{TIME_S_COVERS} Solvers marked "
-               "`ours` are written here and stop on qpbench's own residual.\n")
-    out.append("\n## Machine and versions\n\n" + _provenance(frame))
+    top = ["\n## Summary\n\n" + _summary(summary) + f"\n{TIME_S_COVERS} Solvers marked "
+           "`ours` are written here and stop on qpbench's own residual.\n"]
+    out: list[str] = []
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
                              folder, "success rate by level"))
@@ -409,14 +475,38 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                "--budget): the tightest level solved on at least 90% of problems, and the "
                "median over problems of the best v_error reached.\n\n"
                + markdown_table(within, {"tightest_level": _maybe_level}))
-    out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
-               "qpbench's verdict (solves that returned an answer or a status). Solvers marked "
-               "`ours` stop on qpbench's own residual, so theirs is 100% by construction.\n\n"
-               + markdown_table(stats.honesty(frame), {"honesty_rate": percent}))
-    out.append("\n## Known solver defects\n\n" + _defects())
     out.append(_warm_cold(frame, shift))
     out.append("\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
                + _robust_targets(main, shift))
+    return top, out
+
+
+def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
+                 budget_s: float | None = None) -> Path:
+    """Writes ``folder/REPORT.md`` (default: beside the results) and its PNGs; returns the path.
+
+    Frictionless and frictional rows are reported apart (a table of either alone works)."""
+    results = Path(results)
+    if not results.exists() and not ResultStore(results).part_files():
+        raise InputError(str(results), "no such results file")
+    everything = ResultStore(results).read()
+    if everything.empty:
+        raise InputError(str(results), "the results table has no rows")
+    folder = Path(folder) if folder is not None else results.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    frame, frictional = split_kinds(everything)
+    top, rest = _frictionless(frame, folder, budget_s) if not frame.empty else (
+        ["\n_No frictionless problems in these results._\n"], [])
+
+    out: list[str] = ["# qpbench report\n\n", _overview(everything, results), *top]
+    out.append("\n## Machine and versions\n\n" + _provenance(everything))
+    out.extend(rest)
+    out.append("\n## Friction\n\n" + _friction(frictional, folder))
+    out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
+               "qpbench's verdict (solves that returned an answer or a status). Solvers marked "
+               "`ours` stop on qpbench's own residual, so theirs is 100% by construction.\n\n"
+               + markdown_table(stats.honesty(everything), {"honesty_rate": percent}))
+    out.append("\n## Known solver defects\n\n" + _defects())
     options = pd.DataFrame(accuracy_table.table_rows())
     out.append("\n## Accuracy options\n\nHow each solver's own options follow from the level eps "
                "(scale = max(||b||_inf, tiny)).\n\n"
