@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from friction_cases import ball_on_floor, pair_on_floor
 
 from qpbench.errors import InputError
 from qpbench.problem import files, metrics
@@ -14,26 +15,9 @@ from qpbench.problem import friction_metrics as fm
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
 
 
-def ball_on_floor(u_normal: float, u_tangential: float, mu: float, restitution: float = 0.0
-                  ) -> FrictionalProblem:
-    """One unit ball (2 dofs) on the floor y = 0: n = (0, 1), t = (-1, 0)."""
-    return FrictionalProblem.build("ball", G=[[0.0], [1.0]], T=[[-1.0], [0.0]],
-                                   m_inv=[1.0, 1.0], v_minus=[-u_tangential, u_normal], mu=mu,
-                                   restitution=restitution)
-
-
 def three_contacts(mu: float, seed: int = 0) -> FrictionalProblem:
-    """Two balls on a floor, touching each other: three contacts, six dofs' worth of W."""
-    rng = np.random.default_rng(seed)
-    G = np.zeros((4, 3))
-    T = np.zeros((4, 3))
-    G[1, 0], T[0, 0] = 1.0, -1.0  # ball 0 on the floor
-    G[3, 1], T[2, 1] = 1.0, -1.0  # ball 1 on the floor
-    G[0, 2], G[2, 2] = -1.0, 1.0  # ball 0 left of ball 1: n = (-1, 0) on ball 0
-    T[1, 2], T[3, 2] = -1.0, 1.0
-    return FrictionalProblem.build("pair", G, T, m_inv=[1.0, 1.0, 0.5, 0.5],
-                                   v_minus=rng.standard_normal(4), mu=mu, restitution=0.3,
-                                   d_rel=[0.1, 0.0, 0.0])
+    """Two balls on a floor touching each other, random velocities, a moving floor."""
+    return pair_on_floor(mu, seed, falling=False, d_rel=[0.1, 0.0, 0.0])
 
 
 def test_w_and_q_of_a_ball_on_the_floor() -> None:

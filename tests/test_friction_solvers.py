@@ -6,21 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from friction_cases import ball_on_floor, pair_on_floor
 
 from qpbench.problem import friction_metrics as fm
 from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import registry
 from qpbench.solvers.run import solve_and_judge
-
-
-def ball_on_floor(u_normal: float, u_tangential: float, mu: float, restitution: float = 0.0,
-                  mass: float = 1.0) -> FrictionalProblem:
-    """One ball2d ball (2 dofs) on the floor y = 0: n = (0, 1), t = (-1, 0), W = I / m."""
-    return FrictionalProblem.build("ball", G=[[0.0], [1.0]], T=[[-1.0], [0.0]],
-                                   m_inv=[1.0 / mass, 1.0 / mass],
-                                   v_minus=[-u_tangential, u_normal], mu=mu,
-                                   restitution=restitution)
 
 
 def hand_answer(u_normal: float, u_tangential: float, mu: float, restitution: float = 0.0,
@@ -31,21 +23,6 @@ def hand_answer(u_normal: float, u_tangential: float, mu: float, restitution: fl
     if abs(u_tangential) <= mu * normal / mass:
         return np.array([normal, -mass * u_tangential])
     return np.array([normal, -mu * normal * np.sign(u_tangential)])
-
-
-def pair_on_floor(mu: float, seed: int = 0) -> FrictionalProblem:
-    """Two balls on a floor, touching each other: three contacts."""
-    rng = np.random.default_rng(seed)
-    G = np.zeros((4, 3))
-    T = np.zeros((4, 3))
-    G[1, 0], T[0, 0] = 1.0, -1.0  # ball 0 on the floor
-    G[3, 1], T[2, 1] = 1.0, -1.0  # ball 1 on the floor
-    G[0, 2], G[2, 2] = -1.0, 1.0  # ball 0 left of ball 1: n = (-1, 0) on ball 0
-    T[1, 2], T[3, 2] = -1.0, 1.0
-    velocity = rng.standard_normal(4)
-    velocity[[1, 3]] = -np.abs(velocity[[1, 3]]) - 0.5  # both fall onto the floor
-    return FrictionalProblem.build("pair", G, T, m_inv=[1.0, 1.0, 0.5, 0.5], v_minus=velocity,
-                                   mu=mu, restitution=0.3)
 
 
 def row_of(key: str, problem: FrictionalProblem, accuracy: float = 1e-10,

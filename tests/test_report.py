@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from bench_problems import write_tiny_problems
+from friction_cases import ball_on_floor
 
 from qpbench.bench import stats
 from qpbench.bench.report import write_report
@@ -19,7 +20,6 @@ from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
 from qpbench.errors import InputError
 from qpbench.problem import files
-from qpbench.problem.friction import FrictionalProblem
 
 LEVELS = (1e-4, 1e-6, 1e-8)
 SOLVERS = ("test-exact/lcp", "clarabel/dual", "osqp/dual")
@@ -111,12 +111,6 @@ def test_report_of_a_missing_file_is_an_input_error(tmp_path: Path) -> None:
         write_report(tmp_path / "missing.parquet")
 
 
-def ball_on_floor(name: str, u_tangential: float, mu: float) -> FrictionalProblem:
-    """A unit ball hitting a rough floor at u_N- = -2: it sticks iff |u_T-| <= 2 mu."""
-    return FrictionalProblem.build(name, G=[[0.0], [1.0]], T=[[-1.0], [0.0]], m_inv=[1, 1],
-                                   v_minus=[-u_tangential, -2.0], mu=mu, family="floor")
-
-
 @pytest.fixture(scope="module")
 def frictional_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Real solves of a sticking and a sliding ball by nsgs, Lemke, a staggered and a ccp
@@ -125,7 +119,8 @@ def frictional_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     limits = Limits(timeout_s=10.0)
     solver = CellSolver()
     rows = []
-    for problem in (ball_on_floor("sticks", 0.6, 0.5), ball_on_floor("slides", 3.0, 0.5)):
+    for problem in (ball_on_floor(-2.0, 0.6, 0.5, name="sticks", family="floor"),
+                    ball_on_floor(-2.0, 3.0, 0.5, name="slides", family="floor")):
         path = files.save(problem, folder / problem.name)
         for key in ("nsgs/nsgs", "lemke/lcp", "clarabel/staggered", "clarabel/ccp"):
             name, formulation = key.split("/")

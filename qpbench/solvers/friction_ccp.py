@@ -19,6 +19,7 @@ X gives an unusable twin with X's reason.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -75,17 +76,25 @@ def make_solve(inner: SolveFunction) -> Callable[..., SolverOutput]:
     return solve
 
 
-def twin(spec: SolverSpec) -> SolverSpec:
-    """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is)."""
-    common = {"name": spec.name, "formulation": FORMULATION, "backend": spec.backend,
+def derived(spec: SolverSpec, formulation: str,
+            build: Callable[[SolverSpec], tuple[Callable[..., SolverOutput], str]],
+            **fields: Any) -> SolverSpec:
+    """The frictional twin ``NAME/formulation`` of a frictionless solver ``spec``, whose solve
+    function and description ``build(spec)`` gives; unusable with spec's reason if spec is."""
+    common = {"name": spec.name, "formulation": formulation, "backend": spec.backend,
               "version": spec.version, "kinds": ("frictional",)}
     if not spec.usable:
         return SolverSpec(**common, solve=None, reason=spec.reason)
-    assert spec.solve is not None
-    return SolverSpec(**common, solve=make_solve(spec.solve), warm_start=spec.warm_start,
-                      prepare=spec.prepare,
-                      description=f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved "
-                                  f"by {spec.key}")
+    solve, description = build(spec)
+    return SolverSpec(**common, solve=solve, prepare=spec.prepare, description=description,
+                      **fields)
+
+
+def twin(spec: SolverSpec) -> SolverSpec:
+    """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is)."""
+    return derived(spec, FORMULATION, lambda inner: (
+        make_solve(inner.solve), f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved "
+                                 f"by {inner.key}"), warm_start=spec.warm_start)
 
 
 for _spec in frictionless_solvers():

@@ -43,7 +43,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy, registry
 from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
-from qpbench.solvers.friction_ccp import frictionless_solvers
+from qpbench.solvers.friction_ccp import derived, frictionless_solvers
 from qpbench.solvers.pgs import greedy_colours
 from qpbench.solvers.quiet import c_stdout_silenced
 
@@ -359,15 +359,13 @@ def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverO
 
 def twin(spec: SolverSpec) -> SolverSpec:
     """``NAME/staggered`` of a frictionless solver ``spec`` (unusable with its reason)."""
-    common = {"name": spec.name, "formulation": FORMULATION, "backend": spec.backend,
-              "version": spec.version, "kinds": ("frictional",)}
-    if not spec.usable:
-        return SolverSpec(**common, solve=None, reason=spec.reason)
-    box_solver, box_name = box_solver_for(spec)
-    return SolverSpec(**common, solve=make_solve(spec, box_solver), warm_start=True,
-                      prepare=spec.prepare, own_stopping_rule=True,
-                      description=f"staggered projections: normal QP by {spec.key}, friction "
-                                  f"box QP by {box_name}")
+
+    def build(inner: SolverSpec) -> tuple[Callable[..., SolverOutput], str]:
+        box_solver, box_name = box_solver_for(inner)
+        return make_solve(inner, box_solver), (f"staggered projections: normal QP by "
+                                               f"{inner.key}, friction box QP by {box_name}")
+
+    return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True)
 
 
 for _spec in frictionless_solvers():
