@@ -62,6 +62,7 @@ _SINGULAR = 1e-10  # |det| of a row-normalised pattern system below which it is 
 _RANK = 1e-10  # singular values below this (relative) span a singular pattern's null space
 _CONSISTENT = 1e-9  # equation residual (relative) of a consistent pattern system
 _CERTIFICATE = 1e-9  # q^T d below -this (relative to the scale) is a certificate
+_MOVING_CHECKS = 200  # feasible patterns along which v+ may move, checked by LP; more: unproven
 _LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
 
 
@@ -231,6 +232,31 @@ def _velocity_lp(problem: Scaled, start: np.ndarray, null_W: np.ndarray) -> np.n
     return start + null_W @ result.x[:k]
 
 
+def _velocity_varies(problem: Scaled, velocity_map: np.ndarray, pattern: np.ndarray,
+                     start: np.ndarray, null: np.ndarray) -> bool:
+    """Whether v+ takes more than one value on the points ``start + null y`` that satisfy the
+    inequalities of ``pattern``: the range of a seeded random component of ``M^1/2 v+`` over
+    them (two LPs); a range of zero in a random direction means v+ is fixed there (with
+    probability one)."""
+    B, h = pattern_inequalities(problem, pattern)
+    direction = np.random.default_rng(1).standard_normal(velocity_map.shape[0])
+    objective = direction @ velocity_map @ null
+    bound = 1e6 * problem.scale
+    values = []
+    for sign in (1.0, -1.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = scipy.optimize.linprog(sign * objective, A_ub=-B @ null, b_ub=B @ start + h,
+                                            bounds=[(-bound, bound)] * null.shape[1],
+                                            method="highs", options=_LP_OPTIONS)
+        if result.status != 0:
+            return True  # undecided counts as varying: uniqueness stays unproven
+        values.append(sign * result.fun)
+    spread = abs(values[1] - values[0])
+    unit = max(float(np.linalg.norm(velocity_map @ start)), problem.scale, TINY)
+    return spread > SAME_VELOCITY * unit
+
+
 def classify(problem: Scaled, impulses: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     """The state of each contact read off r~: separate where l_N is (relatively) zero, slide
     where |l_T| reaches mu l_N (sign: slide+ when l_T < 0), stick otherwise."""
@@ -300,7 +326,7 @@ def enumerate_solutions(problem: FrictionalProblem) -> Enumeration:
     patterns = _all_patterns(n)
     found: list[tuple[np.ndarray, np.ndarray]] = []
     pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]] = []
-    may_vary = False
+    moving: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     for start in range(0, len(patterns), _CHUNK):
         chunk = patterns[start:start + _CHUNK]
         A, c = pattern_systems(local, chunk)
@@ -330,7 +356,8 @@ def enumerate_solutions(problem: FrictionalProblem) -> Enumeration:
             moves = bool(null.size and np.max(np.abs(local.W @ null)) > _RANK)
             if feasible[j]:
                 found.append((pattern, x))
-                may_vary |= moves  # v+ = v- + M^-1 H r moves along this pattern's null space
+                if moves:  # v+ = v- + M^-1 H r may move along this pattern's null space
+                    moving.append((pattern, x, null))
             else:
                 pending.append((pattern, x, null, moves))
     solutions, kept = _accepted(problem, local, found)
@@ -351,7 +378,8 @@ def enumerate_solutions(problem: FrictionalProblem) -> Enumeration:
         solutions += more
         kept += more_patterns
         known.add(more)
-        may_vary |= bool(more)
+        if more:
+            moving.append((pattern, point, null))
     starts = _Velocities(problem, local)
     if still:
         points = np.array(still)
@@ -374,7 +402,10 @@ def enumerate_solutions(problem: FrictionalProblem) -> Enumeration:
         solutions += more
         kept += more_patterns
         known.add(more)
-    return Enumeration(solutions, kept, may_vary, lp_solves)
+    may_vary = len(moving) > _MOVING_CHECKS or any(
+        _velocity_varies(local, known.map, pattern, x, null) for pattern, x, null in moving)
+    return Enumeration(solutions, kept, may_vary, lp_solves + 2 * min(len(moving),
+                                                                       _MOVING_CHECKS))
 
 
 class _Velocities:
@@ -619,7 +650,7 @@ def _solve_part(part: FrictionalProblem) -> _Part:
     if checked is not None and not any(
             same_velocity(part, part.v_plus(checked), part.v_plus(other)) for other in distinct):
         # Lemke found a solution the enumeration missed: its list is not complete
-        return _Part(distinct + [checked], None, False, "enumeration+lemke")
+        return _Part(distinct + [checked], None, False, "enumeration(incomplete)+lemke")
     unique: bool | None = len(distinct) == 1
     if enumeration.velocity_may_vary and len(distinct) == 1:
         unique = None
