@@ -3,6 +3,7 @@
 ```toml
 [families]                       # family -> sizes (default: the family's) and seeds per size
 grid = { sizes = [3, 5], count = 2, seed = 0 }
+incline = { count = 2 }          # frictional families (qpbench.problem.friction_generate) too
 
 [dumps]
 paths = ["dumps/*"]              # globs, relative to the set file
@@ -14,7 +15,9 @@ solver = "clarabel"              # inner solver of the simulation (default: the 
 max_problems = 5                 # evenly spread over the captured impacts
 ```
 
-Every problem file gets a verified reference (qpbench.problem.reference). Building is
+Every problem file gets a reference: a verified one from two methods that agree
+(qpbench.problem.reference), or for a frictional problem one polished to a Coulomb residual of
+1e-12 with its uniqueness and solvability (qpbench.problem.friction_reference). Building is
 incremental: a problem whose file exists is not made again. Building runs the simulator
 (scenes) and the solvers (inner solves, references), so it lives above both, in bench.
 """
@@ -33,13 +36,18 @@ import numpy as np
 
 from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
-from qpbench.problem import files
+from qpbench.problem import files, friction_reference
 from qpbench.problem.dumps import import_dump
+from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.friction_generate import FRICTION_FAMILIES
+from qpbench.problem.friction_generate import generate as generate_frictional
 from qpbench.problem.generate import FAMILIES, generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import Simulator
+
+ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
 
 
 def read_set(path: str | Path) -> dict[str, Any]:
@@ -52,8 +60,8 @@ def read_set(path: str | Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as error:
         raise InputError(str(path), f"malformed TOML: {error}") from error
     for family in definition.get("families", {}):
-        if family not in FAMILIES:
-            raise InputError(str(path), f"unknown family (known: {', '.join(FAMILIES)})",
+        if family not in ALL_FAMILIES:
+            raise InputError(str(path), f"unknown family (known: {', '.join(ALL_FAMILIES)})",
                              "families", family)
     for index, scene in enumerate(definition.get("scenes", [])):
         if "path" not in scene:
@@ -61,12 +69,14 @@ def read_set(path: str | Path) -> dict[str, Any]:
     return definition
 
 
-def _family_problems(definition: dict[str, Any], existing: set[str]) -> Iterator[ImpactProblem]:
+def _family_problems(definition: dict[str, Any], existing: set[str]
+                     ) -> Iterator[ImpactProblem | FrictionalProblem]:
     for family, options in definition.get("families", {}).items():
         sizes = options.get("sizes", [None])
+        make = generate_frictional if family in FRICTION_FAMILIES else generate
         for size in sizes:
-            for problem in generate(family, size=size, seed=int(options.get("seed", 0)),
-                                    count=int(options.get("count", 1))):
+            for problem in make(family, size=size, seed=int(options.get("seed", 0)),
+                                count=int(options.get("count", 1))):
                 if problem.name not in existing:
                     yield problem
 
@@ -113,6 +123,14 @@ def build(set_file: str | Path, output: str | Path) -> list[Path]:
     )
     for source in sources:
         for problem in source:
+            if isinstance(problem, FrictionalProblem):
+                friction_reference.attach_reference(problem)
+                note = friction_reference.describe(problem.reference)
+                if note:
+                    print(f"qpbench build-set: {problem.name}: {note}", file=sys.stderr)
+                written.append(files.save(problem, output / problem.name))
+                existing.add(problem.name)
+                continue
             attach_reference(problem)
             if not problem.reference.verified:
                 print(f"qpbench build-set: {problem.name}: references disagree "
