@@ -61,6 +61,8 @@ bench: setup
 		-o $(BENCH_RESULTS)/bench.parquet
 	$(BIN)/qpbench scaling -o $(BENCH_RESULTS)/scaling.json
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
+	$(BIN)/qpbench sequence --steps 40 -o $(BENCH_RESULTS)/sequence.json
+	$(BIN)/qpbench breakdown -o $(BENCH_RESULTS)/breakdown.json
 	$(BIN)/qpbench report $(BENCH_RESULTS)/bench.parquet -o $(BENCH_RESULTS)
 
 # The larger sweep, in its own folders.

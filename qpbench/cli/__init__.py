@@ -35,6 +35,8 @@ COMMANDS = (
     "render",
     "scaling",
     "speed",
+    "sequence",
+    "breakdown",
 )
 
 EXIT_INPUT_ERROR = 2

@@ -411,10 +411,13 @@ class Simulator:
                 problem = self.impact_problem(found)
             else:
                 problem = self.impact_problem(found, v_minus, n_rel)
+            keys = found.keys()
             if self.capture is not None and np.any(_normal(problem).b < 0):  # else l = 0
+                # each contact's identity, stored beside the numbers (never in G or any
+                # fingerprint), so a replay can match the contacts of consecutive steps
+                _normal(problem).data["contact_keys"] = keys.copy()
                 files.save(problem, self.capture / problem.name)
                 self.captured += 1
-            keys = found.keys()
             impulses = self._solve(problem, self._warm_start(keys, frictional))
             self._remember(keys, impulses, frictional)
             v_plus = problem.v_plus(impulses)

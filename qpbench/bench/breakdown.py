@@ -1,0 +1,245 @@
+"""Where pi-robust's time goes, against a floor of compiled linear algebra.
+
+Problems (all in the repository): the SCISim research fork's 5x5 grid dumps
+(``problems/dumps/grid5_itr_*.out``), the first impact of its 7x7 grid scene
+(``problems/breakdown/grid7_itr_0.xml``, copied verbatim) and a box packing of 1000 balls
+(``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, minimum over repeats:
+
+* ``total_s``: pi-robust's ``time_s`` (the one stopwatch, ``call_solver``);
+* ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
+  formulation, stopwatch): what every solver pays;
+* ``trivial_s``: pi-robust's ``time_s`` on a one-contact problem (its fixed Python cost);
+* ``kernel_s``: the compiled call ``pi_robust_envelope.envelope_pi_robust`` alone (0 when the
+  compiled path is not taken), ``python_path_s``: the Python fallback ``pi_robust.pi_robust``
+  when it runs; ``outside_kernel_s = total_s - kernel_s - python_path_s`` (set-up in Python,
+  confirming the answer, the harness), never below 0;
+* ``product_s``: one product ``Q l`` (SciPy CSC), and the counts the solver reports
+  (linear solves, factorizations, interior iterations, its path);
+* ``floor_s``: one Cholesky of the final active block ``Q_AA + eps I``, the faster of dense
+  (``scipy.linalg.cho_factor``) and banded in reverse Cuthill-McKee order
+  (``scipy.linalg.cholesky_banded``), with A = contacts with l > 0 in pi-robust's answer and
+  eps = 1e-8 max diag Q (redundant contacts make Q_AA singular), plus one product with Q:
+  what any active-set method that already knew the answer's support would pay.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from qpbench.problem import metrics
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+SOLVER = "pi-robust"
+ACCURACY = 1e-8
+FLOOR_SHIFT = 1e-8
+DEFAULT_REPEATS = 5
+ROOT = Path(__file__).resolve().parents[2]
+DUMPS = ("problems/dumps/grid5_itr_0.out", "problems/dumps/grid5_itr_1.out")
+GRID7_SCENE = "problems/breakdown/grid7_itr_0.xml"
+TRIVIAL_DUMP = "problems/dumps/2_balls.json"
+BOX_BALLS = 1000
+
+
+def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
+    """The first impact problem (some contact approaching) of a frictionless scene."""
+    from qpbench.inner_solvers import choose_by_name
+    from qpbench.scenes import load_scene
+    from qpbench.simulation.stepper import Simulator
+
+    simulator = Simulator(load_scene(scene_path), choose_by_name(None))
+    for _ in range(max_steps):
+        event = simulator.step()
+        if isinstance(event.problem, ImpactProblem) and np.any(event.problem.b < 0):
+            return event.problem
+    raise ValueError(f"{scene_path}: no impact in {max_steps} steps")
+
+
+def default_problems(root: Path = ROOT) -> list[ImpactProblem]:
+    from qpbench.problem.dumps import import_dump
+    from qpbench.problem.generate import generate
+
+    problems = [import_dump(root / path) for path in DUMPS]
+    problems.append(first_impact(root / GRID7_SCENE))
+    problems.append(generate("box", BOX_BALLS, seed=0)[0])
+    return problems
+
+
+def _zeros(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None = None
+           ) -> SolverOutput:
+    return SolverOutput(impulses=np.zeros(problem.n_contacts), status="zeros",
+                        claimed_success=False)
+
+
+HARNESS = SolverSpec(name="harness-zeros", formulation="lcp", backend="qpbench-breakdown",
+                     solve=_zeros)
+
+
+@contextmanager
+def _timed(module: Any, name: str, sink: list[float]):
+    """Replaces ``module.name`` by a wrapper that appends each call's wall time to ``sink``."""
+    original = getattr(module, name)
+
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        start = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            sink.append(time.perf_counter() - start)
+
+    setattr(module, name, wrapper)
+    try:
+        yield
+    finally:
+        setattr(module, name, original)
+
+
+def _best(function: Callable[[], float], repeats: int) -> float:
+    return min(function() for _ in range(repeats))
+
+
+def _product_time(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> float:
+    Q = problem.Q.tocsc()
+
+    def once() -> float:
+        start = time.perf_counter()
+        Q @ impulses
+        return time.perf_counter() - start
+
+    return _best(once, max(repeats, 3))
+
+
+def _banded_lower(block: sp.spmatrix) -> np.ndarray:
+    """The lower band storage (``cholesky_banded``'s, lower=True) of a symmetric matrix after
+    reverse Cuthill-McKee ordering."""
+    order = reverse_cuthill_mckee(sp.csr_matrix(block), symmetric_mode=True)
+    ordered = sp.coo_matrix(sp.csr_matrix(block)[order][:, order])
+    lower = ordered.row >= ordered.col
+    rows, cols, values = ordered.row[lower], ordered.col[lower], ordered.data[lower]
+    width = int(np.max(rows - cols, initial=0))
+    band = np.zeros((width + 1, block.shape[0]))
+    band[rows - cols, cols] = values
+    return band
+
+
+def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[str, Any]:
+    """One Cholesky of the final active block ``Q_AA + eps I`` plus one product with Q
+    (seconds), the faster of dense (``cho_factor``) and banded in reverse Cuthill-McKee order
+    (``cholesky_banded``); the block and its band are built outside the clock."""
+    active = np.flatnonzero(impulses > 0)
+    Q = problem.Q.tocsc()
+    shift = FLOOR_SHIFT * metrics.vector_scale(problem.diag_Q)
+    sparse_block = sp.csc_matrix(Q[active][:, active] + shift * sp.identity(active.size))
+    dense = sparse_block.toarray()
+    band = _banded_lower(sparse_block) if active.size else np.zeros((1, 0))
+
+    def once(kind: str) -> float:
+        start = time.perf_counter()
+        if active.size and kind == "dense":
+            la.cho_factor(dense, lower=True, check_finite=False)
+        elif active.size:
+            la.cholesky_banded(band, lower=True, check_finite=False)
+        Q @ impulses
+        return time.perf_counter() - start
+
+    times = {kind: _best(lambda kind=kind: once(kind), repeats) for kind in ("dense", "banded")}
+    kind = min(times, key=times.get)
+    return {"active": int(active.size), "bandwidth": int(band.shape[0] - 1),
+            "floor_s": times[kind], "floor_kind": kind, "floor_s_by_kind": times}
+
+
+def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = DEFAULT_REPEATS
+            ) -> dict[str, Any]:
+    """The breakdown of one problem (module docstring)."""
+    from qpbench.solvers import pi_robust, pi_robust_envelope
+
+    spec = get(SOLVER)
+    outputs = [call_solver(spec, problem, ACCURACY) for _ in range(repeats)]
+    first = outputs[0]
+    total = min(output.time_s for output in outputs)
+    kernel: list[float] = []
+    python: list[float] = []
+    instrumented = []
+    for _ in range(repeats):
+        kernel_calls: list[float] = []
+        python_calls: list[float] = []
+        with _timed(pi_robust_envelope, "envelope_pi_robust", kernel_calls), \
+                _timed(pi_robust, "pi_robust", python_calls):
+            instrumented.append(call_solver(spec, problem, ACCURACY).time_s)
+        kernel.append(sum(kernel_calls))
+        python.append(sum(python_calls))
+    kernel_s, python_s = min(kernel), min(python)
+    harness = _best(lambda: call_solver(HARNESS, problem, ACCURACY).time_s, repeats)
+    trivial_s = _best(lambda: call_solver(spec, trivial, ACCURACY).time_s, repeats)
+    impulses = np.zeros(problem.n_contacts) if first.impulses is None else first.impulses
+    measured = metrics.evaluate(problem, impulses, ACCURACY)
+    info = first.info
+    row = {
+        "problem": problem.name, "contacts": problem.n_contacts, "nonzeros": int(problem.Q.nnz),
+        "success": bool(measured["success"]), "residual": measured["residual"],
+        "path": str(info.get("path", "")), "compiled": info.get("compiled", False) is True,
+        "linear_solves": first.iterations, "factorizations": info.get("factorizations"),
+        "interior_iterations": info.get("interior_iterations", 0),
+        "total_s": total, "instrumented_total_s": min(instrumented),
+        "harness_s": harness, "trivial_s": trivial_s,
+        "kernel_s": kernel_s, "python_path_s": python_s,
+        "outside_kernel_s": max(0.0, total - kernel_s - python_s),
+        "product_s": _product_time(problem, impulses, repeats),
+        **floor(problem, impulses, repeats),
+    }
+    row["ratio_to_floor"] = row["total_s"] / row["floor_s"] if row["floor_s"] > 0 else math.nan
+    return row
+
+
+def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
+    lines = [
+        "## Where pi-robust's time goes\n",
+        f"pi-robust at accuracy {ACCURACY:g}, minimum of {repeats} repeats, single-threaded "
+        "BLAS. total = `time_s`; harness = `call_solver` around a solver that returns zeros; "
+        "trivial = pi-robust on one contact; kernel = the compiled call "
+        "`envelope_pi_robust` alone; Python path = the fallback when it runs; outside = "
+        "total - kernel - Python path; product = one `Q l`; floor = one Cholesky (dense or "
+        "banded in RCM order, the faster) of the final active block (l > 0) plus one `Q l`.\n",
+        "| problem | contacts | active | path | solves | factorizations | interior its | "
+        "total [ms] | harness [ms] | trivial [ms] | kernel [ms] | Python path [ms] | "
+        "outside [ms] | product [ms] | floor [ms] | total / floor |",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for row in rows:
+        ms = {key: 1e3 * row[key] for key in ("total_s", "harness_s", "trivial_s", "kernel_s",
+                                              "python_path_s", "outside_kernel_s",
+                                              "product_s", "floor_s")}
+        lines.append(
+            f"| {row['problem']} | {row['contacts']} | {row['active']} | {row['path']}"
+            f"{' (compiled)' if row['compiled'] else ''} | {row['linear_solves']} | "
+            f"{row['factorizations']} | {row['interior_iterations']} | "
+            f"{ms['total_s']:.3f} | {ms['harness_s']:.3f} | {ms['trivial_s']:.3f} | "
+            f"{ms['kernel_s']:.3f} | {ms['python_path_s']:.3f} | {ms['outside_kernel_s']:.3f} | "
+            f"{ms['product_s']:.4f} | {ms['floor_s']:.3f} ({row['floor_kind']}) | "
+            f"{row['ratio_to_floor']:.1f}x |")
+    return "\n".join(lines) + "\n"
+
+
+def breakdown(problems: list[ImpactProblem] | None = None,
+              repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
+    """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown``
+    section."""
+    from qpbench.problem.dumps import import_dump
+
+    problems = default_problems() if problems is None else problems
+    trivial = import_dump(ROOT / TRIVIAL_DUMP)
+    rows = [measure(problem, trivial, repeats) for problem in problems]
+    return {"title": "Where pi-robust's time goes", "solver": SOLVER, "accuracy": ACCURACY,
+            "repeats": repeats, "rows": rows, "markdown": markdown(rows, repeats)}

@@ -1,0 +1,315 @@
+"""Sequence mode: every solver replays a captured scene, warm-started from its own answers.
+
+The ``warm`` mode of ``qpbench run`` starts from the verified reference perturbed by 1%, which
+no simulator has. Here a scene is simulated with ``--capture`` semantics (one problem file per
+impact step, named in order, each carrying ``data["contact_keys"]``: the identity of every
+contact, stable across steps), and then each solver solves the problems in order twice:
+
+* ``cold``: no warm start;
+* ``sequence``: from the solver's OWN answer of the previous captured step, restricted to the
+  contacts that persist (matched by their keys), zero on new contacts. The first step of a
+  sequence, a step that shares no contact with the previous captured problem and a step after
+  a non-finite answer start cold: there is nothing of the solver's own to carry. Consecutive
+  captured problems are matched even when the simulator had steps without an impact between
+  them (those solve l = 0 and change nothing the solver could carry).
+
+Every solve goes through the one stopwatch (``qpbench.solvers.run.call_solver``: ``time_s``)
+and is judged by qpbench (``judge``: residual at the requested accuracy). A solver that does
+not take warm starts (``SolverSpec.warm_start`` false) gets the same vector and ignores it, so
+its sequence times are cold times measured again.
+
+Summaries charge a failed solve with the largest time of any solve of the measurement (the
+report's rule: failing quickly never looks fast) and use the report's shifted geometric mean
+(``qpbench.bench.stats``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from qpbench.errors import InputError
+from qpbench.problem import files
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.run import call_solver, judge
+
+OWN = "pi-robust/lcp"
+ACCURACY = 1e-8
+DEFAULT_STEPS = 30
+TARGET_SPEEDUP = 3.0
+# the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
+# three-ball chain)
+DEFAULT_SCENES = (
+    "problems/scenes/ura/balls_in_box_100.xml",
+    "problems/scenes/ura/10_balls_in_box.xml",
+    "problems/scenes/scisim/butterfly.xml",
+)
+# the fastest cold pairs that take no warm start (results/bench.parquet, scene problems, 1e-8)
+FASTEST_COLD = ("quadprog/dual", "quadprog-reg/dual", "piqp/dual-factored", "clarabel/primal")
+KEYS = "contact_keys"
+# time steps simulated per requested impact step at most (scenes with quiet stretches)
+STEP_BUDGET = 40
+
+
+# --- the sequence ---------------------------------------------------------------------------
+def capture(scene_path: str | os.PathLike[str], folder: str | os.PathLike[str],
+            steps: int) -> list[Path]:
+    """Simulates ``scene_path`` with capture into ``folder`` until ``steps`` impact problems
+    are written (or ``STEP_BUDGET * steps`` time steps, or the scene's end); returns the
+    files in order."""
+    from qpbench.inner_solvers import choose_by_name
+    from qpbench.scenes import load_scene
+    from qpbench.simulation.operators import InnerSolveFailed
+    from qpbench.simulation.stepper import Simulator
+
+    scene = load_scene(scene_path)
+    simulator = Simulator(scene, choose_by_name(None), capture=folder)
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    limit = STEP_BUDGET * steps
+    if scene.end_time is not None:
+        limit = min(limit, simulator.step_count(None, None))
+    while simulator.captured < steps and simulator.step_index < limit:
+        try:
+            simulator.step()
+        except InnerSolveFailed:
+            break
+    return sorted(Path(folder).glob(f"*{files.SUFFIX}"))
+
+
+def load_sequence(paths: Iterable[str | os.PathLike[str]]) -> list[ImpactProblem]:
+    """The captured problems in file-name order (the capture names them by step)."""
+    problems = []
+    for path in sorted(Path(p) for p in paths):
+        problem = files.load(path)
+        if not isinstance(problem, ImpactProblem):
+            raise InputError(str(path), "sequence mode takes frictionless impact problems")
+        if KEYS not in problem.data:
+            raise InputError(str(path), "captured without contact keys (capture it again)")
+        problems.append(problem)
+    return problems
+
+
+def step_of(problem: ImpactProblem) -> int | None:
+    step = problem.metadata.get("step")
+    return int(step) if isinstance(step, int | np.integer) else None
+
+
+def carried(previous_keys: np.ndarray, previous_impulses: np.ndarray,
+            keys: np.ndarray) -> tuple[np.ndarray, int]:
+    """(warm start, persisting contacts): the previous answer on the contacts whose keys
+    persist, zero on new ones."""
+    by_key = dict(zip(np.asarray(previous_keys).tolist(),
+                      np.asarray(previous_impulses, dtype=float).tolist(), strict=True))
+    warm = np.array([by_key.get(key, 0.0) for key in np.asarray(keys).tolist()], dtype=float)
+    persisting = sum(1 for key in np.asarray(keys).tolist() if key in by_key)
+    return warm, persisting
+
+
+def _figures(row: dict[str, Any]) -> dict[str, Any]:
+    return {name: row[name] for name in ("status", "success", "residual", "iterations",
+                                         "time_s", "solver_status")}
+
+
+def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float = ACCURACY,
+           scene: str = "") -> list[dict[str, Any]]:
+    """One row per step: the cold solve and the sequence solve of ``spec`` (module
+    docstring)."""
+    rows = []
+    previous: ImpactProblem | None = None
+    previous_answer: np.ndarray | None = None
+    for index, problem in enumerate(problems):
+        cold = judge(spec, problem, call_solver(spec, problem, accuracy), accuracy)
+        warm, persisting = None, 0
+        if previous is not None and previous_answer is not None:
+            warm, persisting = carried(previous.data[KEYS], previous_answer, problem.data[KEYS])
+            if not persisting:
+                warm = None
+        output = call_solver(spec, problem, accuracy, warm)
+        sequence = judge(spec, problem, output, accuracy)
+        answer = output.impulses
+        finite = answer is not None and answer.shape == (problem.n_contacts,) \
+            and bool(np.all(np.isfinite(answer)))
+        rows.append({
+            "scene": scene, "problem": problem.name, "index": index, "step": step_of(problem),
+            "contacts": problem.n_contacts, "persisting": persisting,
+            "solver": f"{spec.name}/{spec.formulation}", "warm_startable": spec.warm_start,
+            "warm_start_given": warm is not None,
+            **{f"cold_{name}": value for name, value in _figures(cold).items()},
+            **{f"sequence_{name}": value for name, value in _figures(sequence).items()},
+        })
+        previous, previous_answer = problem, (answer.copy() if finite else None)
+    return rows
+
+
+# --- summaries ------------------------------------------------------------------------------
+def _shift(rows: Sequence[dict[str, Any]]) -> float:
+    """10 x the median over (problem, mode) of the fastest successful time (stats' rule)."""
+    from qpbench.bench.stats import SHIFT_FACTOR
+
+    fastest: dict[tuple[str, str, str], float] = {}
+    for row in rows:
+        for mode in ("cold", "sequence"):
+            if row[f"{mode}_success"]:
+                key = (row["scene"], row["problem"], mode)
+                fastest[key] = min(fastest.get(key, math.inf), row[f"{mode}_time_s"])
+    values = [value for value in fastest.values() if value > 0]
+    return SHIFT_FACTOR * float(np.median(values)) if values else 1.0
+
+
+def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per solver: median and SGM of the charged times, cold and in sequence, and success
+    rates (a failure is charged the largest time of the measurement)."""
+    from qpbench.bench.stats import shifted_geometric_mean
+
+    times = [row[f"{mode}_time_s"] for row in rows for mode in ("cold", "sequence")]
+    finite = [t for t in times if isinstance(t, float) and math.isfinite(t)]
+    charge = max(finite, default=1.0)
+    shift = _shift(rows)
+    summary = []
+    for solver in dict.fromkeys(row["solver"] for row in rows):
+        mine = [row for row in rows if row["solver"] == solver]
+        entry: dict[str, Any] = {"solver": solver, "warm_startable": mine[0]["warm_startable"],
+                                 "solves": len(mine),
+                                 "warm_starts": sum(row["warm_start_given"] for row in mine)}
+        for mode in ("cold", "sequence"):
+            charged = [row[f"{mode}_time_s"] if row[f"{mode}_success"] else charge
+                       for row in mine]
+            entry[f"{mode}_median_s"] = float(np.median(charged))
+            entry[f"{mode}_sgm_s"] = shifted_geometric_mean(charged, shift)
+            entry[f"{mode}_success_rate"] = float(np.mean([row[f"{mode}_success"]
+                                                           for row in mine]))
+        summary.append(entry)
+    return summary
+
+
+def comparison(summary: Sequence[dict[str, Any]], own: str = OWN) -> dict[str, Any]:
+    """pi-robust against the fastest warm-startable external pair (charged SGM), in each
+    mode: ``ratio = external / own`` (above 1: pi-robust faster)."""
+    from qpbench.bench.stats import OWN_BACKEND
+
+    by_solver = {entry["solver"]: entry for entry in summary}
+    mine = by_solver.get(own)
+    external = [entry for entry in summary if entry["warm_startable"]
+                and entry["solver"] != own and not _own_backend(entry["solver"], OWN_BACKEND)]
+    result: dict[str, Any] = {"own": own, "target_speedup": TARGET_SPEEDUP}
+    for mode in ("cold", "sequence"):
+        if mine is None or not external:
+            result[mode] = None
+            continue
+        best = min(external, key=lambda entry: entry[f"{mode}_sgm_s"])
+        result[mode] = {"fastest_external": best["solver"],
+                        "external_sgm_s": best[f"{mode}_sgm_s"],
+                        "own_sgm_s": mine[f"{mode}_sgm_s"],
+                        "speedup": best[f"{mode}_sgm_s"] / mine[f"{mode}_sgm_s"]}
+    seq = result["sequence"]
+    result["target_met"] = bool(seq is not None and seq["speedup"] >= TARGET_SPEEDUP
+                                and mine is not None and mine["sequence_success_rate"] == 1.0)
+    return result
+
+
+def _own_backend(solver: str, own_backend: str) -> bool:
+    from qpbench.solvers.registry import all_solvers
+
+    return any(spec.key == solver and spec.backend == own_backend for spec in all_solvers())
+
+
+def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
+             scenes: Sequence[dict[str, Any]], accuracy: float) -> str:
+    lines = [
+        "## Sequence mode: warm starts from each solver's own previous answer\n",
+        "Each captured scene is replayed in order; every solver solves each step cold and "
+        "warm-started from its own answer of the previous step on the contacts that persist "
+        f"(zero on new contacts), at accuracy {accuracy:g}, judged by qpbench's residual. "
+        "Times are `time_s` of the one stopwatch; a failed solve is charged the largest time "
+        "of the measurement; SGM as in the report.\n",
+        "Scenes: " + "; ".join(f"`{scene['scene']}` ({scene['steps']} impact steps, "
+                               f"{scene['contacts_min']}-{scene['contacts_max']} contacts, "
+                               f"{100 * scene.get('persisting_share', 0.0):.0f}% of a step's "
+                               "contacts persist from the previous one)"
+                               for scene in scenes) + ".\n",
+        "| solver | warm start | cold median [ms] | cold SGM [ms] | cold success | "
+        "sequence median [ms] | sequence SGM [ms] | sequence success | cold / sequence |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for entry in sorted(summary, key=lambda entry: entry["sequence_sgm_s"]):
+        lines.append(
+            f"| {entry['solver']} | {'yes' if entry['warm_startable'] else 'no'} | "
+            f"{1e3 * entry['cold_median_s']:.3f} | {1e3 * entry['cold_sgm_s']:.3f} | "
+            f"{100 * entry['cold_success_rate']:.0f}% | {1e3 * entry['sequence_median_s']:.3f} | "
+            f"{1e3 * entry['sequence_sgm_s']:.3f} | {100 * entry['sequence_success_rate']:.0f}% | "
+            f"{entry['cold_sgm_s'] / entry['sequence_sgm_s']:.2f}x |")
+    lines.append("")
+    for mode in ("cold", "sequence"):
+        figures = compared.get(mode)
+        if figures:
+            lines.append(f"- {mode}: {compared['own']} SGM {1e3 * figures['own_sgm_s']:.3f} ms, "
+                         f"fastest warm-startable external pair `{figures['fastest_external']}` "
+                         f"{1e3 * figures['external_sgm_s']:.3f} ms: pi-robust is "
+                         f"{figures['speedup']:.2f}x as fast.")
+    figures = compared.get("sequence")
+    if figures is None:
+        lines.append("\nThe target could not be judged (pi-robust or the external pairs were "
+                     "not measured).")
+    else:
+        verdict = "holds" if compared["target_met"] else "does not hold"
+        lines.append(f"\nThe target \"pi-robust at least {TARGET_SPEEDUP:g}x faster than the "
+                     f"fastest warm-startable external pair in sequence mode\" {verdict}: "
+                     f"measured {figures['speedup']:.2f}x against `{figures['fastest_external']}`.")
+    return "\n".join(lines) + "\n"
+
+
+def default_solvers() -> list[SolverSpec]:
+    """pi-robust, every usable warm-startable external impact pair, the fastest cold ones."""
+    from qpbench.bench.stats import OWN_BACKEND
+    from qpbench.solvers.registry import usable_solvers
+
+    chosen = []
+    for spec in usable_solvers():
+        if spec.formulation in ("nsgs", "ccp", "staggered") or "staggered" in spec.name:
+            continue
+        if spec.key == OWN or spec.key in FASTEST_COLD or (
+                spec.warm_start and spec.backend != OWN_BACKEND):
+            chosen.append(spec)
+    return chosen
+
+
+def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DEFAULT_STEPS,
+             accuracy: float = ACCURACY,
+             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """The JSON object of ``qpbench sequence``: per-step rows, per-solver summary, the
+    comparison with the target and a ``markdown`` section. A scene argument that is a folder
+    is read as an existing capture."""
+    rows: list[dict[str, Any]] = []
+    described = []
+    with tempfile.TemporaryDirectory(prefix="qpbench-sequence-") as scratch:
+        for number, scene in enumerate(scenes):
+            if Path(scene).is_dir():
+                paths = sorted(Path(scene).glob(f"*{files.SUFFIX}"))[:steps]
+            else:
+                paths = capture(scene, Path(scratch) / str(number), steps)[:steps]
+            problems = load_sequence(paths)
+            if not problems:
+                raise InputError(scene, "no impact was captured")
+            counts = [problem.n_contacts for problem in problems]
+            shared = [np.isin(now.data[KEYS], before.data[KEYS]).mean()
+                      for before, now in zip(problems, problems[1:], strict=False)]
+            described.append({"scene": str(scene), "steps": len(problems),
+                              "contacts_min": min(counts), "contacts_max": max(counts),
+                              "persisting_share": float(np.mean(shared)) if shared else 0.0})
+            for spec in specs:
+                if progress is not None:
+                    progress(f"{scene}: {spec.key}")
+                rows.extend(replay(spec, problems, accuracy, str(scene)))
+    summary = summarize(rows)
+    compared = comparison(summary)
+    return {"title": "Sequence mode", "accuracy": accuracy, "steps": steps,
+            "scenes": described, "summary": summary, "comparison": compared,
+            "target_met": compared["target_met"], "rows": rows,
+            "markdown": markdown(summary, compared, described, accuracy)}

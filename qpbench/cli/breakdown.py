@@ -1,0 +1,44 @@
+"""``qpbench breakdown [--repeats 5] -o results/breakdown.json``: where pi-robust's time goes
+on the 5x5 and 7x7 grids of the SCISim research fork and a 1000-ball box, against one dense
+Cholesky of the final active block (``qpbench.bench.breakdown``). Runs with single-threaded
+BLAS, in a child process unless this one already has it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from qpbench.cli.output import write_json
+from qpbench.errors import InputError, QpbenchError
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes")
+    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.repeats < 1:
+        raise QpbenchError("--repeats must be at least 1")
+    output = Path(args.output)
+    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
+                                             if parent.exists()), os.W_OK):
+        raise InputError(str(output), "cannot write here")
+    from qpbench import SINGLE_THREAD_ENV
+
+    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
+        command = [sys.executable, "-m", "qpbench.cli", "breakdown",
+                   "--repeats", str(args.repeats), "-o", str(args.output)]
+        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
+                              check=False).returncode
+    from qpbench.bench.breakdown import breakdown
+
+    report = breakdown(repeats=args.repeats)
+    write_json(output, report)
+    print(report["markdown"], end="")
+    return 0

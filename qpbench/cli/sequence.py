@@ -1,0 +1,71 @@
+"""``qpbench sequence SCENE... [--solvers A,B] [--steps 30] [--accuracy 1e-8]
+-o results/sequence.json``: every solver replays captured scene sequences, cold and
+warm-started from its own previous answer on the persisting contacts
+(``qpbench.bench.sequence``). Runs with single-threaded BLAS, in a child process unless this
+one already has it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from qpbench.cli.output import write_json
+from qpbench.errors import InputError, QpbenchError
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "sequence", help="replay captured scenes, each solver warm from its own answers")
+    parser.add_argument("scenes", nargs="*", metavar="SCENE",
+                        help="scene files (simulated and captured) or capture folders "
+                             "(default: the shared box and butterfly scenes)")
+    parser.add_argument("--solvers", default=None,
+                        help="comma-separated NAME[/FORMULATION] (default: pi-robust, every "
+                             "warm-startable external pair and the fastest cold ones)")
+    parser.add_argument("--steps", type=int, default=30, help="impact steps per scene (30)")
+    parser.add_argument("--accuracy", type=float, default=1e-8)
+    parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.steps < 1:
+        raise QpbenchError("--steps must be at least 1")
+    if not args.accuracy > 0:
+        raise QpbenchError("--accuracy must be positive")
+    output = Path(args.output)
+    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
+                                             if parent.exists()), os.W_OK):
+        raise InputError(str(output), "cannot write here")
+    for scene in args.scenes:
+        if not Path(scene).exists():
+            raise InputError(scene, "no such scene file or capture folder")
+    from qpbench import SINGLE_THREAD_ENV
+
+    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
+        command = [sys.executable, "-m", "qpbench.cli", "sequence", *args.scenes,
+                   "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
+                   "-o", str(args.output)]
+        if args.solvers:
+            command += ["--solvers", args.solvers]
+        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
+                              check=False).returncode
+    from qpbench.bench import sequence
+    from qpbench.solvers.registry import get
+
+    if args.solvers:
+        specs = [get(name.strip()) for name in args.solvers.split(",") if name.strip()]
+        unusable = [spec.key for spec in specs if spec.solve is None]
+        if unusable:
+            raise QpbenchError(f"not usable here: {', '.join(unusable)}")
+    else:
+        specs = sequence.default_solvers()
+    report = sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs,
+                               args.steps, args.accuracy,
+                               progress=lambda text: print(text, file=sys.stderr))
+    write_json(output, report)
+    print(report["markdown"], end="")
+    return 0

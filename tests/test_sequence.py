@@ -1,0 +1,173 @@
+"""Sequence mode (each solver warm-started from its own previous answer on the persisting
+contacts) and the breakdown of pi-robust's time. Correctness only: no wall-clock assertion."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qpbench.bench import breakdown, sequence
+from qpbench.bench.runner import fingerprint
+from qpbench.cli import main
+from qpbench.inner_solvers import choose_by_name
+from qpbench.problem import metrics
+from qpbench.problem.dumps import import_dump
+from qpbench.problem.impact import ImpactProblem
+from qpbench.scenes import load_scene
+from qpbench.simulation.stepper import Simulator
+from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.registry import get
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "problems/scenes/ura/10_balls_in_box.xml"
+STEPS = 24
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory: pytest.TempPathFactory) -> list[ImpactProblem]:
+    folder = tmp_path_factory.mktemp("capture")
+    paths = sequence.capture(SCENE, folder, STEPS)
+    return sequence.load_sequence(paths[:STEPS])
+
+
+class Recorder:
+    """A warm-startable solver that records every warm start it gets and every answer it
+    gives (pi-robust's answer, nudged by the call count so answers are its own)."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[np.ndarray | None, np.ndarray]] = []
+        self.inner = get("pi-robust")
+
+    def solve(self, problem: ImpactProblem, accuracy: float,
+              warm_start: np.ndarray | None = None) -> SolverOutput:
+        output = self.inner.solve(problem, accuracy, None)
+        answer = np.asarray(output.impulses, dtype=float) * (1.0 + 1e-12 * len(self.calls))
+        self.calls.append((None if warm_start is None else warm_start.copy(), answer.copy()))
+        return SolverOutput(impulses=answer, status="recorded", claimed_success=True)
+
+    def spec(self) -> SolverSpec:
+        return SolverSpec(name="test-recorder", formulation="lcp", backend="qpbench-tests",
+                          solve=self.solve, version="0", warm_start=True)
+
+
+def test_capture_stores_contact_keys_without_changing_the_problems(
+        captured: list[ImpactProblem]) -> None:
+    assert len(captured) == STEPS
+    simulator = Simulator(load_scene(SCENE), choose_by_name(None))
+    plain: dict[str, str] = {}
+    while len(plain) < STEPS + 5 and simulator.step_index < 400:
+        event = simulator.step()
+        if event.problem is not None:
+            assert "contact_keys" not in event.problem.data  # only a capture stores them
+            plain[event.problem.name] = fingerprint(event.problem)
+    for problem in captured:
+        keys = problem.data["contact_keys"]
+        assert keys.shape == (problem.n_contacts,) and len(set(keys.tolist())) == len(keys)
+        assert fingerprint(problem) == plain[problem.name]
+    steps = [sequence.step_of(problem) for problem in captured]
+    assert steps == sorted(steps)
+
+
+def test_carried_keeps_persisting_contacts_and_zeros_new_ones() -> None:
+    warm, persisting = sequence.carried(np.array([7, 3, 5]), np.array([0.5, 1.5, 2.5]),
+                                        np.array([5, 9, 7]))
+    assert persisting == 2
+    np.testing.assert_array_equal(warm, [2.5, 0.0, 0.5])
+
+
+def test_sequence_warm_starts_each_step_from_the_solvers_own_previous_answer(
+        captured: list[ImpactProblem]) -> None:
+    recorder = Recorder()
+    rows = sequence.replay(recorder.spec(), captured, 1e-8, "box")
+    assert [(row["solver"], row["index"]) for row in rows] == \
+        [("test-recorder/lcp", k) for k in range(len(captured))]
+    assert len(recorder.calls) == 2 * len(captured)  # cold, then sequence, per step
+    cold_calls, sequence_calls = recorder.calls[0::2], recorder.calls[1::2]
+    assert all(warm is None for warm, _ in cold_calls)
+    assert sequence_calls[0][0] is None  # the first step has no previous answer
+    given = 0
+    for k in range(1, len(captured)):
+        before, now = captured[k - 1], captured[k]
+        previous_answer = dict(zip(before.data["contact_keys"].tolist(),
+                                   sequence_calls[k - 1][1].tolist(), strict=True))
+        keys = now.data["contact_keys"].tolist()
+        persisting = [key in previous_answer for key in keys]
+        warm = sequence_calls[k][0]
+        if any(persisting):
+            given += 1
+            assert warm is not None and rows[k]["warm_start_given"]
+            expected = [previous_answer.get(key, 0.0) for key in keys]
+            np.testing.assert_array_equal(warm, expected)  # its own answer, not the cold one
+            assert rows[k]["persisting"] == sum(persisting)
+        else:
+            assert warm is None and not rows[k]["warm_start_given"]
+    assert given >= 1  # consecutive box steps share contacts
+    for row, problem, (_, answer) in zip(rows, captured, sequence_calls, strict=True):
+        assert row["sequence_residual"] == metrics.residual(problem, answer)
+        assert row["sequence_success"] == (row["sequence_residual"] <= 1e-8)
+        assert row["sequence_time_s"] >= 0 and row["cold_time_s"] >= 0
+
+
+def test_sequence_summary_and_markdown_judge_the_target(captured: list[ImpactProblem]) -> None:
+    specs = [get("pi-robust"), get("osqp/dual")]
+    report = sequence.sequence([], specs, accuracy=1e-8)  # no scene: nothing measured
+    assert report["rows"] == [] and report["comparison"]["sequence"] is None
+    rows = [row for spec in specs for row in sequence.replay(spec, captured, 1e-8, "box")]
+    assert len(rows) == len(specs) * len(captured)
+    summary = sequence.summarize(rows)
+    assert [entry["solver"] for entry in summary] == ["pi-robust/lcp", "osqp/dual"]
+    for entry in summary:
+        assert entry["solves"] == len(captured)
+        assert 0 <= entry["sequence_success_rate"] <= 1 and entry["sequence_sgm_s"] > 0
+    compared = sequence.comparison(summary)
+    figures = compared["sequence"]
+    assert figures["fastest_external"] == "osqp/dual"
+    assert figures["speedup"] == figures["external_sgm_s"] / figures["own_sgm_s"]
+    text = sequence.markdown(summary, compared, [{"scene": "box", "steps": len(captured),
+                                                  "contacts_min": 1, "contacts_max": 9}], 1e-8)
+    assert text.startswith("## ") and ("does not hold" in text) != compared["target_met"]
+
+
+def test_sequence_command_replays_a_capture_folder(tmp_path: Path) -> None:
+    folder = tmp_path / "capture"
+    sequence.capture(SCENE, folder, 3)
+    output = tmp_path / "sequence.json"
+    assert main(["sequence", str(folder), "--solvers", "pi-robust,osqp/dual", "--steps", "3",
+                 "-o", str(output)]) == 0
+    report = json.loads(output.read_text())
+    assert len(report["rows"]) == 2 * 3 and report["markdown"].startswith("## ")
+    assert {row["solver"] for row in report["rows"]} == {"pi-robust/lcp", "osqp/dual"}
+
+
+def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_set() -> None:
+    problem = import_dump(ROOT / "problems/dumps/grid5_itr_0.out")
+    trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
+    row = breakdown.measure(problem, trivial, repeats=1)
+    for key in ("total_s", "harness_s", "trivial_s", "kernel_s", "python_path_s",
+                "outside_kernel_s", "product_s", "floor_s"):
+        assert row[key] >= 0, key
+    assert row["success"] and row["residual"] <= 1e-8
+    answer = get("pi-robust").solve(problem.blind_copy(), 1e-8).impulses
+    assert row["active"] == int(np.count_nonzero(answer > 0)) < problem.n_contacts
+    assert row["factorizations"] >= 1 and row["linear_solves"] >= 1
+
+
+def test_breakdown_floor_factors_exactly_the_positive_contacts() -> None:
+    problem = import_dump(ROOT / "problems/dumps/grid5_itr_1.out")
+    impulses = np.zeros(problem.n_contacts)
+    impulses[[0, 3, 4]] = 1.0
+    figures = breakdown.floor(problem, impulses, repeats=1)
+    assert figures["active"] == 3 and figures["floor_s"] >= 0
+    assert set(figures["floor_s_by_kind"]) == {"dense", "banded"}
+    band = breakdown._banded_lower(problem.Q[[0, 3, 4]][:, [0, 3, 4]])
+    assert band.shape[1] == 3
+
+
+def test_breakdown_default_problems_are_in_the_repository() -> None:
+    for path in (*breakdown.DUMPS, breakdown.GRID7_SCENE, breakdown.TRIVIAL_DUMP):
+        assert (ROOT / path).is_file(), path
+    grid7 = breakdown.first_impact(ROOT / breakdown.GRID7_SCENE)
+    assert grid7.n_contacts > 100 and np.any(grid7.b < 0)
