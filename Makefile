@@ -3,8 +3,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# Debian packages that cyipopt builds against (IPOPT with MUMPS)
-APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config
+# Debian packages: what cyipopt builds against (IPOPT with MUMPS), and the browser the tests
+# of results/index.html drive headless (Playwright with the system chromium)
+APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config chromium
 
 .PHONY: setup apt-packages lock test bench bench-large lint clean-results
 

@@ -33,6 +33,21 @@ def _legend(axes: plt.Axes, curves: int) -> None:
                     ncol=1 + curves // 30)
 
 
+MAX_LINES = 12  # no static chart draws more curves than this; index.html has every pair
+
+
+def best(scores: pd.DataFrame, limit: int = MAX_LINES) -> list[str]:
+    """The first ``limit`` index entries of ``scores`` (columns ``solved``, higher first, and
+    ``time``, lower first): the most reliable, then the fastest."""
+    ranked = scores.assign(_s=-scores["solved"].astype(float), _t=scores["time"].astype(float))
+    ranked = ranked.sort_values(["_s", "_t"], kind="stable")
+    return [str(key) for key in ranked.index[:limit]]
+
+
+def _note(shown: int, total: int) -> str:
+    return f" (best {shown} of {total}; every pair in index.html)" if shown < total else ""
+
+
 def slug(text: str) -> str:
     """A file-name-safe form of ``text``."""
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "all"
@@ -66,7 +81,12 @@ def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
     floor = 1e-17
     for panel, formulation in zip(grid.flat, formulations, strict=False):
         subset = answered[answered["formulation"].astype(str) == formulation]
-        groups = list(subset.groupby(subset["solver"].astype(str)))
+        scores = subset.groupby(subset["solver"].astype(str)).agg(
+            solved=("success", lambda s: s.fillna(False).astype(bool).mean()),
+            time=("time_s", "median"))
+        keep = best(scores)
+        groups = [(name, group) for name, group in subset.groupby(subset["solver"].astype(str))
+                  if name in keep]
         for name, group in groups:
             points = group.groupby("accuracy").agg(time=("time_s", "median"),
                                                    error=(error_column, "median"))
@@ -75,7 +95,7 @@ def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
                        markersize=4, label=name, **style(solver_index[name]))
         panel.set_xscale("log")
         panel.set_yscale("log")
-        panel.set_title(f"{formulation}", fontsize=10)
+        panel.set_title(f"{formulation}{_note(len(groups), len(scores))}", fontsize=10)
         panel.grid(True, which="both", alpha=0.3)
         _legend(panel, len(groups))
     figure.subplots_adjust(wspace=0.55, hspace=0.25)  # room for legends beside panels
@@ -97,6 +117,8 @@ def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
     curves = performance_profile(frame)
     if curves.empty or curves.shape[1] == 0:
         return None
+    total = curves.shape[1]
+    curves = curves[best(pd.DataFrame({"solved": curves.mean(), "time": 0.0}))]
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
     for index, key in enumerate(curves.columns):
         axes.step(curves.index, curves[key], where="post", label=key, **style(index))
@@ -104,7 +126,8 @@ def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
     axes.set_ylim(0, 1.02)
     axes.set_xlabel("tau (time / fastest time on the problem)")
     axes.set_ylabel("share of problems solved within tau")
-    axes.set_title(f"Performance profile at accuracy {accuracy:.0e}")
+    axes.set_title(f"Performance profile at accuracy {accuracy:.0e}"
+                   + _note(curves.shape[1], total).replace(" (best", "\n(largest area:"))
     axes.grid(True, which="both", alpha=0.3)
     _legend(axes, curves.shape[1])
     return _save(figure, path)
@@ -135,8 +158,11 @@ def cost_of_accuracy(summary: pd.DataFrame, path: Path) -> Path | None:
     solver/formulation: what each tighter level costs, at a glance."""
     if summary.empty or summary["accuracy"].nunique() < 2:
         return None
+    tightest = summary[summary["accuracy"] == summary["accuracy"].min()]
+    keep = best(tightest.set_index("solver").rename(columns={"success_rate": "solved",
+                                                             "sgm_time_s": "time"}))
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
-    groups = list(summary.groupby("solver"))
+    groups = [(key, group) for key, group in summary.groupby("solver") if key in keep]
     for index, (key, group) in enumerate(groups):
         group = group.sort_values("accuracy", ascending=False)
         axes.plot(group["accuracy"], group["sgm_time_s"], marker="o", markersize=4, label=key,
@@ -146,7 +172,8 @@ def cost_of_accuracy(summary: pd.DataFrame, path: Path) -> Path | None:
     axes.invert_xaxis()  # tighter levels to the right
     axes.set_xlabel("accuracy level (residual bound)")
     axes.set_ylabel("shifted geometric mean time [s]")
-    axes.set_title("What accuracy costs")
+    axes.set_title("What accuracy costs"
+                   + _note(len(groups), summary["solver"].nunique()).replace(" (best", "\n(best"))
     axes.grid(True, which="both", alpha=0.3)
     _legend(axes, len(groups))
     return _save(figure, path)
@@ -160,8 +187,10 @@ def time_by_size(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | Non
     if solved.empty:
         return None
     solved = solved.assign(key=solver_keys(solved))
+    scores = solved.groupby("key").agg(solved=("success", "size"), time=("time_s", "median"))
+    keep = best(scores)
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
-    groups = list(solved.groupby("key"))
+    groups = [(key, group) for key, group in solved.groupby("key") if key in keep]
     for index, (key, group) in enumerate(groups):
         axes.plot(group["contacts"].astype(float), group["time_s"], marker="o", markersize=3,
                   linestyle="none", label=key, color=style(index)["color"],
@@ -170,7 +199,8 @@ def time_by_size(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | Non
     axes.set_yscale("log")
     axes.set_xlabel("contacts n")
     axes.set_ylabel("solver time [s]")
-    axes.set_title(f"Time against problem size at accuracy {accuracy:.0e} (solved only)")
+    axes.set_title(f"Time against problem size at accuracy {accuracy:.0e} (solved only)"
+                   + _note(len(groups), len(scores)).replace(" (best", "\n(most solved"))
     axes.grid(True, which="both", alpha=0.3)
     _legend(axes, len(groups))
     return _save(figure, path)

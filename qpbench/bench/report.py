@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import plots, stats
+from qpbench.bench import html_report, plots, stats
 from qpbench.bench.results import ResultStore
 from qpbench.errors import InputError
 from qpbench.problem.friction import KIND as FRICTIONAL
@@ -39,6 +39,8 @@ TARGET_V_ERROR = 1e-7
 TARGET_SPEEDUP = 3.0
 
 Formatter = Callable[[Any], str]
+INDEX_POINTER = ("At a glance, interactive and offline: [index.html](index.html) (open it in a "
+                 "browser).\n\n")
 
 
 # --- formatting ------------------------------------------------------------------------------
@@ -498,7 +500,8 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     top, rest = _frictionless(frame, folder, budget_s) if not frame.empty else (
         ["\n_No frictionless problems in these results._\n"], [])
 
-    out: list[str] = ["# qpbench report\n\n", _overview(everything, results), *top]
+    html_report.write_html(everything, folder, results.name)
+    out: list[str] = ["# qpbench report\n\n", INDEX_POINTER, _overview(everything, results), *top]
     out.append("\n## Machine and versions\n\n" + _provenance(everything))
     out.extend(rest)
     out.append("\n## Friction\n\n" + _friction(frictional, folder))

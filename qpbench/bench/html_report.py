@@ -1,0 +1,678 @@
+"""``index.html``: one self-contained page of a results table, beside REPORT.md.
+
+What accuracy costs, at a glance: per family the fastest solver/formulation pair that reaches
+each accuracy level (and how much each further digit multiplies its time), then interactive
+work-precision diagrams, performance profiles, a sortable and filterable table aggregated per
+pair x family x level, a per-problem view, the frictional problems apart, and provenance.
+
+The page works offline from the file system: Plotly's script is embedded once, the data is
+embedded as JSON, and the page fetches nothing.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from qpbench.atomic import atomic_path
+from qpbench.bench import stats
+
+FRONTIER_SUCCESS = 0.95  # a pair "reaches" a level when it solves this share of the problems
+PROFILE_LEVELS = (1e-4, 1e-8)
+ALL = "all problems"
+FRICTIONAL = "frictional"
+ERROR_FLOOR = 1e-17
+PROFILE_VISIBLE = 10  # profile curves drawn at first; the rest wait in the legend
+
+
+# --- small helpers -----------------------------------------------------------------------------
+def _finite(value: Any, digits: int = 4) -> float | None:
+    """``value`` rounded to ``digits`` significant digits; None for NaN, inf or missing."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    if not math.isfinite(number):
+        return None
+    return float(f"{number:.{digits}g}")
+
+
+def _text(value: Any) -> str:
+    return html.escape(str(value))
+
+
+def _seconds(value: Any) -> str:
+    number = _finite(value, 3)
+    return "-" if number is None else f"{number:.3g} s"
+
+
+def _percent(value: Any) -> str:
+    number = _finite(value)
+    return "-" if number is None else f"{100 * number:.1f}%"
+
+
+def _level(value: float) -> str:
+    return f"{float(value):.0e}"
+
+
+def _table(header: list[str], rows: list[list[str]], css: str = "") -> str:
+    """An HTML table whose cells are already escaped HTML."""
+    if not rows:
+        return "<p class='none'>(no rows)</p>"
+    head = "".join(f"<th>{cell}</th>" for cell in header)
+    body = "".join("<tr>" + "".join(f"<td>{cell}</td>" for cell in row) + "</tr>"
+                   for row in rows)
+    return (f"<table class='static {css}'><thead><tr>{head}</tr></thead>"
+            f"<tbody>{body}</tbody></table>")
+
+
+def _strings(frame: pd.DataFrame, column: str) -> pd.Series:
+    if column not in frame:
+        return pd.Series("", index=frame.index, dtype=object)
+    return frame[column].astype("string").fillna("").astype(str)
+
+
+# --- the data the page's scripts draw ----------------------------------------------------------
+def dataset(frame: pd.DataFrame, error_column: str = "v_error") -> dict[str, Any]:
+    """Columnar solves of ``frame`` with lookup tables: levels (loosest first), pairs,
+    problems; per solve the pair, problem and level indices, time_s, residual, the error
+    drawn against time and success."""
+    levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
+    keys = stats.solver_keys(frame)
+    pair_frame = (frame.assign(key=keys, backend=_strings(frame, "backend"))
+                  .groupby("key", sort=True)
+                  .agg(solver=("solver", "first"), formulation=("formulation", "first"),
+                       backend=("backend", "first")))
+    ours = set(keys[_strings(frame, "backend") == stats.OWN_BACKEND])
+    pairs = [{"key": key, "solver": str(row.solver), "formulation": str(row.formulation),
+              "backend": str(row.backend), "ours": key in ours}
+             for key, row in pair_frame.iterrows()]
+    problem_frame = (frame.assign(family=_strings(frame, "family"))
+                     .groupby("problem", sort=True)
+                     .agg(family=("family", "first"), contacts=("contacts", "first")))
+    problems = [{"name": str(name), "family": str(row.family),
+                 "contacts": _finite(row.contacts)} for name, row in problem_frame.iterrows()]
+    pair_index = {pair["key"]: i for i, pair in enumerate(pairs)}
+    problem_index = {problem["name"]: i for i, problem in enumerate(problems)}
+    level_index = {level: i for i, level in enumerate(levels)}
+    error = frame[error_column] if error_column in frame else pd.Series(np.nan, frame.index)
+    return {
+        "levels": levels,
+        "pairs": pairs,
+        "problems": problems,
+        "error": error_column,
+        "pair": [pair_index[key] for key in keys],
+        "problem": [problem_index[str(name)] for name in frame["problem"]],
+        "level": [level_index.get(float(a), 0) for a in frame["accuracy"]],
+        "time": [_finite(v) for v in frame["time_s"]],
+        "residual": [_finite(v) for v in frame["residual"]],
+        "v_error": [_finite(v) for v in error],
+        "success": [1 if bool(v) else 0 for v in frame["success"].fillna(False)],
+    }
+
+
+def summaries(frame: pd.DataFrame) -> list[tuple[str, float, pd.DataFrame]]:
+    """(family, its SGM shift, stats.level_summary) for all problems, then each family."""
+    family = _strings(frame, "family")
+    groups = [(ALL, frame)] + [(name, frame[family == name])
+                               for name in sorted(family.unique()) if name]
+    found = []
+    for name, group in groups:
+        shift = stats.time_scale_shift(group)
+        found.append((name, shift, level_summary(group, shift)))
+    return found
+
+
+def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
+    """The columns of stats.level_summary the page uses (accuracy, solver, solves,
+    success_rate, sgm_time_s, median_residual), by one vectorised group-by: the same numbers,
+    fast enough for every family of a full run."""
+    success = frame["success"].fillna(False).astype(bool)
+    work = pd.DataFrame({
+        "accuracy": frame["accuracy"].astype(float), "solver": stats.solver_keys(frame),
+        "success": success.astype(float),
+        "log": np.log(stats.charged_times(frame).astype(float) + shift),
+        "residual": frame["residual"].astype(float)})
+    grouped = work.groupby(["accuracy", "solver"], sort=True)
+    summary = grouped.agg(solves=("success", "size"), success_rate=("success", "mean"),
+                          log=("log", "mean"), median_residual=("residual", "median"))
+    summary["sgm_time_s"] = np.exp(summary.pop("log")) - shift
+    return summary.reset_index()
+
+
+def frontier(frame: pd.DataFrame,
+             summarised: list[tuple[str, float, pd.DataFrame]] | None = None
+             ) -> list[dict[str, Any]]:
+    """Per family (and all problems) and level, loosest first: the pair with the lowest SGM
+    time (the family's own shift, failures charged the limit) among those solving at least
+    FRONTIER_SUCCESS of the family's problems, and the factor each further digit multiplies
+    the time by from the previous level's pair."""
+    rows = []
+    for family, shift, summary in summarised or summaries(frame):
+        previous: tuple[float, float] | None = None
+        for accuracy in sorted(summary["accuracy"].unique(), reverse=True):
+            at_level = summary[summary["accuracy"] == accuracy]
+            qualified = at_level[at_level["success_rate"] >= FRONTIER_SUCCESS]
+            row: dict[str, Any] = {"family": family, "level": float(accuracy),
+                                   "qualified": len(qualified), "pairs": len(at_level),
+                                   "shift": shift}
+            if qualified.empty:
+                row.update(pair=None, time=None, success=None, per_digit=None)
+                previous = None
+            else:
+                best = qualified.sort_values(["sgm_time_s", "solver"]).iloc[0]
+                time = float(best["sgm_time_s"])
+                per_digit = None
+                if previous is not None and previous[1] > 0:
+                    digits = math.log10(previous[0] / float(accuracy))
+                    if digits > 0:
+                        per_digit = (time / previous[1]) ** (1.0 / digits)
+                row.update(pair=str(best["solver"]), time=time,
+                           success=float(best["success_rate"]), per_digit=per_digit)
+                previous = (float(accuracy), time)
+            rows.append(row)
+    return rows
+
+
+def aggregate(frame: pd.DataFrame,
+              summarised: list[tuple[str, float, pd.DataFrame]] | None = None
+              ) -> list[list[Any]]:
+    """Rows of the page's table: per family (and all problems) x pair x level: family,
+    pair, formulation, backend, level, solves, success rate, SGM time, median residual."""
+    backends = (frame.assign(key=stats.solver_keys(frame), b=_strings(frame, "backend"))
+                .groupby("key")["b"].first())
+    rows = []
+    for family, _shift, summary in summarised or summaries(frame):
+        for item in summary.itertuples(index=False):
+            formulation = str(item.solver).split("/", 1)[1]
+            rows.append([family, item.solver, formulation, backends.get(item.solver, ""),
+                         float(item.accuracy), int(item.solves), _finite(item.success_rate),
+                         _finite(item.sgm_time_s), _finite(item.median_residual)])
+    return rows
+
+
+def profiles(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    """Dolan-More profiles at PROFILE_LEVELS: taus and per pair the share solved within tau,
+    the first PROFILE_VISIBLE by area drawn at first."""
+    found = []
+    for accuracy in PROFILE_LEVELS:
+        at_level = frame[np.isclose(frame["accuracy"].astype(float), accuracy)]
+        if at_level.empty:
+            continue
+        curves = stats.performance_profile(at_level)
+        if curves.shape[1] == 0:
+            continue
+        ranked = curves.mean().sort_values(ascending=False)
+        found.append({
+            "level": accuracy,
+            "problems": int(stats.performance_ratios(at_level).shape[0]),
+            "taus": [_finite(t) for t in curves.index],
+            "curves": [{"key": key, "values": [round(float(v), 4) for v in curves[key]],
+                        "visible": rank < PROFILE_VISIBLE}
+                       for rank, key in enumerate(ranked.index)],
+        })
+    return found
+
+
+def provenance(frame: pd.DataFrame) -> list[tuple[str, str]]:
+    """(item, value) pairs from the rows' provenance columns."""
+    def values(column: str) -> str:
+        found = sorted(set(_strings(frame, column)) - {""})
+        return ", ".join(found) if found else "-"
+
+    dates = _strings(frame, "date")
+    dates = dates[dates != ""]
+    versions = (frame.assign(key=stats.solver_keys(frame),
+                             v=_strings(frame, "solver_version"), b=_strings(frame, "backend"))
+                .groupby("key")[["b", "v"]].first())
+    packages = sorted({f"{b} {v}" for b, v in zip(versions["b"], versions["v"], strict=True)
+                       if b or v})
+    return [
+        ("qpbench", values("qpbench_version")),
+        ("package lock (requirements.lock, SHA-256)", values("lock_hash")),
+        ("Python", values("python_version")),
+        ("NumPy", values("numpy_version")),
+        ("platform", values("platform")),
+        ("CPU", values("cpu_model")),
+        ("hosts", values("hostname")),
+        ("dates (UTC)", f"{dates.min()} .. {dates.max()}" if len(dates) else "-"),
+        ("time limit per solve [s]", values("time_limit_s")),
+        ("backends and versions", "; ".join(packages) if packages else "-"),
+    ]
+
+
+# --- sections ----------------------------------------------------------------------------------
+def _frontier_html(rows: list[dict[str, Any]]) -> str:
+    levels = sorted({row["level"] for row in rows}, reverse=True)
+    families = list(dict.fromkeys(row["family"] for row in rows))
+    cell = {(row["family"], row["level"]): row for row in rows}
+    body = []
+    for family in families:
+        cells = [f"<th>{_text(family)}</th>"]
+        for accuracy in levels:
+            row = cell.get((family, accuracy))
+            if row is None:
+                cells.append("<td>-</td>")
+            elif row["pair"] is None:
+                cells.append(f"<td class='none'>none of {row['pairs']}</td>")
+            else:
+                digit = (f"<span class='digit'>x{row['per_digit']:.2g} per digit</span>"
+                         if row["per_digit"] is not None else "")
+                cells.append(f"<td><code>{_text(row['pair'])}</code>"
+                             f"<span class='time'>{_seconds(row['time'])}</span>{digit}"
+                             f"<span class='small'>{_percent(row['success'])} solved, "
+                             f"{row['qualified']} of {row['pairs']} pairs qualify</span></td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    head = "<th>family</th>" + "".join(f"<th>{_level(a)}</th>" for a in levels)
+    return (f"<table id='frontier' class='static frontier'><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(body)}</tbody></table>")
+
+
+def _friction_html(frame: pd.DataFrame) -> str:
+    """Static tables of the frictional rows: per level and formulation the best pair, and the
+    model error of ccp."""
+    from qpbench.solvers.run import NO_SOLUTION  # the solver layer, only for the status name
+
+    unsolvable = frame["status"].astype(str) == NO_SOLUTION
+    parts = [f"<p>{frame['problem'].nunique()} frictional problems "
+             f"({_text(', '.join(sorted(set(_strings(frame, 'family')) - {''})))}), "
+             f"{frame.loc[unsolvable, 'problem'].nunique()} of them without a solution "
+             "(counted apart). <code>ccp</code> answers are judged by the relaxed model's own "
+             "residual; their Coulomb residual is the model error.</p>"]
+    frame = frame[~unsolvable]
+    if frame.empty:
+        return "".join(parts)
+    summary = level_summary(frame, stats.time_scale_shift(frame))
+    summary = summary.assign(formulation=summary["solver"].str.split("/", n=1).str[1])
+    rows = []
+    for (accuracy, formulation), group in sorted(summary.groupby(["accuracy", "formulation"]),
+                                                 key=lambda item: (-item[0][0], item[0][1])):
+        best = group.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True]).iloc[0]
+        rows.append([_level(accuracy), _text(formulation), str(len(group)),
+                     f"<code>{_text(best['solver'])}</code>", _percent(best["success_rate"]),
+                     _seconds(best["sgm_time_s"])])
+    parts.append("<h3>Formulations at each level</h3>" + _table(
+        ["level", "formulation", "pairs", "best pair", "solved by it", "its SGM time"], rows))
+    ccp = frame[_strings(frame, "formulation") == "ccp"]
+    if not ccp.empty and "model_error" in ccp:
+        solved = ccp[ccp["success"].fillna(False).astype(bool)]
+        errors = solved.groupby(_strings(solved, "family"))["model_error"]
+        rows = [[_text(family), f"{_finite(median, 3)}", f"{_finite(largest, 3)}"]
+                for (family, median), largest in zip(errors.median().items(), errors.max(),
+                                                     strict=True)]
+        parts.append("<h3>Model error of <code>ccp</code> (Coulomb residual of its solved "
+                     "answers)</h3>" + _table(["family", "median", "max"], rows))
+    parts.append("<h3>Work-precision (frictional)</h3><div class='controls'>"
+                 "<label>family <select id='fwp-family'></select></label></div>"
+                 "<div id='fwp' class='plot'></div>")
+    return "".join(parts)
+
+
+def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
+    """The HTML of the page for ``everything`` (frictionless and frictional rows)."""
+    from qpbench.bench.report import split_kinds  # report imports this module: import late
+
+    frictionless, frictional = split_kinds(everything)
+    main = frictionless[_strings(frictionless, "mode") == "cold"]
+    if main.empty:
+        main = frictionless
+    data: dict[str, Any] = {"main": None, "friction": None}
+    sections = []
+    if not main.empty:
+        summarised = summaries(main)
+        rows = frontier(main, summarised)
+        data["main"] = dataset(main)
+        data["frontier"] = [{k: row[k] for k in ("family", "level", "time")} for row in rows]
+        data["table"] = aggregate(main, summarised)
+        data["profiles"] = profiles(main)
+        shift_note = ("SGM = shifted geometric mean of time_s over the family's problems, "
+                      "failures charged the time limit, with the family's own shift "
+                      f"({stats.SHIFT_FACTOR:g} x the median fastest successful solve).")
+        sections.append(
+            "<section id='answer'><h2>What accuracy costs</h2>"
+            "<p>Per family and accuracy level, the fastest solver/formulation pair among "
+            f"those that solve at least {FRONTIER_SUCCESS:.0%} of the family's problems "
+            "(success = qpbench's own residual &lt;= the level), its SGM time, and how much "
+            f"each further digit multiplies the time from the previous level. {shift_note}</p>"
+            + _frontier_html(rows)
+            + "<div id='frontier-plot' class='plot small'></div></section>")
+        sections.append(
+            "<section id='work-precision'><h2>Work-precision</h2>"
+            "<p>Every answered solve of the chosen family: time against v_error (the "
+            "residual where no reference exists; values below 1e-17 drawn at 1e-17). One "
+            "legend entry per pair: click to hide or show it, double-click to show it alone. "
+            "The pairs of the family's frontier and the most reliable few are drawn at first."
+            "</p><div class='controls'><label>family <select id='wp-family'></select></label>"
+            " <button id='wp-all'>show all pairs</button>"
+            " <button id='wp-none'>hide all pairs</button></div>"
+            "<div id='wp' class='plot'></div></section>")
+        sections.append(
+            "<section id='profiles'><h2>Performance profiles</h2><p>Dolan-More: the share "
+            "of problems each pair solves within tau times the fastest time on that problem "
+            "(failures never count). The ten largest areas are drawn at first.</p>"
+            + "".join(f"<div id='profile-{i}' class='plot'></div>"
+                      for i in range(len(data["profiles"])))
+            + ("" if data["profiles"] else "<p class='none'>(no solves at 1e-04 or 1e-08)</p>")
+            + "</section>")
+        sections.append(
+            "<section id='results'><h2>Results table</h2><p>Per family (and all problems), "
+            "pair and level: solves, success rate, SGM time, median residual. Click a header "
+            "to sort; choose or type to filter.</p><div class='controls' id='filters'>"
+            "<label>family <select data-filter='0'></select></label> "
+            "<label>formulation <select data-filter='2'></select></label> "
+            "<label>backend <select data-filter='3'></select></label> "
+            "<label>level <select data-filter='4'></select></label> "
+            "<label>pair <input id='pair-filter' type='search' placeholder='e.g. osqp'>"
+            "</label></div><p id='table-count' class='small'></p>"
+            "<table id='results-table' class='sortable'><thead></thead><tbody></tbody></table>"
+            "</section>")
+        sections.append(
+            "<section id='problem'><h2>One problem</h2><p>Every pair's residual against "
+            "time on one problem, one point per level.</p><div class='controls'><label>problem "
+            "<select id='problem-select'></select></label></div>"
+            "<div id='problem-plot' class='plot'></div></section>")
+    else:
+        sections.append("<section id='answer'><h2>What accuracy costs</h2>"
+                        "<p class='none'>No frictionless problems in these results.</p>"
+                        "</section>")
+    if frictional.empty:
+        friction = "<p class='none'>No frictional problems in these results.</p>"
+    else:
+        data["friction"] = dataset(frictional, "coulomb_residual")
+        friction = _friction_html(frictional)
+    sections.append(f"<section id='friction'><h2>Friction</h2>{friction}</section>")
+    sections.append("<section id='provenance'><h2>Machine and versions</h2>"
+                    + _table(["item", "value"], [[_text(k), _text(v)]
+                                                 for k, v in provenance(everything)])
+                    + "</section>")
+    levels = sorted({float(a) for a in everything["accuracy"].dropna()}, reverse=True)
+    summary = (f"<code>{_text(source)}</code>: {len(everything)} solves of "
+               f"{everything['problem'].nunique()} problems by "
+               f"{stats.solver_keys(everything).nunique()} solver/formulation pairs at levels "
+               f"{', '.join(_level(a) for a in levels)}. The text summary with every table is "
+               "<a href='REPORT.md'>REPORT.md</a>.")
+    payload = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
+    return TEMPLATE.format(summary=summary, sections="".join(sections), style=STYLE,
+                           plotly=plotly_js.replace("</script", "<\\/script"), data=payload,
+                           script=SCRIPT)
+
+
+def write_html(everything: pd.DataFrame, folder: Path, source: str) -> Path:
+    """Writes ``folder/index.html`` for the rows ``everything``; returns its path."""
+    from plotly.offline import get_plotlyjs
+
+    path = Path(folder) / "index.html"
+    text = page(everything, source, get_plotlyjs())
+    with atomic_path(path) as temporary:
+        temporary.write_text(text, encoding="utf-8")
+    return path
+
+
+TEMPLATE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>qpbench: what accuracy costs</title>
+<style>{style}</style>
+<script>{plotly}</script>
+</head><body>
+<header><h1>qpbench: what accuracy costs</h1><p>{summary}</p>
+<nav><a href="#answer">answer</a> <a href="#work-precision">work-precision</a>
+<a href="#profiles">profiles</a> <a href="#results">table</a> <a href="#problem">one problem</a>
+<a href="#friction">friction</a> <a href="#provenance">machine</a></nav></header>
+<main>{sections}</main>
+<script type="application/json" id="qpbench-data">{data}</script>
+<script>{script}</script>
+</body></html>
+"""
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 0 auto; max-width: 1200px; padding: 0 1em;
+       color: #222; }
+header nav a { margin-right: 0.8em; }
+section { margin: 2em 0; }
+table { border-collapse: collapse; font-size: 0.85em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.5em; text-align: left; vertical-align: top; }
+thead th { background: #f2f2f2; }
+table.sortable thead th { cursor: pointer; user-select: none; }
+th.sorted-asc::after { content: " \\25B2"; } th.sorted-desc::after { content: " \\25BC"; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+.frontier td span { display: block; }
+.frontier .time { font-weight: bold; } .digit { color: #a33; }
+.small { color: #666; font-size: 0.85em; } .none { color: #888; }
+.plot { width: 100%; height: 520px; } .plot.small { height: 380px; }
+.controls { margin: 0.5em 0; } .controls label { margin-right: 1em; }
+"""
+
+SCRIPT = r"""
+(function () {
+  "use strict";
+  const DATA = JSON.parse(document.getElementById("qpbench-data").textContent);
+  const ALL = "all problems", FLOOR = 1e-17, CONFIG = {responsive: true, displaylogo: false};
+  const lvl = (a) => a.toExponential(0).replace(/e([+-])(\d)$/, "e$10$2");
+  const fmt = (v) => v === null || v === undefined ? "-" : (typeof v === "number" ?
+    (Number.isInteger(v) ? String(v) : v.toPrecision(3)) : String(v));
+  const logAxis = (title) => ({type: "log", title: {text: title}, exponentformat: "e"});
+  function options(select, values, chosen) {
+    select.innerHTML = "";
+    for (const value of values) {
+      const option = document.createElement("option");
+      option.value = value; option.textContent = value; select.appendChild(option);
+    }
+    if (chosen !== undefined) select.value = chosen;
+  }
+  function families(ds) {
+    return [ALL, ...Array.from(new Set(ds.problems.map((p) => p.family))).sort()];
+  }
+
+  // work-precision: every answered solve of one family, one trace per pair
+  function workPrecision(ds, div, family, visibleKeys) {
+    const traces = ds.pairs.map((pair) => ({
+      type: "scatter", mode: "markers", name: pair.key, x: [], y: [], customdata: [],
+      marker: {size: 6, opacity: 0.75},
+      hovertemplate: "solver %{customdata[0]}<br>formulation %{customdata[1]}<br>" +
+        "problem %{customdata[2]}<br>level %{customdata[3]}<br>residual %{customdata[4]}<br>" +
+        ds.error + " %{customdata[5]}<br>time %{customdata[6]} s<extra></extra>"}));
+    const inFamily = (i) => family === ALL || ds.problems[ds.problem[i]].family === family;
+    let hasError = false;
+    for (let i = 0; i < ds.pair.length; i++) {
+      if (inFamily(i) && ds.v_error[i] !== null && ds.time[i] !== null) { hasError = true; break; }
+    }
+    const errorName = hasError ? ds.error : "residual";
+    for (let i = 0; i < ds.pair.length; i++) {
+      if (!inFamily(i) || ds.time[i] === null || ds.residual[i] === null) continue;
+      const y = hasError ? ds.v_error[i] : ds.residual[i];
+      if (y === null) continue;
+      const pair = ds.pairs[ds.pair[i]], trace = traces[ds.pair[i]];
+      trace.x.push(Math.max(ds.time[i], 1e-9));
+      trace.y.push(Math.max(y, FLOOR));
+      trace.customdata.push([pair.solver, pair.formulation, ds.problems[ds.problem[i]].name,
+        lvl(ds.levels[ds.level[i]]), fmt(ds.residual[i]), fmt(ds.v_error[i]), fmt(ds.time[i])]);
+    }
+    const shown = traces.filter((t) => t.x.length > 0);
+    for (const trace of shown) {
+      trace.visible = !visibleKeys || visibleKeys.has(trace.name) ? true : "legendonly";
+    }
+    Plotly.newPlot(div, shown, {
+      title: {text: "Work-precision, " + family}, hovermode: "closest",
+      xaxis: logAxis("time_s [s]"), yaxis: logAxis(errorName),
+      legend: {font: {size: 10}}, margin: {t: 40}}, CONFIG);
+  }
+  // the pairs drawn at first: the family's frontier and the most reliable few
+  function firstPairs(family) {
+    const keys = new Set();
+    const rows = (DATA.table || []).filter((r) => r[0] === family);
+    for (const row of DATA.frontierRows || []) {
+      if (row.family === family && row.pair) keys.add(row.pair);
+    }
+    const tightest = Math.min(...rows.map((r) => r[4]));
+    rows.filter((r) => r[4] === tightest)
+      .sort((a, b) => (b[6] - a[6]) || (a[7] - b[7])).slice(0, 5)
+      .forEach((r) => keys.add(r[1]));
+    return keys;
+  }
+
+  if (DATA.main) {
+    const ds = DATA.main;
+    DATA.frontierRows = [];
+    for (const cell of document.querySelectorAll("#frontier tbody tr")) {
+      const family = cell.querySelector("th").textContent;
+      for (const code of cell.querySelectorAll("code")) {
+        DATA.frontierRows.push({family: family, pair: code.textContent});
+      }
+    }
+    // frontier time against level, one line per family
+    const byFamily = new Map();
+    for (const row of DATA.frontier) {
+      if (!byFamily.has(row.family)) byFamily.set(row.family, {x: [], y: []});
+      if (row.time !== null) { byFamily.get(row.family).x.push(lvl(row.level));
+                               byFamily.get(row.family).y.push(row.time); }
+    }
+    const levelNames = ds.levels.map(lvl);
+    Plotly.newPlot("frontier-plot", Array.from(byFamily, ([family, xy]) => ({
+      type: "scatter", mode: "lines+markers", name: family, x: xy.x, y: xy.y,
+      line: family === ALL ? {width: 4, color: "#000"} : {width: 1.5},
+      hovertemplate: family + "<br>level %{x}<br>SGM %{y:.3g} s<extra></extra>"})), {
+      title: {text: "Time of the fastest pair that reaches each level"},
+      xaxis: {type: "category", categoryorder: "array", categoryarray: levelNames,
+              title: {text: "accuracy level"}},
+      yaxis: logAxis("SGM time [s]"), legend: {font: {size: 10}}, margin: {t: 40}}, CONFIG);
+
+    const wpSelect = document.getElementById("wp-family");
+    options(wpSelect, families(ds), ALL);
+    const drawWp = () => workPrecision(ds, "wp", wpSelect.value, firstPairs(wpSelect.value));
+    wpSelect.addEventListener("change", drawWp);
+    drawWp();
+    const setAll = (visible) => {
+      const div = document.getElementById("wp");
+      Plotly.restyle(div, {visible: visible}, div.data.map((_, i) => i));
+    };
+    document.getElementById("wp-all").addEventListener("click", () => setAll(true));
+    document.getElementById("wp-none").addEventListener("click", () => setAll("legendonly"));
+
+    DATA.profiles.forEach((profile, index) => {
+      Plotly.newPlot("profile-" + index, profile.curves.map((curve) => ({
+        type: "scatter", mode: "lines", name: curve.key, x: profile.taus, y: curve.values,
+        line: {shape: "hv"}, visible: curve.visible ? true : "legendonly",
+        hovertemplate: curve.key + "<br>tau %{x:.3g}<br>share %{y:.2f}<extra></extra>"})), {
+        title: {text: "Performance profile at " + lvl(profile.level) + " (" +
+                profile.problems + " problems)"},
+        xaxis: logAxis("tau (time / fastest time on the problem)"),
+        yaxis: {range: [0, 1.02], title: {text: "share of problems solved within tau"}},
+        legend: {font: {size: 10}}, margin: {t: 40}}, CONFIG);
+    });
+
+    // the results table: sort on header click, filter by selects and text
+    const COLUMNS = ["family", "pair", "formulation", "backend", "level", "solves",
+                     "success", "SGM time [s]", "median residual"];
+    const table = document.getElementById("results-table");
+    const head = table.querySelector("thead"), body = table.querySelector("tbody");
+    const MAX_ROWS = 400;
+    let sortColumn = null, sortDirection = 1;
+    head.innerHTML = "<tr>" + COLUMNS.map((c, i) => "<th data-col='" + i + "'>" + c + "</th>")
+      .join("") + "</tr>";
+    const selects = Array.from(document.querySelectorAll("#filters select"));
+    for (const select of selects) {
+      const column = Number(select.dataset.filter);
+      let values = Array.from(new Set(DATA.table.map((r) => r[column])));
+      values = column === 4 ? values.sort((a, b) => b - a).map(lvl) : values.sort();
+      options(select, ["(any)", ...values], "(any)");
+      select.addEventListener("change", render);
+    }
+    const pairFilter = document.getElementById("pair-filter");
+    pairFilter.addEventListener("input", render);
+    function cellText(row, column) {
+      if (column === 4) return lvl(row[4]);
+      if (column === 6) return row[6] === null ? "-" : (100 * row[6]).toFixed(1) + "%";
+      return fmt(row[column]);
+    }
+    function render() {
+      const text = pairFilter.value.trim().toLowerCase();
+      let rows = DATA.table.filter((row) => selects.every((select) => {
+        const column = Number(select.dataset.filter);
+        return select.value === "(any)" ||
+          (column === 4 ? lvl(row[4]) : String(row[column])) === select.value;
+      }) && (!text || row[1].toLowerCase().includes(text)));
+      if (sortColumn !== null) {
+        const c = sortColumn;
+        rows = rows.slice().sort((a, b) => {
+          const x = a[c], y = b[c];
+          if (x === y) return 0;
+          if (x === null) return 1;
+          if (y === null) return -1;
+          return (typeof x === "number" ? x - y : String(x).localeCompare(String(y))) *
+            sortDirection;
+        });
+      }
+      body.innerHTML = rows.slice(0, MAX_ROWS).map((row) => "<tr>" + row.map((_, c) =>
+        "<td" + (c >= 4 ? " class='num'" : "") + ">" + cellText(row, c)
+          .replace(/&/g, "&amp;").replace(/</g, "&lt;") + "</td>").join("") + "</tr>").join("");
+      document.getElementById("table-count").textContent = rows.length > MAX_ROWS ?
+        "showing the first " + MAX_ROWS + " of " + rows.length + " rows: filter to see others" :
+        rows.length + " rows";
+    }
+    for (const th of head.querySelectorAll("th")) {
+      th.addEventListener("click", () => {
+        const column = Number(th.dataset.col);
+        sortDirection = sortColumn === column ? -sortDirection : 1;
+        sortColumn = column;
+        for (const other of head.querySelectorAll("th")) other.className = "";
+        th.className = sortDirection > 0 ? "sorted-asc" : "sorted-desc";
+        render();
+      });
+    }
+    render();
+
+    // one problem: every pair's residual against time, one point per level
+    const problemSelect = document.getElementById("problem-select");
+    options(problemSelect, ds.problems.map((p) => p.name), ds.problems[0].name);
+    function drawProblem() {
+      const index = ds.problems.findIndex((p) => p.name === problemSelect.value);
+      const traces = new Map();
+      for (let i = 0; i < ds.pair.length; i++) {
+        if (ds.problem[i] !== index || ds.time[i] === null || ds.residual[i] === null) continue;
+        const pair = ds.pairs[ds.pair[i]];
+        if (!traces.has(pair.key)) traces.set(pair.key, {points: [], solved: 0, time: 0});
+        const entry = traces.get(pair.key);
+        entry.points.push([ds.level[i], ds.time[i], ds.residual[i], ds.v_error[i], ds.success[i]]);
+        if (ds.success[i] && ds.level[i] === ds.levels.length - 1) { entry.solved = 1;
+                                                                     entry.time = ds.time[i]; }
+      }
+      const ranked = Array.from(traces.entries()).filter(([, e]) => e.solved)
+        .sort((a, b) => a[1].time - b[1].time).slice(0, 12).map(([key]) => key);
+      const first = new Set(ranked.length ? ranked : Array.from(traces.keys()).slice(0, 12));
+      const data = Array.from(traces, ([key, entry]) => {
+        entry.points.sort((a, b) => a[0] - b[0]);
+        return {type: "scatter", mode: "lines+markers", name: key,
+          visible: first.has(key) ? true : "legendonly",
+          x: entry.points.map((p) => Math.max(p[1], 1e-9)),
+          y: entry.points.map((p) => Math.max(p[2], FLOOR)),
+          customdata: entry.points.map((p) => [lvl(ds.levels[p[0]]), fmt(p[2]), fmt(p[3]),
+                                               fmt(p[1]), p[4] ? "solved" : "not solved"]),
+          hovertemplate: key + "<br>level %{customdata[0]} (%{customdata[4]})<br>residual " +
+            "%{customdata[1]}<br>v_error %{customdata[2]}<br>time %{customdata[3]} s" +
+            "<extra></extra>"};
+      });
+      Plotly.newPlot("problem-plot", data, {
+        title: {text: "Problem " + problemSelect.value + " (" + ds.problems[index].family + ")"},
+        hovermode: "closest", xaxis: logAxis("time_s [s]"), yaxis: logAxis("residual"),
+        legend: {font: {size: 10}}, margin: {t: 40}}, CONFIG);
+    }
+    problemSelect.addEventListener("change", drawProblem);
+    drawProblem();
+  }
+
+  if (DATA.friction) {
+    const fds = DATA.friction, select = document.getElementById("fwp-family");
+    options(select, families(fds), ALL);
+    const draw = () => workPrecision(fds, "fwp", select.value, null);
+    select.addEventListener("change", draw);
+    draw();
+  }
+})();
+"""
