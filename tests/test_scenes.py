@@ -127,8 +127,10 @@ BAD_SCENES = [
      "<integrator>: missing"),
     (ONE_CIRCLE.replace('geo_idx="0"', 'geo_idx="1"'), InputError,
      "<rigid_body> attribute 'geo_idx': out of range"),
-    (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 1"'), UnsupportedError,
-     "not supported: box geometry"),
+    (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 0"'), InputError,
+     "<geometry> attribute 'r': box half-widths must be positive"),
+    (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 nan"'), InputError,
+     "<geometry> attribute 'r': must be finite"),
     (ONE_CIRCLE.replace('v="1 0"', 'v="1"'), InputError, "expected two numbers"),
     (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
                        'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="1"/></ball2d_scene>'),
@@ -184,8 +186,8 @@ BAD_SCENES += [
                    'max_iters="20" staggering="geometric"><lcp_impact_solver name="ipopt"/>'
                    '</staggered_projections_friction_solver>'), InputError,
      "<mdp_friction_solver>: missing"),
-    (FRICTION_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 1"'), UnsupportedError,
-     "not supported: box geometry"),
+    (FRICTION_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="-1 1"'), InputError,
+     "box half-widths must be positive"),
     (with_friction(SOBOGUS).replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/>'
                                     '<static_plane x="0 5" n="0 -1"/><planar_portal planeA="0"'
                                     ' planeB="1"/></ball2d_scene>'),

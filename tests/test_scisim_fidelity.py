@@ -1,7 +1,8 @@
 """qpbench against SCISim itself: the final states SCISim produced (problems/scisim_fidelity).
 
-Every frictional circle scene without portals or boxes that has a SCISim record, and the
-frictionless ones, simulated for the record's step count with the scene's own solver
+Every scene without portals that has a SCISim record (circles and boxes, frictional and
+frictionless, and the coincident-centre case of the research fork), simulated for the
+record's step count with the scene's own solver
 mapping, must end within 1e-6 of SCISim's positions and 1e-6 x max(1, largest reference
 speed) of its velocities (``problems/scisim_fidelity/README.md``). A scene that cannot agree
 would be listed in DISAGREES with the reason, and expected to fail; today there is none.

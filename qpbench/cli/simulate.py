@@ -57,7 +57,10 @@ def run(args: argparse.Namespace) -> int:
                           capture=args.capture)
     for note in simulator.notes:
         print(f"qpbench simulate: note: {note}", file=sys.stderr)
+    noted = len(simulator.notes)
     result = simulator.run(end_time=args.end_time, max_steps=steps)
+    for note in result.notes[noted:]:  # what the run itself found (e.g. coincident centres)
+        print(f"qpbench simulate: note: {note}", file=sys.stderr)
     summary = result.as_dict()
     if args.json:
         print_json(summary)

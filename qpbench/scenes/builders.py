@@ -129,16 +129,28 @@ def scene_xml(scene: Scene) -> str:
                          f'vx="{_number(v[0])}" vy="{_number(v[1])}" m="{_number(m)}" '
                          f'r="{_number(r)}" fixed="{int(fixed)}"/>')
     else:
-        radii = sorted(set(bodies.radii.tolist()))
-        lines.extend(f'  <geometry type="circle" r="{_number(r)}"/>' for r in radii)
+        is_box = bodies.is_box
+        halves = bodies.half_widths if bodies.half_widths is not None else np.full(
+            (bodies.count, 2), np.nan)
+        shapes = sorted({("box", *halves[i].tolist()) if is_box[i]
+                         else ("circle", float(bodies.radii[i]), 0.0)
+                         for i in range(bodies.count)})
+        for kind, first, second in shapes:
+            size = f"{_number(first)} {_number(second)}" if kind == "box" else _number(first)
+            lines.append(f'  <geometry type="{kind}" r="{size}"/>')
         theta = bodies.theta if bodies.theta is not None else np.zeros(bodies.count)
         omega = bodies.omega if bodies.omega is not None else np.zeros(bodies.count)
         for i in range(bodies.count):
-            rho = bodies.masses[i] / (math.pi * bodies.radii[i] ** 2)
+            if is_box[i]:
+                shape = ("box", *halves[i].tolist())
+                rho = bodies.masses[i] / (4.0 * halves[i, 0] * halves[i, 1])
+            else:
+                shape = ("circle", float(bodies.radii[i]), 0.0)
+                rho = bodies.masses[i] / (math.pi * bodies.radii[i] ** 2)
             lines.append(f'  <rigid_body x="{_pair(bodies.positions[i])}" '
                          f'theta="{_number(theta[i])}" v="{_pair(bodies.velocities[i])}" '
                          f'omega="{_number(omega[i])}" rho="{_number(rho)}" '
-                         f'geo_idx="{radii.index(float(bodies.radii[i]))}" '
+                         f'geo_idx="{shapes.index(shape)}" '
                          f'fixed="{int(bodies.fixed[i])}"/>')
     lines.append(f"</{scene.dialect}_scene>")
     return "\n".join(lines) + "\n"

@@ -2,8 +2,9 @@
 
 A scene holds exactly what its file says; the simulator composes its step from
 these parts only (no gravity term without gravity, no plane test without planes).
-Bodies are circles. ``ball2d`` bodies have 2 degrees of freedom (x, y);
-``rigidbody2d`` circles have a third, rotation, with moment of inertia
+Bodies are circles, and in ``rigidbody2d`` also boxes (half-widths ``hx hy``, mass
+``rho 4 hx hy``, ``I = m (hx^2 + hy^2) / 3``). ``ball2d`` bodies have 2 degrees of freedom
+(x, y); ``rigidbody2d`` bodies have a third, rotation, circles with moment of inertia
 ``I = m r^2 / 2``, which frictionless impacts never touch and friction does (through the
 arm ``r x t`` of each contact).
 """
@@ -33,6 +34,9 @@ class Bodies:
     fixed: np.ndarray  # (bodies,) bool
     theta: np.ndarray | None = None  # (bodies,) rigidbody2d only
     omega: np.ndarray | None = None  # (bodies,) rigidbody2d only
+    # (bodies, 2) half-widths of rigidbody2d boxes, NaN rows for circles; None: no box.
+    # A box's entry in ``radii`` is its circumradius |r| (for drawing and bounds only).
+    half_widths: np.ndarray | None = None
 
     @property
     def count(self) -> int:
@@ -44,11 +48,28 @@ class Bodies:
         return self.theta is not None
 
     @property
+    def is_box(self) -> np.ndarray:
+        """(bodies,) bool: the body is a box (rigidbody2d ``<geometry type="box">``)."""
+        if self.half_widths is None:
+            return np.zeros(self.count, dtype=bool)
+        return ~np.isnan(self.half_widths[:, 0])
+
+    @property
+    def has_boxes(self) -> bool:
+        return bool(np.any(self.is_box))
+
+    @property
     def inertia(self) -> np.ndarray:
-        """I = m r^2 / 2 of a solid disc (zeros when bodies do not rotate)."""
+        """I = m r^2 / 2 of a solid disc, m (hx^2 + hy^2) / 3 of a box (SCISim's
+        ``BoxGeometry::computeMassAndInertia``); zeros when bodies do not rotate."""
         if not self.rotates:
             return np.zeros(self.count)
-        return 0.5 * self.masses * self.radii**2
+        inertia = 0.5 * self.masses * self.radii**2
+        if self.half_widths is not None:
+            box = self.is_box
+            inertia[box] = (self.masses[box] * np.sum(self.half_widths[box] ** 2, axis=1)
+                            / 3.0)
+        return inertia
 
 
 @dataclass

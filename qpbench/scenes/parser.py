@@ -3,7 +3,7 @@
 XML is parsed with defusedxml, so entity declarations (billion-laughs bombs) and
 external references are refused. Every fault in the input is one
 :class:`~qpbench.errors.InputError` naming the file, the element and the
-attribute; a feature qpbench does not simulate (box geometry, portals) is an
+attribute; a feature qpbench does not simulate (portals) is an
 :class:`~qpbench.errors.UnsupportedError`. Friction solvers are checked by SCISim's own
 rules (``Ball2DSceneParser.cpp::loadSobogusFrictionSolver`` and its rigidbody2d analogue).
 Unknown elements and attributes are accepted, as SCISim does, and named once in ``Scene.warnings``.
@@ -296,41 +296,50 @@ def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]]) -> Bodie
 def _rigidbody2d_bodies(reader: _Reader, children: dict[str, list[Element]],
                         warnings: list[str]) -> Bodies:
     """``<geometry type="circle" r/>`` in file order and ``<rigid_body x theta v omega rho
-    geo_idx fixed/>``; mass m = rho pi r^2."""
-    geometries: list[tuple[str, float]] = []
+    geo_idx fixed/>``; circles: m = rho pi r^2; boxes ``<geometry type="box" r="hx hy"/>``:
+    m = rho 4 hx hy (half-widths must be positive)."""
+    geometries: list[tuple[str, np.ndarray]] = []
     for index, geometry in enumerate(children.get("geometry", [])):
         kind = reader.text(geometry, "type", index).strip()
         if kind == "circle":
-            geometries.append(("circle", reader.number(geometry, "r", index, check="positive")))
+            radius = reader.number(geometry, "r", index, check="positive")
+            geometries.append(("circle", np.array([radius, math.nan])))
         elif kind == "box":
-            geometries.append(("box", math.nan))
+            half = reader.vector(geometry, "r", index)
+            if not np.all(half > 0):
+                raise reader.error(geometry, "r", "box half-widths must be positive, got "
+                                   f"{reader.text(geometry, 'r', index).strip()!r}", index)
+            geometries.append(("box", half))
         else:
             raise reader.error(geometry, "type", f"must be circle or box, got {kind!r}", index)
     rows = []
+    halves = []
     for index, body in enumerate(children.get("rigid_body", [])):
         geo_idx = reader.integer(body, "geo_idx", index)
         if not 0 <= geo_idx < len(geometries):
             raise reader.error(body, "geo_idx", f"out of range: {geo_idx} (the scene has "
                                f"{len(geometries)} <geometry> elements)", index)
-        kind, radius = geometries[geo_idx]
-        if kind == "box":
-            raise UnsupportedError(f"{reader.path}: <rigid_body> attribute 'geo_idx' "
-                                   f"(rigid_body #{index}): not supported: box geometry "
-                                   f"(geometry #{geo_idx}); qpbench simulates circles only")
+        kind, size = geometries[geo_idx]
         rho = reader.number(body, "rho", index, check="positive")
         position = reader.vector(body, "x", index)
         velocity = reader.vector(body, "v", index)
+        if kind == "box":  # SCISim's BoxGeometry: m = rho 4 hx hy; radius = |r| for bounds
+            mass, radius = rho * 4.0 * size[0] * size[1], float(np.hypot(*size))
+            halves.append(size)
+        else:
+            mass, radius = rho * math.pi * size[0] ** 2, float(size[0])
+            halves.append(np.array([math.nan, math.nan]))
         rows.append((
-            *position, *velocity, rho * math.pi * radius**2, radius,
+            *position, *velocity, mass, radius,
             float(reader.boolean(body, "fixed", index, default=False)),
             reader.number(body, "theta", index), reader.number(body, "omega", index),
         ))
-    if any(kind == "box" for kind, _ in geometries):
-        warnings.append(f"{reader.path}: <geometry type='box'> ignored: no body uses it")
     table = np.array(rows, dtype=float).reshape(-1, 9)
     return Bodies(positions=table[:, 0:2].copy(), velocities=table[:, 2:4].copy(),
                   masses=table[:, 4].copy(), radii=table[:, 5].copy(),
-                  fixed=table[:, 6] > 0.5, theta=table[:, 7].copy(), omega=table[:, 8].copy())
+                  fixed=table[:, 6] > 0.5, theta=table[:, 7].copy(), omega=table[:, 8].copy(),
+                  half_widths=(np.array(halves).reshape(-1, 2)
+                               if any(not np.isnan(h[0]) for h in halves) else None))
 
 
 def _integrator(reader: _Reader, children: dict[str, list[Element]]) -> tuple[str, Fraction]:

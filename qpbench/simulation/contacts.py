@@ -33,6 +33,7 @@ from qpbench.problem.jacobian import contact_jacobian, tangent_jacobian, tangent
 from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
 
 BALL, PLANE, DRUM = 0, 1, 2
+BOX_PLANE, BODY_BODY = 3, 4  # box contacts (qpbench.simulation.boxes): arms stored per contact
 
 
 @dataclass
@@ -44,6 +45,17 @@ class Contacts:
     kind: np.ndarray  # (n,) BALL, PLANE or DRUM
     boundary: np.ndarray  # (n,) index of the plane or drum, -1 for ball-ball
     normals: np.ndarray  # (n, 2)
+    # (n, 4): the arms r_a, r_b (contact point minus each centre, at x0) of box contacts
+    # (BOX_PLANE, BODY_BODY; r_b unused for a plane); NaN rows for the circle rules
+    arms: np.ndarray | None = None
+    point: np.ndarray | None = None  # (n,) int: which point of a pair or vertex of a box
+
+    def __post_init__(self) -> None:
+        n = self.body_a.shape[0]
+        if self.arms is None:
+            self.arms = np.full((n, 4), np.nan)
+        if self.point is None:
+            self.point = np.zeros(n, dtype=np.int64)
 
     @classmethod
     def empty(cls) -> Contacts:
@@ -51,17 +63,46 @@ class Contacts:
         return cls(none, none.copy(), none.copy(), none.copy(), np.zeros((0, 2)))
 
     @property
+    def boxed(self) -> np.ndarray:
+        """(n,) bool: contacts whose arms are stored (box contacts)."""
+        assert self.arms is not None
+        return ~np.isnan(self.arms[:, 0])
+
+    @property
     def count(self) -> int:
         return int(self.body_a.shape[0])
 
     def keys(self) -> np.ndarray:
         """An integer identity per contact (kind, a, b or boundary), stable across steps."""
-        other = np.where(self.kind == BALL, self.body_b, self.boundary)
+        other = np.where((self.kind == BALL) | (self.kind == BODY_BODY), self.body_b,
+                         self.boundary)
+        boxed = (self.kind == BOX_PLANE) | (self.kind == BODY_BODY)
+        assert self.point is not None
+        other = np.where(boxed, (other << 2) | self.point, other)
         return (self.kind.astype(np.int64) << 60) | (self.body_a.astype(np.int64) << 30) | other
 
     def jacobian(self, bodies: int, dofs_per_body: int) -> sp.csc_matrix:
-        """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k."""
-        return contact_jacobian(self.body_a, self.body_b, self.normals, bodies, dofs_per_body)
+        """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k;
+        box contacts add ``r_a x n`` (and ``-(r_b x n)``) on the rotation rows, as
+        SCISim's ``BodyBodyConstraint``/``StaticPlaneBodyConstraint::evalH``."""
+        G = contact_jacobian(self.body_a, self.body_b, self.normals, bodies, dofs_per_body)
+        boxed = self.boxed
+        if dofs_per_body != 3 or not np.any(boxed):
+            return G
+        return sp.csc_matrix(G + self._arm_matrix(self.normals, boxed, G.shape))
+
+    def _arm_matrix(self, directions: np.ndarray, boxed: np.ndarray, shape: tuple[int, int]
+                    ) -> sp.csc_matrix:
+        """The rotation-row terms ``r_a x d`` and ``-(r_b x d)`` of the box contacts."""
+        assert self.arms is not None
+        k = np.flatnonzero(boxed)
+        a, b = self.body_a[k], self.body_b[k]
+        two = b >= 0
+        value_a = _cross(self.arms[k, 0:2], directions[k])
+        value_b = -_cross(self.arms[k[two], 2:4], directions[k[two]])
+        return sp.csc_matrix((np.concatenate([value_a, value_b]),
+                              (np.concatenate([3 * a + 2, 3 * b[two] + 2]),
+                               np.concatenate([k, k[two]]))), shape=shape)
 
     def contact_points(self, x0: np.ndarray, radii: np.ndarray, fixed: np.ndarray
                        ) -> np.ndarray:
@@ -93,6 +134,12 @@ class Contacts:
         arm_b = np.zeros(self.count)
         pair = self.body_b >= 0
         arm_b[pair] = _cross(points[pair] - x0[self.body_b[pair]], t[pair])
+        boxed = self.boxed
+        if np.any(boxed):  # the stored arms (arm_a/arm_b of the circle rules unused there)
+            assert self.arms is not None
+            arm_a[boxed] = _cross(self.arms[boxed, 0:2], t[boxed])
+            two = boxed & pair
+            arm_b[two] = _cross(self.arms[two, 2:4], t[two])
         return tangent_jacobian(self.body_a, self.body_b, self.normals, bodies,
                                 dofs_per_body, arm_a, arm_b)
 
@@ -117,7 +164,8 @@ class Contacts:
     @staticmethod
     def concatenate(parts: list[Contacts]) -> Contacts:
         return Contacts(*(np.concatenate([getattr(part, name) for part in parts])
-                          for name in ("body_a", "body_b", "kind", "boundary", "normals")))
+                          for name in ("body_a", "body_b", "kind", "boundary", "normals",
+                                       "arms", "point")))
 
 
 def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -126,12 +174,13 @@ def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
-              where: str = "") -> Contacts:
+              coincident: list[tuple[int, int]] | None = None) -> Contacts:
     """Ball-ball contacts by continuous detection over the step (see the module docstring).
 
     The distance of the relative position ``d(t) = d0 + t (d1 - d0)``, t in [0, 1], is
     smallest at ``t* = clip(-d0.(d1 - d0) / |d1 - d0|^2, 0, 1)``; the pair is active when
-    ``|d(t*)| <= r_a + r_b``.
+    ``|d(t*)| <= r_a + r_b``. A pair with the same centre has no normal: SCISim's is zero,
+    an inert constraint; it is left out and appended to ``coincident`` when given.
     """
     lower, upper = swept_boxes(x0, x1, radii)
     pairs = candidate_pairs(lower, upper)
@@ -151,10 +200,13 @@ def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarr
     active = np.einsum("ij,ij->i", closest, closest) <= reach**2
     a, b, d0 = a[active], b[active], d0[active]
     length = np.hypot(d0[:, 0], d0[:, 1])
-    if np.any(length <= 0.0):
-        k = int(np.argmax(length <= 0.0))
-        raise UnsupportedError(f"{where}bodies #{a[k]} and #{b[k]} have the same centre, so "
-                               "their contact normal is undefined")
+    same = length <= 0.0
+    if np.any(same):
+        # SCISim normalises a zero vector to zero: a zero normal, a constraint that does
+        # nothing; qpbench leaves such a pair out of the problem and tells the caller
+        if coincident is not None:
+            coincident.extend(zip(a[same].tolist(), b[same].tolist(), strict=True))
+        a, b, d0, length = a[~same], b[~same], d0[~same], length[~same]
     none = np.full(a.shape[0], -1, dtype=np.int64)
     return Contacts(a.astype(np.int64), b.astype(np.int64), np.full_like(none, BALL), none,
                     d0 / length[:, None])

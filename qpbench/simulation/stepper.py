@@ -57,7 +57,7 @@ from qpbench.problem import files, metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes.model import FrictionSolver, ImpactOperator, Scene
-from qpbench.simulation import checks, contacts, integrators
+from qpbench.simulation import boxes, checks, contacts, integrators
 from qpbench.simulation.operators import (
     ChooseSolve,
     InnerSolveFailed,
@@ -226,6 +226,7 @@ class Simulator:
             self.acceleration = np.where(self.free[:, None], self.gravity[None, :], 0.0)
         self.m_inv = self._inverse_masses()
         self._where = f"{scene.path}: "
+        self._coincident_noted = False
 
     def _inverse_masses(self) -> np.ndarray:
         """Diagonal of M^-1 per degree of freedom (x, y[, theta]); 0 for kinematic bodies."""
@@ -269,10 +270,35 @@ class Simulator:
         """The active contacts of the step (only the kinds the scene has)."""
         scene = self.scene
         radii, fixed = scene.bodies.radii, scene.bodies.fixed
-        parts = [contacts.ball_ball(x0, x1, radii, fixed, self._where)]
+        coincident: list[tuple[int, int]] = []
+        if scene.bodies.has_boxes:  # the circle rules see circles only
+            circles = np.flatnonzero(~scene.bodies.is_box)
+            pairs = contacts.ball_ball(x0[circles], x1[circles], radii[circles],
+                                       fixed[circles], coincident)
+            pairs.body_a, pairs.body_b = circles[pairs.body_a], circles[pairs.body_b]
+            coincident = [(int(circles[a]), int(circles[b])) for a, b in coincident]
+            parts = [pairs]
+        else:
+            parts = [contacts.ball_ball(x0, x1, radii, fixed, coincident)]
+        if coincident and not self._coincident_noted:
+            a, b = coincident[0]
+            self._coincident_noted = True
+            self.notes.append(f"bodies #{a} and #{b} share a centre at step {self.step_index}: "
+                              "their contact has a zero normal (an inert constraint, as in "
+                              "SCISim) and is left out")
+        box_planes = contacts.Contacts.empty()
+        if scene.bodies.has_boxes:
+            assert self.theta is not None and self.omega is not None
+            assert scene.bodies.half_widths is not None
+            theta1 = self.theta + self.dt * self.omega
+            body_body, box_planes = boxes.box_contacts(
+                x0, x1, self.theta, theta1, radii, scene.bodies.half_widths, fixed,
+                scene.plane_points, scene.plane_normals, self._where)
+            parts.append(body_body)
         if scene.has_planes:
-            parts.append(contacts.ball_plane(x1, radii, fixed, scene.plane_points,
-                                             scene.plane_normals))
+            parts.append(contacts.ball_plane(x1, radii, fixed | scene.bodies.is_box,
+                                             scene.plane_points, scene.plane_normals))
+            parts.append(box_planes)
         if scene.has_drums:
             parts.append(contacts.ball_drum(x0, x1, radii, fixed, scene.drum_centers,
                                             scene.drum_radii, self._where))
@@ -499,6 +525,7 @@ class Simulator:
                 scene.bodies.masses, self.free, v_start, self.velocities, self.gravity,
                 result.time)
         result.captured = self.captured
+        result.notes = list(self.notes)
         result.x_final = self.positions.copy()
         result.v_final = self.velocities.copy()
         if self.theta is not None and self.omega is not None:
