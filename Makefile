@@ -55,11 +55,16 @@ BENCH_PROBLEMS ?= build/problems/default
 BENCH_RESULTS ?= results
 BENCH_ACCURACY ?= 1e-2,1e-4,1e-6,1e-8,1e-10
 BENCH_TIMEOUT ?= 10
+# frictional problems: two levels (staggered through cvxpy re-compiles every inner QP, so
+# each of its solves takes seconds; five levels would double the benchmark's time)
+BENCH_FRICTION_ACCURACY ?= 1e-4,1e-8
 
 bench: setup
 	$(BIN)/qpbench build-set $(BENCH_SET) -o $(BENCH_PROBLEMS)
-	$(BIN)/qpbench run $(BENCH_PROBLEMS) --accuracy $(BENCH_ACCURACY) --timeout $(BENCH_TIMEOUT) \
-		-o $(BENCH_RESULTS)/bench.parquet
+	$(BIN)/qpbench run $(BENCH_PROBLEMS) --kind impact --accuracy $(BENCH_ACCURACY) \
+		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
+	$(BIN)/qpbench run $(BENCH_PROBLEMS) --kind frictional --accuracy $(BENCH_FRICTION_ACCURACY) \
+		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
 	$(BIN)/qpbench scaling -o $(BENCH_RESULTS)/scaling.json
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
 	$(BIN)/qpbench sequence --steps 40 -o $(BENCH_RESULTS)/sequence.json

@@ -68,3 +68,27 @@ def test_retry_of_an_unknown_status_is_refused(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["run", str(tmp_path), "--retry", "timedout", "-o", str(tmp_path / "r.parquet")])
     assert code == 2 and "--retry: unknown status 'timedout'" in capsys.readouterr().err
+
+
+def test_kind_runs_only_the_problems_of_that_kind_each_with_the_solvers_that_take_it(
+        tmp_path: Path) -> None:
+    """lemke/lcp takes both kinds; osqp/dual only impact problems, nsgs only frictional."""
+    from friction_cases import ball_on_floor
+
+    from qpbench.bench.results import ResultStore
+    from qpbench.problem import files
+
+    write_tiny_problems(tmp_path / "problems", count=1)
+    files.save(ball_on_floor(-2.0, 1.5, 0.5, name="rough"), tmp_path / "problems" / "rough")
+    output = tmp_path / "results.parquet"
+    arguments = ["run", str(tmp_path / "problems"), "--solvers", "lemke,osqp/dual,nsgs",
+                 "--accuracy", "1e-8", "--no-progress", "-o", str(output)]
+    assert main([*arguments, "--kind", "frictional"]) == 0
+    rows = ResultStore(output).read()
+    assert set(zip(rows["problem"], rows["solver"], strict=True)) == {
+        ("rough", "lemke"), ("rough", "nsgs")}
+    assert main(arguments) == 0  # all kinds: the impact cells are added, nothing repeated
+    rows = ResultStore(output).read()
+    assert set(zip(rows["problem"], rows["solver"], strict=True)) == {
+        ("rough", "lemke"), ("rough", "nsgs"), ("row3", "lemke"), ("row3", "osqp")}
+    assert set(rows.loc[rows["problem"] == "rough", "kind"]) == {"frictional"}

@@ -139,7 +139,8 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     takes = {spec.key: spec.kinds for spec in specs}
     matrix = [cell for cell in cells([(path, name) for path, name, _, _ in index],
                                      list(settings.solvers), settings)
-              if kinds[cell.problem_file] in takes[cell.solver_key]]
+              if kinds[cell.problem_file] in takes[cell.solver_key]
+              and kinds[cell.problem_file] in settings.kinds]
     digests = {path: digest for path, _, digest, _ in index}
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
                       for spec in specs}

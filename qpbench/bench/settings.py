@@ -75,6 +75,9 @@ class Limits:
             raise QpbenchError(f"--memory-limit must be >= 0 (0: none), got {self.memory_limit_mb}")
 
 
+PROBLEM_KINDS = ("impact", "frictional")
+
+
 @dataclass(frozen=True)
 class RunSettings:
     """The whole matrix and its limits, as the ``run`` command was given it."""
@@ -83,8 +86,14 @@ class RunSettings:
     accuracies: tuple[float, ...] = DEFAULT_ACCURACIES
     modes: tuple[str, ...] = ("cold",)
     limits: Limits = field(default_factory=Limits)
+    # the problem kinds run (``impact``, ``frictional``); the others' files are left out
+    kinds: tuple[str, ...] = PROBLEM_KINDS
 
     def __post_init__(self) -> None:
+        for kind in self.kinds:
+            if kind not in PROBLEM_KINDS:
+                raise QpbenchError(f"unknown problem kind '{kind}' (known: "
+                                   f"{', '.join(PROBLEM_KINDS)})")
         for mode in self.modes:
             if mode not in MODES:
                 raise QpbenchError(f"unknown mode '{mode}' (known: {', '.join(MODES)})")

@@ -16,6 +16,7 @@ from qpbench.bench.settings import (
     DEFAULT_MEMORY_LIMIT_MB,
     DEFAULT_REPEATS,
     DEFAULT_TIMEOUT_S,
+    PROBLEM_KINDS,
     Limits,
     RunSettings,
     parse_accuracies,
@@ -57,6 +58,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "replaces the old")
     parser.add_argument("--batch", type=int, default=20,
                         help="rows per part file written (default: %(default)s)")
+    parser.add_argument("--kind", default="all", choices=("all", *PROBLEM_KINDS),
+                        help="run only the problems of this kind (default: all)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-o", "--output", required=True, help="results file (.parquet)")
     parser.set_defaults(handler=run)
@@ -75,8 +78,9 @@ def run(args: argparse.Namespace) -> int:
     from qpbench.solvers.registry import resolve, usable_solvers
 
     specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
+    kinds = PROBLEM_KINDS if args.kind == "all" else (args.kind,)
     settings = RunSettings(solvers=tuple(spec.key for spec in specs), accuracies=accuracies,
-                           modes=modes, limits=limits)
+                           modes=modes, limits=limits, kinds=kinds)
     counts = runner.run(args.problems, settings, args.output, executor,
                         progress=not args.no_progress, batch_rows=args.batch, retry=retry)
     statuses = ", ".join(f"{status} {count}" for status, count in sorted(counts.items())
