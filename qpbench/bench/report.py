@@ -316,10 +316,11 @@ def _friction(frame: pd.DataFrame, folder: Path) -> str:
     Problems with no solution are counted apart, never against a solver."""
     if frame.empty:
         return "_No frictional problems in these results._\n"
-    unsolvable = frame["status"].astype(str) == NO_SOLUTION
+    # a problem known to have no solution: all its rows go, a timeout on it included
+    hopeless = set(frame.loc[frame["status"].astype(str) == NO_SOLUTION, "problem"])
     problems = frame["problem"].nunique()
-    without = frame.loc[unsolvable, "problem"].nunique()
-    frame = frame[~unsolvable]
+    without = len(hopeless)
+    frame = frame[~frame["problem"].isin(hopeless)]
     families = ", ".join(sorted(frame["family"].dropna().astype(str).unique()))
     parts = [f"{problems} frictional problems ({families}), "
              f"{without} of them without a solution (counted apart). `ccp` answers are judged "
