@@ -13,7 +13,7 @@ from PIL import Image
 from qpbench.cli import main
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
-from qpbench.scenes import load_scene
+from qpbench.scenes import load_scene, parse_scene
 from qpbench.simulation import render as render_module
 from qpbench.simulation.render import render
 
@@ -129,3 +129,62 @@ def test_an_unknown_picture_format_is_refused(tmp_path: Path) -> None:
         render(load_scene(SCENES / "ura" / "K3.xml"), tmp_path / "k3.jpg", steps=1,
                choose_solve=CLARABEL)
     assert not list(tmp_path.iterdir())
+
+
+# a box (half-widths 2 x 0.5) turned by 0.5 rad and a circle turned by 0, both at rest
+BOX_AND_CIRCLE = """<rigidbody2d_scene>
+  <integrator type="verlet" dt="0.01"/>
+  <geometry type="box" r="2.0 0.5"/>
+  <geometry type="circle" r="0.5"/>
+  <rigid_body x="0 0" theta="0.5" v="0 0" omega="0" rho="1" geo_idx="0"/>
+  <rigid_body x="4 0" theta="0" v="0 0" omega="0" rho="1" geo_idx="1"/>
+</rigidbody2d_scene>
+"""
+
+
+def test_a_box_is_drawn_as_its_rotated_rectangle_and_a_circle_with_its_radius_line(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    scene_path = tmp_path / "box_and_circle.xml"
+    scene_path.write_text(BOX_AND_CIRCLE)
+    axes_seen: list = []
+    real_save = render_module._save
+
+    def save(figure, path, write) -> None:
+        figure.canvas.draw()
+        axes_seen.extend((axes, figure) for axes in figure.axes)
+        real_save(figure, path, write)
+
+    monkeypatch.setattr(render_module, "_save", save)
+    output = tmp_path / "box.png"
+    assert main(["render", str(scene_path), "-o", str(output), "--steps", "1"]) == 0
+    image = matplotlib.image.imread(output)
+    (axes, figure), = axes_seen  # no impact: one panel
+    height = int(round(figure.get_figheight() * figure.dpi))
+
+    def colour(world: np.ndarray) -> np.ndarray:
+        x, y = axes.transData.transform(world)
+        return colour_at(image, np.array([height - y, x]))
+
+    c, s = np.cos(0.5), np.sin(0.5)
+    rotation = np.array([[c, -s], [s, c]])
+    near_corner = rotation @ np.array([1.8, 0.4])  # inside the rotated box, by a corner
+    outside = rotation @ np.array([0.0, 1.0])  # off the box, inside its circumcircle (2.06)
+    unrotated = np.array([1.8, 0.0])  # inside the box were theta ignored, outside at 0.5 rad
+    assert np.hypot(*outside) < np.hypot(2.0, 0.5)
+    drawn = colour(near_corner)
+    assert not np.allclose(drawn, WHITE, atol=0.02) and drawn[2] > drawn[0]
+    assert np.allclose(colour(outside), WHITE, atol=0.02)
+    assert np.allclose(colour(unrotated), WHITE, atol=0.02)
+    # the circle: a radius line along theta = 0, darker than the disc's fill beside it
+    line, fill = colour(np.array([4.3, 0.0])), colour(np.array([4.0, 0.3]))
+    assert not np.allclose(fill, WHITE, atol=0.02)
+    assert line[0] < fill[0] - 0.15 and line[2] > line[0]
+
+
+def test_the_recorded_angles_follow_a_spinning_circle() -> None:
+    text = BOX_AND_CIRCLE.replace('theta="0" v="0 0" omega="0"', 'theta="0" v="0 0" omega="50"')
+    spinning = parse_scene(text, "spin.xml")
+    _, recording = render_module.simulate_and_record(spinning, None, 3, None, 10)
+    assert recording.frame_thetas[0] is not None
+    assert np.allclose(recording.frame_thetas[0], [0.5, 0.0])
+    assert np.allclose(recording.frame_thetas[-1], [0.5, 3 * 0.01 * 50])

@@ -1,12 +1,18 @@
 """Pictures of a simulated scene (matplotlib, Agg backend): a PNG or an animated GIF.
 
-The PNG shows the planes, drums and balls at the end of the run, each ball's
+The PNG shows the planes, drums and bodies at the end of the run, each body's
 path, the start positions dashed, and the contact normals of the strongest impact
 event (the largest total impulse) as arrows coloured by impulse. The GIF shows the
-balls frame by frame with the contact normals of the latest impact.
+bodies frame by frame with the contact normals of the latest impact.
 
-A contact normal is drawn at the contact point ``x_a - r_a n`` on ball a,
-pointing along n (the direction of the impulse on a).
+Circles are drawn as discs, rigidbody2d boxes as rectangles of half-widths ``hx hy``
+rotated by their angle theta (corners ``x + R(theta) (+-hx, +-hy)``); a rotating
+circle carries a radius line from its centre to ``x + r (cos theta, sin theta)``, so
+its spin shows.
+
+A contact normal is drawn at the contact point on body a, pointing along n (the
+direction of the impulse on a): ``x_a - r_a n`` for circles, ``x_a + arm_a`` for box
+contacts (the arm the contact carries).
 """
 
 from __future__ import annotations
@@ -21,9 +27,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
-from matplotlib.collections import PatchCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
-from matplotlib.patches import Circle  # noqa: E402
+from matplotlib.patches import Circle, Polygon  # noqa: E402
 
 from qpbench.atomic import atomic_path
 from qpbench.errors import QpbenchError  # noqa: E402
@@ -42,6 +48,7 @@ class Impact:
 
     step: int
     positions: np.ndarray  # (bodies, 2) at the start of the step
+    theta: np.ndarray | None  # (bodies,) at the start of the step; None without rotation
     points: np.ndarray  # (n, 2) contact points on ball a
     normals: np.ndarray  # (n, 2)
     impulses: np.ndarray  # (n,)
@@ -53,23 +60,35 @@ class Recording:
 
     stride: int
     radii: np.ndarray
+    # the angles after the latest step (the next step's start angles); None: no rotation
+    theta: np.ndarray | None = None
+    simulator: Simulator | None = None
     frames: list[np.ndarray] = field(default_factory=list)
+    frame_thetas: list[np.ndarray | None] = field(default_factory=list)
     frame_steps: list[int] = field(default_factory=list)
     frame_impacts: list[Impact | None] = field(default_factory=list)
     latest: Impact | None = None
     strongest: Impact | None = None
 
     def __call__(self, event: StepEvent) -> None:
+        theta = self.theta  # the event's start-of-step angles
+        if self.simulator is not None and self.simulator.theta is not None:
+            self.theta = self.simulator.theta.copy()
         if event.contacts.count and event.impulses.size:
-            a = event.contacts.body_a
-            points = event.positions[a] - self.radii[a, None] * event.contacts.normals
-            impact = Impact(event.step, event.positions.copy(), points, event.contacts.normals,
-                            np.abs(event.impulses))
+            found = event.contacts
+            a = found.body_a
+            points = event.positions[a] - self.radii[a, None] * found.normals
+            if found.arms is not None:
+                armed = ~np.isnan(found.arms[:, 0])
+                points[armed] = event.positions[a[armed]] + found.arms[armed, :2]
+            impact = Impact(event.step, event.positions.copy(), theta, points, found.normals,
+                            np.abs(event.impulses[:found.count]))
             self.latest = impact
             if self.strongest is None or impact.impulses.sum() > self.strongest.impulses.sum():
                 self.strongest = impact
         if event.step % self.stride == 0:
             self.frames.append(event.positions.copy())
+            self.frame_thetas.append(theta)
             self.frame_steps.append(event.step)
             self.frame_impacts.append(self.latest)
 
@@ -80,9 +99,13 @@ def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
     """Runs the scene, recording about ``frames`` frames."""
     simulator = Simulator(scene, choose_solve)
     total = simulator.step_count(end_time, steps)
-    recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii)
+    recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii,
+                          theta=None if simulator.theta is None else simulator.theta.copy(),
+                          simulator=simulator)
     result = simulator.run(end_time=end_time, max_steps=steps, on_step=recording)
+    recording.simulator = None
     recording.frames.append(simulator.positions.copy())
+    recording.frame_thetas.append(None if simulator.theta is None else simulator.theta.copy())
     recording.frame_steps.append(simulator.step_index)
     recording.frame_impacts.append(recording.latest)
     return result, recording
@@ -118,12 +141,50 @@ def _draw_boundaries(axes: plt.Axes, scene: Scene, lower: np.ndarray, upper: np.
         axes.add_patch(Circle(tuple(center), radius, fill=False, color="0.2", linewidth=1.5))
 
 
-def _draw_balls(axes: plt.Axes, scene: Scene, positions: np.ndarray, **style: object
-                ) -> PatchCollection:
-    patches = [Circle(tuple(x), r) for x, r in zip(positions, scene.bodies.radii, strict=True)]
+def box_corners(position: np.ndarray, theta: float, half: np.ndarray) -> np.ndarray:
+    """(4, 2) corners of a box of half-widths ``half`` at ``position`` rotated by ``theta``,
+    counter-clockwise."""
+    c, s = np.cos(theta), np.sin(theta)
+    rotation = np.array([[c, -s], [s, c]])
+    local = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]) * half
+    return position + local @ rotation.T
+
+
+def _draw_balls(axes: plt.Axes, scene: Scene, positions: np.ndarray,
+                theta: np.ndarray | None = None, **style: object) -> PatchCollection:
+    """Every body as a patch: a disc for a circle, a rotated rectangle for a box; with a
+    radius line at angle theta on rotating circles (a second collection, same colour)."""
+    bodies = scene.bodies
+    is_box = bodies.is_box
+    angles = np.zeros(bodies.count) if theta is None else theta
+    patches = []
+    for k, (x, r) in enumerate(zip(positions, bodies.radii, strict=True)):
+        if is_box[k]:
+            assert bodies.half_widths is not None
+            patches.append(Polygon(box_corners(x, float(angles[k]), bodies.half_widths[k]),
+                                   closed=True))
+        else:
+            patches.append(Circle(tuple(x), r))
     collection = PatchCollection(patches, **style)
     axes.add_collection(collection)
+    if theta is not None and np.any(~is_box):
+        circles = np.flatnonzero(~is_box)
+        ends = positions[circles] + bodies.radii[circles, None] * np.stack(
+            [np.cos(angles[circles]), np.sin(angles[circles])], axis=1)
+        segments = np.stack([positions[circles], ends], axis=1)
+        edge = style.get("edgecolor", "tab:blue")
+        lines = LineCollection(segments, colors=edge if edge != "none" else "tab:blue",
+                               linewidths=1.5, linestyles=style.get("linestyle", "solid"))
+        axes.add_collection(lines)
+        collection._qpbench_radius_lines = lines  # type: ignore[attr-defined]
     return collection
+
+
+def _remove_balls(collection: PatchCollection) -> None:
+    lines = getattr(collection, "_qpbench_radius_lines", None)
+    if lines is not None:
+        lines.remove()
+    collection.remove()
 
 
 def _draw_impact(axes: plt.Axes, scene: Scene, impact: Impact | None, norm: Normalize):
@@ -163,16 +224,16 @@ def render_png(scene: Scene, recording: Recording, result: SimulationResult, pat
         for body in range(scene.bodies.count):
             run_axes.plot(paths[:, body, 0], paths[:, body, 1], color="tab:blue", alpha=0.35,
                           linewidth=0.8)
-    _draw_balls(run_axes, scene, recording.frames[0], facecolor="none", edgecolor="0.5",
-                linestyle="--", linewidth=0.8)
-    _draw_balls(run_axes, scene, recording.frames[-1], facecolor="tab:blue", alpha=0.45,
-                edgecolor="tab:blue")
+    _draw_balls(run_axes, scene, recording.frames[0], recording.frame_thetas[0],
+                facecolor="none", edgecolor="0.5", linestyle="--", linewidth=0.8)
+    _draw_balls(run_axes, scene, recording.frames[-1], recording.frame_thetas[-1],
+                facecolor="tab:blue", alpha=0.45, edgecolor="tab:blue")
     run_axes.set_title(f"{scene.name}: {result.steps} steps, {result.impacts} impact steps, "
                        f"t = {result.time:.4g} s\n(dashed: start; filled: end)", fontsize=10)
     if strongest is not None:
         impact_axes = panels[0]
-        _draw_balls(impact_axes, scene, strongest.positions, facecolor="tab:blue", alpha=0.35,
-                    edgecolor="tab:blue")
+        _draw_balls(impact_axes, scene, strongest.positions, strongest.theta,
+                    facecolor="tab:blue", alpha=0.35, edgecolor="tab:blue")
         arrows = _draw_impact(impact_axes, scene, strongest, norm)
         figure.colorbar(arrows, ax=impact_axes, shrink=0.8, label="impulse")
         impact_axes.set_title(f"strongest impact: step {strongest.step}, t = "
@@ -184,16 +245,16 @@ def render_png(scene: Scene, recording: Recording, result: SimulationResult, pat
 
 def render_gif(scene: Scene, recording: Recording, result: SimulationResult, path: Path) -> None:
     figure, (axes,), norm = _frame_axes(scene, recording)
-    balls = _draw_balls(axes, scene, recording.frames[0], facecolor="tab:blue", alpha=0.6,
-                        edgecolor="tab:blue")
+    balls = _draw_balls(axes, scene, recording.frames[0], recording.frame_thetas[0],
+                        facecolor="tab:blue", alpha=0.6, edgecolor="tab:blue")
     title = axes.set_title("", fontsize=10)
     arrows: list[object] = []
 
     def draw(frame: int) -> list[object]:
         nonlocal balls
-        balls.remove()
-        balls = _draw_balls(axes, scene, recording.frames[frame], facecolor="tab:blue",
-                            alpha=0.6, edgecolor="tab:blue")
+        _remove_balls(balls)
+        balls = _draw_balls(axes, scene, recording.frames[frame], recording.frame_thetas[frame],
+                            facecolor="tab:blue", alpha=0.6, edgecolor="tab:blue")
         while arrows:
             arrows.pop().remove()
         quiver = _draw_impact(axes, scene, recording.frame_impacts[frame], norm)
