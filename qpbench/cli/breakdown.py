@@ -6,13 +6,9 @@ BLAS, in a child process unless this one already has it."""
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
-import sys
-from pathlib import Path
 
-from qpbench.cli.output import write_json
-from qpbench.errors import InputError, QpbenchError
+from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
+from qpbench.errors import QpbenchError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -25,17 +21,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise QpbenchError("--repeats must be at least 1")
-    output = Path(args.output)
-    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
-                                             if parent.exists()), os.W_OK):
-        raise InputError(str(output), "cannot write here")
-    from qpbench import SINGLE_THREAD_ENV
-
-    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
-        command = [sys.executable, "-m", "qpbench.cli", "breakdown",
-                   "--repeats", str(args.repeats), "-o", str(args.output)]
-        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
-                              check=False).returncode
+    output = writable_output(args.output)
+    child = single_threaded_rerun(["breakdown", "--repeats", str(args.repeats),
+                                   "-o", str(args.output)])
+    if child is not None:
+        return child
     from qpbench.bench.breakdown import breakdown
 
     report = breakdown(repeats=args.repeats)

@@ -43,3 +43,32 @@ def write_json(path: str | os.PathLike[str], value: Any) -> Path:
     except OSError as error:
         raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
     return Path(path)
+
+
+def writable_output(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a Path; InputError before any work when it is a folder or its nearest
+    existing folder is not writable, so a measurement never runs for an output it cannot
+    write."""
+    from qpbench.errors import InputError
+
+    output = Path(path)
+    existing = next(parent for parent in (output, *output.parents) if parent.exists())
+    if output.is_dir() or not os.access(existing, os.W_OK):
+        raise InputError(str(output), "cannot write here")
+    return output
+
+
+def single_threaded_rerun(arguments: list[str]) -> int | None:
+    """Timings depend on BLAS threads: when this process is not single-threaded
+    (SINGLE_THREAD_ENV), runs ``python -m qpbench.cli ARGUMENTS`` in a child that is and
+    returns its exit status; None when this process already is."""
+    import subprocess
+    import sys
+
+    from qpbench import SINGLE_THREAD_ENV
+
+    if all(os.environ.get(name) == "1" for name in SINGLE_THREAD_ENV):
+        return None
+    command = [sys.executable, "-m", "qpbench.cli", *arguments]
+    return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
+                          check=False).returncode

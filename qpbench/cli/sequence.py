@@ -7,12 +7,10 @@ one already has it."""
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
 import sys
 from pathlib import Path
 
-from qpbench.cli.output import write_json
+from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
 
@@ -36,23 +34,15 @@ def run(args: argparse.Namespace) -> int:
         raise QpbenchError("--steps must be at least 1")
     if not args.accuracy > 0:
         raise QpbenchError("--accuracy must be positive")
-    output = Path(args.output)
-    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
-                                             if parent.exists()), os.W_OK):
-        raise InputError(str(output), "cannot write here")
+    output = writable_output(args.output)
     for scene in args.scenes:
         if not Path(scene).exists():
             raise InputError(scene, "no such scene file or capture folder")
-    from qpbench import SINGLE_THREAD_ENV
-
-    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
-        command = [sys.executable, "-m", "qpbench.cli", "sequence", *args.scenes,
-                   "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
-                   "-o", str(args.output)]
-        if args.solvers:
-            command += ["--solvers", args.solvers]
-        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
-                              check=False).returncode
+    child = single_threaded_rerun(
+        ["sequence", *args.scenes, "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
+         "-o", str(args.output), *(["--solvers", args.solvers] if args.solvers else [])])
+    if child is not None:
+        return child
     from qpbench.bench import sequence
     from qpbench.solvers.registry import get
 

@@ -6,13 +6,9 @@ unless this one already has it."""
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
-import sys
-from pathlib import Path
 
-from qpbench.cli.output import write_json
-from qpbench.errors import InputError, QpbenchError
+from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
+from qpbench.errors import QpbenchError
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -39,22 +35,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise QpbenchError("--repeats must be at least 1")
-    output = Path(args.output)
-    if output.is_dir() or not os.access(next(parent for parent in (output, *output.parents)
-                                             if parent.exists()), os.W_OK):
-        raise InputError(str(output), "cannot write here")
-    from qpbench import SINGLE_THREAD_ENV
-
-    if any(os.environ.get(name) != "1" for name in SINGLE_THREAD_ENV):
-        command = [sys.executable, "-m", "qpbench.cli", "speed",
-                   "--sizes", ",".join(str(size) for size in args.sizes),
-                   "--seed", str(args.seed), "--repeats", str(args.repeats),
-                   "-o", str(args.output)]
-        return subprocess.run(command, env={**os.environ, **SINGLE_THREAD_ENV},
-                              check=False).returncode
+    output = writable_output(args.output)
+    child = single_threaded_rerun(["speed", "--sizes", ",".join(str(size) for size in args.sizes),
+                                   "--seed", str(args.seed), "--repeats", str(args.repeats),
+                                   "-o", str(args.output)])
+    if child is not None:
+        return child
     from qpbench.bench.speed import speed
 
     report = speed(args.sizes, args.seed, args.repeats)
-    write_json(Path(args.output), report)
+    write_json(output, report)
     print(report["markdown"], end="")
     return 0
