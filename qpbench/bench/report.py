@@ -179,8 +179,40 @@ def _levels(summary: pd.DataFrame, shift: float) -> str:
         table = summary[summary["accuracy"] == accuracy].drop(columns="accuracy")
         table = table.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True])
         parts.append(f"\n### Accuracy {level(accuracy)}\n\n" + markdown_table(
-            table, {"success_rate": percent}))
+            table.head(TOP_ROWS), {"success_rate": percent}) + _more(len(table)))
     return "".join(parts)
+
+
+TOP_ROWS = 12  # rows of a ranking in REPORT.md; index.html has every pair
+
+
+def _more(rows: int) -> str:
+    """The pointer under a table cut to TOP_ROWS rows."""
+    if rows <= TOP_ROWS:
+        return ""
+    return f"\n_{rows - TOP_ROWS} more pairs: every one in [index.html](index.html)._\n"
+
+
+def _frontier(main: pd.DataFrame) -> str:
+    """The answer first: per family (and all problems) the fastest pair that solves at least
+    95% of the family's problems at each level, and how much each further digit multiplies
+    its time (``x per digit``, from the previous level's fastest pair)."""
+    rows = html_report.frontier(main)
+    if not rows:
+        return ""
+    levels = sorted({row["level"] for row in rows}, reverse=True)
+    table: dict[str, dict[str, str]] = {}
+    for row in rows:
+        cell = "-" if row["pair"] is None else f"`{row['pair']}` {number(row['time'])} s"
+        if row.get("per_digit") is not None:
+            cell += f" (x{row['per_digit']:.2g}/digit)"
+        table.setdefault(row["family"], {})[level(row["level"])] = cell
+    frame = pd.DataFrame([{"family": family, **cells} for family, cells in table.items()],
+                         columns=["family", *(level(value) for value in levels)]).fillna("-")
+    return ("Per family, the fastest pair that solves at least 95% of its problems at each "
+            "level (shifted geometric mean time, failures charged the limit) and what each "
+            "further digit multiplies the time by (- : no pair reaches the level):\n\n"
+            + markdown_table(frame, {column: str for column in frame.columns}))
 
 
 def _families(frame: pd.DataFrame) -> str:
@@ -377,6 +409,18 @@ def _friction(frame: pd.DataFrame, folder: Path) -> str:
     return "".join(parts)
 
 
+def _honesty(frame: pd.DataFrame) -> str:
+    """The pairs whose claims disagreed with qpbench's verdict (least honest first); the rest
+    are counted."""
+    table = stats.honesty(frame)
+    if table.empty:
+        return "_(no solves returned)_\n"
+    wrong = table[table["honesty_rate"] < 1.0].sort_values("honesty_rate")
+    return (markdown_table(wrong.head(TOP_ROWS), {"honesty_rate": percent}) + _more(len(wrong))
+            + f"\n{len(table) - len(wrong)} of {len(table)} pairs claimed exactly what qpbench "
+            "found.\n")
+
+
 def _defects() -> str:
     """The table of known defects (qpbench/solvers/defects.toml), with whether each applies to
     the versions installed here."""
@@ -428,7 +472,10 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
     budget = budget_s if budget_s is not None else shift
     summary = stats.level_summary(main, shift)
     top = ["\n## Summary\n\n" + _summary(summary) + f"\n{TIME_S_COVERS} Solvers marked "
-           "`ours` are written here and stop on qpbench's own residual.\n"]
+           "`ours` are written here and stop on qpbench's own residual.\n",
+           "\n## What accuracy costs, per family\n\n" + _frontier(main),
+           "\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
+           + _robust_targets(main, shift)]
     out: list[str] = []
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
@@ -458,15 +505,19 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
                    + _image(path, folder, f"profile {level(accuracy)}"))
 
     cost = stats.cost_of_accuracy(main, shift)
+    reliable = _most_reliable(summary)
     out.append("\n## What accuracy costs\n\nSGM time at each level and the ratio from each level "
                "to the next tighter one (a ratio of 2 means the tighter level takes twice as "
-               "long).\n\n" + markdown_table(cost.reset_index().rename(columns={"index": "solver"}))
-               if not cost.empty else "")
+               f"long), for the {TOP_ROWS} most reliable pairs at the tightest level.\n\n"
+               + markdown_table(cost.loc[[k for k in reliable if k in cost.index]]
+                                .reset_index().rename(columns={"index": "solver"}))
+               + _more(len(cost)) if not cost.empty else "")
     paired = stats.paired_cost_of_accuracy(main)
     out.append("\nThe same step measured only on problems solved at both levels (median over "
                "those problems of the time ratio), so that failures charged the time limit do "
                "not make a looser level look slower:\n\n"
-               + markdown_table(paired.reset_index()))
+               + markdown_table(paired.loc[[k for k in reliable if k in paired.index]]
+                                .reset_index()) + _more(len(paired)))
     out.append("\n" + _image(plots.cost_of_accuracy(summary, figures / "cost_of_accuracy.png"),
                              folder, "cost of accuracy"))
     tightest = float(main["accuracy"].min())
@@ -479,9 +530,15 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
                "median over problems of the best v_error reached.\n\n"
                + markdown_table(within, {"tightest_level": _maybe_level}))
     out.append(_warm_cold(frame, shift))
-    out.append("\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
-               + _robust_targets(main, shift))
     return top, out
+
+
+def _most_reliable(summary: pd.DataFrame) -> list[str]:
+    """The TOP_ROWS pairs with the highest success rate (then the lowest SGM time) at the
+    tightest level."""
+    tightest = summary[summary["accuracy"] == summary["accuracy"].min()]
+    ranked = tightest.sort_values(["success_rate", "sgm_time_s"], ascending=[False, True])
+    return list(ranked["solver"].head(TOP_ROWS))
 
 
 def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
@@ -509,7 +566,7 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "
                "qpbench's verdict (solves that returned an answer or a status). Solvers marked "
                "`ours` stop on qpbench's own residual, so theirs is 100% by construction.\n\n"
-               + markdown_table(stats.honesty(everything), {"honesty_rate": percent}))
+               + _honesty(everything))
     out.append("\n## Known solver defects\n\n" + _defects())
     options = pd.DataFrame(accuracy_table.table_rows())
     out.append("\n## Accuracy options\n\nHow each solver's own options follow from the level eps "
