@@ -133,8 +133,8 @@ BAD_SCENES = [
      "<geometry> attribute 'r': must be finite"),
     (ONE_CIRCLE.replace('v="1 0"', 'v="1"'), InputError, "expected two numbers"),
     (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
-                       'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="1"/></ball2d_scene>'),
-     UnsupportedError, "not supported: periodic boundaries"),
+                       'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="0"/></ball2d_scene>'),
+     InputError, "<planar_portal> attribute 'planeB': plane 0 is already a portal plane"),
 ]
 
 SOBOGUS = ('<sobogus_friction_solver mu="0.5" CoR="0" max_iters="50" eval_every="1" tol="1e-12" '
@@ -190,8 +190,8 @@ BAD_SCENES += [
      "box half-widths must be positive"),
     (with_friction(SOBOGUS).replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/>'
                                     '<static_plane x="0 5" n="0 -1"/><planar_portal planeA="0"'
-                                    ' planeB="1"/></ball2d_scene>'),
-     UnsupportedError, "not supported: periodic boundaries"),
+                                    ' planeB="2"/></ball2d_scene>'),
+     InputError, "<planar_portal> attribute 'planeB': names plane 2"),
 ]
 
 

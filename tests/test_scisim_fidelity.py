@@ -1,7 +1,8 @@
 """qpbench against SCISim itself: the final states SCISim produced (problems/scisim_fidelity).
 
-Every scene without portals that has a SCISim record (circles and boxes, frictional and
-frictionless, and the coincident-centre case of the research fork), simulated for the
+Every scene that has a SCISim record (circles and boxes, frictional and
+frictionless, planar and Lees-Edwards portals, and the coincident-centre case of the
+research fork), simulated for the
 record's step count with the scene's own solver
 mapping, must end within 1e-6 of SCISim's positions and 1e-6 x max(1, largest reference
 speed) of its velocities (``problems/scisim_fidelity/README.md``). A scene that cannot agree

@@ -146,6 +146,18 @@ class FrictionSolver:
 
 
 @dataclass
+class Portal:
+    """A planar portal (v = 0) or a Lees-Edwards portal (planes sliding at v within bounds)."""
+
+    point_a: np.ndarray  # (2,)
+    normal_a: np.ndarray  # (2,) unit
+    point_b: np.ndarray
+    normal_b: np.ndarray
+    v: float = 0.0
+    bounds: float = 0.0
+
+
+@dataclass
 class Scene:
     """One SCISim 2D scene, parsed as it is."""
 
@@ -159,6 +171,7 @@ class Scene:
     plane_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     drum_centers: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     drum_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    portals: list[Portal] = field(default_factory=list)  # planar first, then Lees-Edwards
     impact: ImpactOperator | None = None
     friction: FrictionSolver | None = None  # a friction solver element (any mu)
     end_time: Fraction | None = None

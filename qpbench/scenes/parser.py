@@ -32,6 +32,7 @@ from qpbench.scenes.model import (
     Bodies,
     FrictionSolver,
     ImpactOperator,
+    Portal,
     Scene,
     SolverChoice,
 )
@@ -47,6 +48,8 @@ _COMMON: dict[str, frozenset[str] | None] = {
     "end_time": frozenset({"t"}),
     "static_plane": frozenset({"x", "n"}),
     "scripting": frozenset({"callback"}),
+    "planar_portal": frozenset({"planeA", "planeB"}),
+    "lees_edwards_portal": frozenset({"planeA", "planeB", "v", "bounds"}),
     "sobogus_friction_solver": frozenset({
         "mu", "CoR", "max_iters", "eval_every", "tol", "cache_impulses", "staggering",
         "stabilization", "penetration_threshold"}),
@@ -242,11 +245,6 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
             continue
         reader.note_unknown(child, known[child.tag])
         children.setdefault(child.tag, []).append(child)
-    for tag in _PORTALS:
-        if tag in _child_tags(root):
-            raise UnsupportedError(f"{path}: <{tag}>: not supported: periodic boundaries "
-                                   "(a portal turns two planes into one; simulating them as "
-                                   "walls would be wrong)")
     for tag in _SINGLETONS:
         if len(children.get(tag, [])) > 1:
             raise InputError(path, f"appears {len(children[tag])} times; a scene has one",
@@ -261,6 +259,8 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     scene = Scene(path=path, dialect=dialect, bodies=bodies, integrator=integrator, dt=dt)
     scene.gravity = _gravity(reader, children, dialect)
     scene.plane_points, scene.plane_normals = _planes(reader, children)
+    scene.portals, scene.plane_points, scene.plane_normals = _portals(
+        reader, children, scene.plane_points, scene.plane_normals)
     if dialect == "ball2d":
         scene.drum_centers, scene.drum_radii = _drums(reader, children)
     scene.impact, scene.friction = _impact(reader, children, dialect)
@@ -381,6 +381,36 @@ def _planes(reader: _Reader, children: dict[str, list[Element]]
             raise reader.error(plane, "n", "must be a non-zero normal", index)
         normals.append(normal / length)
     return np.array(points, dtype=float).reshape(-1, 2), np.array(normals).reshape(-1, 2)
+
+
+def _portals(reader: _Reader, children: dict[str, list[Element]], points: np.ndarray,
+             normals: np.ndarray) -> tuple[list[Portal], np.ndarray, np.ndarray]:
+    """``<planar_portal planeA planeB/>`` and ``<lees_edwards_portal planeA planeB v
+    bounds/>`` (planar ones first, as SCISim orders them); their planes stop being walls."""
+    portals: list[Portal] = []
+    used: list[int] = []
+    for tag in _PORTALS:
+        for index, element in enumerate(children.get(tag, [])):
+            pair = []
+            for name in ("planeA", "planeB"):
+                plane = reader.integer(element, name, index)
+                if not 0 <= plane < points.shape[0]:
+                    raise reader.error(element, name, f"names plane {plane}, but the scene has "
+                                       f"{points.shape[0]} <static_plane>", index)
+                if plane in used or plane in pair:
+                    raise reader.error(element, name, f"plane {plane} is already a portal "
+                                       "plane", index)
+                pair.append(plane)
+            v = bounds = 0.0
+            if tag == "lees_edwards_portal":
+                v = reader.number(element, "v", index)
+                bounds = reader.number(element, "bounds", index, check="positive")
+            used.extend(pair)
+            a, b = pair
+            portals.append(Portal(points[a].copy(), normals[a].copy(), points[b].copy(),
+                                  normals[b].copy(), v, bounds))
+    keep = np.setdiff1d(np.arange(points.shape[0]), used)
+    return portals, points[keep].reshape(-1, 2), normals[keep].reshape(-1, 2)
 
 
 def _drums(reader: _Reader, children: dict[str, list[Element]]

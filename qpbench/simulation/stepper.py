@@ -57,7 +57,7 @@ from qpbench.problem import files, metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes.model import FrictionSolver, ImpactOperator, Scene
-from qpbench.simulation import boxes, checks, contacts, integrators
+from qpbench.simulation import boxes, checks, contacts, integrators, portals
 from qpbench.simulation.operators import (
     ChooseSolve,
     InnerSolveFailed,
@@ -227,6 +227,8 @@ class Simulator:
         self.m_inv = self._inverse_masses()
         self._where = f"{scene.path}: "
         self._coincident_noted = False
+        self._offsets: list[float] = []  # each portal's dx this step
+        self._kicks = np.zeros((0, 2))  # each contact's kinematic kick (Lees-Edwards portals)
 
     def _inverse_masses(self) -> np.ndarray:
         """Diagonal of M^-1 per degree of freedom (x, y[, theta]); 0 for kinematic bodies."""
@@ -280,6 +282,23 @@ class Simulator:
             parts = [pairs]
         else:
             parts = [contacts.ball_ball(x0, x1, radii, fixed, coincident)]
+        kicks = np.zeros((0, 2))
+        if scene.portals:  # SCISim's broad phase with portals: boxes at x1 only
+            pairs = parts[0]
+            a, b = pairs.body_a, pairs.body_b
+            gap = np.abs(x1[a] - x1[b])
+            reach = radii[a] + radii[b]
+            if scene.dialect == "ball2d":  # overlap at x1, no sweep
+                keep = np.einsum("ij,ij->i", x1[a] - x1[b], x1[a] - x1[b]) <= reach**2
+            else:
+                keep = np.all(gap <= reach[:, None], axis=1)
+            parts[0] = contacts.Contacts(a[keep], b[keep], pairs.kind[keep],
+                                         pairs.boundary[keep], pairs.normals[keep])
+            across, across_kicks = portals.teleported_contacts(
+                scene.portals, self._offsets, x0, x1, radii, fixed,
+                aabb=scene.dialect != "ball2d")
+            parts.append(across)
+            kicks = np.concatenate([np.zeros((parts[0].count, 2)), across_kicks])
         if coincident and not self._coincident_noted:
             a, b = coincident[0]
             self._coincident_noted = True
@@ -302,7 +321,10 @@ class Simulator:
         if scene.has_drums:
             parts.append(contacts.ball_drum(x0, x1, radii, fixed, scene.drum_centers,
                                             scene.drum_radii, self._where))
-        return contacts.Contacts.concatenate(parts)
+        found = contacts.Contacts.concatenate(parts)
+        self._kicks = np.zeros((found.count, 2))
+        self._kicks[:kicks.shape[0]] = kicks
+        return found
 
     def _metadata(self, kind: str) -> dict[str, Any]:
         scene = self.scene
@@ -408,6 +430,8 @@ class Simulator:
         staggering = scene.staggering
         x0, v0 = self.positions, self.velocities
         shift: np.ndarray | None = None
+        if scene.portals:
+            self._offsets = portals.offsets(scene.portals, (self.step_index + 1) * self.dt)
         if staggering == "symplectic_euler":  # the map's own update, never the integrator
             v1 = v0 if self.acceleration is None else v0 + self.dt * self.acceleration
             x1 = x0 + self.dt * v1
@@ -431,10 +455,16 @@ class Simulator:
                              else self.dt * self.acceleration)
                 shift = self.dof_velocity(increment, np.zeros(scene.bodies.count))
                 n_rel, d_rel = self._symplectic_terms(found, x0, shift, T)
+            if np.any(self._kicks):  # v_a - v_b - k across a Lees-Edwards portal
+                kick_n = -np.einsum("ij,ij->i", found.normals, self._kicks)
+                tangent = np.stack([-found.normals[:, 1], found.normals[:, 0]], axis=1)
+                kick_t = -np.einsum("ij,ij->i", tangent, self._kicks)
+                n_rel = kick_n if n_rel is None else n_rel + kick_n
+                d_rel = kick_t if d_rel is None else d_rel + kick_t
             if frictional:
                 problem = self.frictional_problem(found, x0, v_minus, n_rel, d_rel, T)
             elif staggering == "geometric":
-                problem = self.impact_problem(found)
+                problem = self.impact_problem(found, None, n_rel)
             else:
                 problem = self.impact_problem(found, v_minus, n_rel)
             keys = found.keys()
@@ -463,6 +493,9 @@ class Simulator:
         if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))):
             raise UnsupportedError(f"{self._where}the state is no longer finite at step "
                                    f"{self.step_index} (values beyond floating point range)")
+        if scene.portals:
+            x1, v1 = x1.copy(), v1.copy()
+            portals.enforce(scene.portals, self._offsets, x1, v1)
         self.positions, self.velocities = x1, v1
         if self.theta is not None and self.omega is not None:
             self.theta = self.theta + self.dt * self.omega
