@@ -1,4 +1,5 @@
-"""``qpbench scaling [--sizes 1000,10000] [--steps N] [--solver NAME] -o results/scaling.json``."""
+"""``qpbench scaling [--sizes 1000,10000] [--steps N] [--solver NAME] [--pile-sizes 1000,10000]
+[--box-pile-sizes 1000,4000] [--pile-steps N] [--no-piles] -o results/scaling.json``."""
 
 from __future__ import annotations
 
@@ -7,7 +8,13 @@ import argparse
 from qpbench.cli.output import write_json
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
-from qpbench.simulation.scaling import DEFAULT_SIZES, DEFAULT_STEPS, scaling
+from qpbench.simulation.scaling import (
+    BOX_PILE_CAP,
+    DEFAULT_PILE_STEPS,
+    DEFAULT_SIZES,
+    DEFAULT_STEPS,
+    scaling,
+)
 
 DEFAULT_SOLVER = "clarabel/dual"
 
@@ -31,6 +38,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--solver", default=DEFAULT_SOLVER,
                         help=f"inner solver ({DEFAULT_SOLVER})")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pile-sizes", type=_sizes, default=None,
+                        help="body counts of the dense circle pile (default: --sizes)")
+    parser.add_argument("--box-pile-sizes", type=_sizes, default=None,
+                        help="body counts of the dense box pile (default: --sizes, each "
+                             f"capped at {BOX_PILE_CAP})")
+    parser.add_argument("--pile-steps", type=int, default=DEFAULT_PILE_STEPS,
+                        help=f"timed steps per pile ({DEFAULT_PILE_STEPS})")
+    parser.add_argument("--no-piles", action="store_true", help="only the sparse box scenes")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
@@ -38,7 +53,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.steps < 1:
         raise QpbenchError("--steps must be at least 1")
-    report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed)
+    if args.pile_steps < 1:
+        raise QpbenchError("--pile-steps must be at least 1")
+    circles = args.pile_sizes or args.sizes
+    boxes = args.box_pile_sizes or tuple(dict.fromkeys(min(n, BOX_PILE_CAP) for n in args.sizes))
+    if len(boxes) < 2:
+        boxes = args.sizes
+    piles = None if args.no_piles else {"circles": circles, "boxes": boxes}
+    report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed, piles,
+                     args.pile_steps)
     write_json(args.output, report)
     print(report["markdown"], end="")
     return 0

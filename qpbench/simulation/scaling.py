@@ -1,24 +1,43 @@
-"""Cost per ball per step of the stepper on box scenes of growing size.
+"""Cost per ball per step of the stepper on box scenes of growing size, and on dense piles.
 
 ``cost = wall time of the timed steps / (balls * steps)`` after one untimed
 warm-up step, for every size; ``ratio = cost(largest) / cost(smallest)``. A
 stepper linear in the number of balls keeps the ratio near 1 (target: <= 1.5).
 The inner solver's own time is reported beside it, since it depends on the
 solver and not on the stepper.
+
+The sparse box scenes have few contacts. The dense piles (``circle_pile``, ``box_pile``)
+keep most bodies in contact at every step; there the simulator's own cost per body per
+step (contact detection, assembly, integration) is reported apart from the inner solves,
+with its growth from the smallest to the largest size against the same target.
 """
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
+from fractions import Fraction
 from typing import Any
 
-from qpbench.scenes.builders import box_scene
-from qpbench.simulation.operators import ChooseSolve
+import numpy as np
+
+from qpbench.scenes.builders import BOX_DT, BOX_RADIUS, box_scene
+from qpbench.scenes.model import Bodies, ImpactOperator, Scene, SolverChoice
+from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH
+from qpbench.simulation.operators import ChooseSolve, InnerSolveFailed
 from qpbench.simulation.stepper import Simulator
 
 TARGET_RATIO = 1.5
 DEFAULT_SIZES = (1000, 10000)
 DEFAULT_STEPS = 20
+PILE_SPACING = 0.999  # centre distance / (2 r): neighbours overlap by 0.1 % of a diameter
+PILE_SPEED = 0.01  # downward start velocity, so every step presses the pile together
+PILE_GRAVITY = 9.81
+DEFAULT_PILE_SIZES = (1000, 10000)
+DEFAULT_BOX_PILE_SIZES = (1000, 4000)  # 10,000 boxes take too long for ``make bench``
+DEFAULT_PILE_STEPS = 5
+BOX_PILE_CAP = DEFAULT_BOX_PILE_SIZES[-1]  # box piles stop here by default (make bench)
 
 
 def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
@@ -43,8 +62,11 @@ def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
 
 
 def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
-            steps: int = DEFAULT_STEPS, seed: int = 0) -> dict[str, Any]:
-    """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table."""
+            steps: int = DEFAULT_STEPS, seed: int = 0,
+            pile_sizes: dict[str, tuple[int, ...]] | None = None,
+            pile_steps: int = DEFAULT_PILE_STEPS) -> dict[str, Any]:
+    """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table;
+    with ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``."""
     measured = [measure(balls, steps, choose_solve, seed) for balls in sizes]
     rows = [row for row, _ in measured]
     solver = measured[0][1]
@@ -56,6 +78,8 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
         "ratio": ratio, "ratio_without_solves": ratio_without,
         "target_ratio": TARGET_RATIO, "meets_target": bool(ratio <= TARGET_RATIO),
     }
+    if pile_sizes:
+        report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps)
     report["markdown"] = markdown(report)
     return report
 
@@ -85,4 +109,182 @@ def markdown(report: dict[str, Any]) -> str:
         f"**{report['ratio']:.2f}x** ({verdict} the target <= {report['target_ratio']}x); "
         f"without the inner solves {report['ratio_without_solves']:.2f}x.",
     ]
+    text = "\n".join(lines) + "\n"
+    if report.get("piles"):
+        text += "\n" + pile_markdown(report["piles"], report["solver"])
+    return text
+
+
+# --- dense piles: most bodies in contact at every step ------------------------------------
+PARTS = ("contacts_s", "assembly_s", "integration_s", "solve_s")
+
+
+def _pile_scene(name: str, dialect: str, bodies: Bodies, width: float) -> Scene:
+    """A container (floor and two walls) under gravity, inelastic ``lcp`` impacts."""
+    solver = SolverChoice("policy_iteration", SCISIM_TO_QPBENCH["policy_iteration"])
+    return Scene(
+        path=f"{name}.xml", dialect=dialect, bodies=bodies, integrator="symplectic_euler",
+        dt=BOX_DT, gravity=np.array([0.0, -PILE_GRAVITY]),
+        plane_points=np.array([[0.0, 0.0], [0.0, 0.0], [width, 0.0]]),
+        plane_normals=np.array([[0.0, 1.0], [1.0, 0.0], [-1.0, 0.0]]),
+        impact=ImpactOperator(type="lcp", restitution=0.0, v_tol=1e-9, solver=solver),
+        end_time=Fraction(1),
+    )
+
+
+def circle_pile(n_bodies: int) -> Scene:
+    """``n_bodies`` balls of radius 1/2 in a hexagonal packing resting on the floor of a
+    container about twice as wide as the pile is high; every ball presses on its neighbours
+    (centre distance ``PILE_SPACING``), moving down at ``PILE_SPEED``."""
+    if n_bodies < 1:
+        raise ValueError("a pile needs at least one body")
+    columns = math.ceil(math.sqrt(2.0 * n_bodies))
+    rows, column = np.divmod(np.arange(n_bodies), columns)
+    spacing = PILE_SPACING
+    x = BOX_RADIUS + spacing * (column + 0.5 * (rows % 2))
+    y = BOX_RADIUS * spacing + rows * spacing * math.sqrt(3.0) / 2.0
+    width = 2 * BOX_RADIUS + spacing * (columns - 0.5)
+    bodies = Bodies(positions=np.stack([x, y], axis=1),
+                    velocities=np.tile([0.0, -PILE_SPEED], (n_bodies, 1)),
+                    masses=np.ones(n_bodies), radii=np.full(n_bodies, BOX_RADIUS),
+                    fixed=np.zeros(n_bodies, dtype=bool))
+    return _pile_scene(f"circle_pile_{n_bodies}", "ball2d", bodies, width)
+
+
+def box_pile(n_bodies: int) -> Scene:
+    """``n_bodies`` unit boxes (half-widths 1/2, mass 1, theta 0) in a square grid resting
+    on the floor of a container, each pressing on its neighbours (pitch ``PILE_SPACING``),
+    moving down at ``PILE_SPEED`` (rigidbody2d)."""
+    if n_bodies < 1:
+        raise ValueError("a pile needs at least one body")
+    columns = math.ceil(math.sqrt(2.0 * n_bodies))
+    rows, column = np.divmod(np.arange(n_bodies), columns)
+    half = BOX_RADIUS
+    x = half + PILE_SPACING * column
+    y = half * PILE_SPACING + PILE_SPACING * rows
+    width = 2 * half + PILE_SPACING * (columns - 1)
+    bodies = Bodies(positions=np.stack([x, y], axis=1).astype(float),
+                    velocities=np.tile([0.0, -PILE_SPEED], (n_bodies, 1)),
+                    masses=np.ones(n_bodies), radii=np.full(n_bodies, math.hypot(half, half)),
+                    fixed=np.zeros(n_bodies, dtype=bool), theta=np.zeros(n_bodies),
+                    omega=np.zeros(n_bodies), half_widths=np.full((n_bodies, 2), half))
+    return _pile_scene(f"box_pile_{n_bodies}", "rigidbody2d", bodies, width)
+
+
+PILES = {"circles": circle_pile, "boxes": box_pile}
+
+
+class _Timed:
+    """Wraps a bound method, adding its wall time to ``seconds``."""
+
+    def __init__(self, method: Callable[..., Any]) -> None:
+        self.method = method
+        self.seconds = 0.0
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        start = time.perf_counter()
+        try:
+            return self.method(*args, **kwargs)
+        finally:
+            self.seconds += time.perf_counter() - start
+
+
+def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve
+                 ) -> dict[str, Any]:
+    """One pile: ``steps`` timed steps after one warm-up step, split into the simulator's own
+    parts (contact detection, assembly of the impact problem, the rest of the step:
+    integration and bookkeeping) and the inner solves (the whole call into the impact
+    operator, the solver's own formulation included)."""
+    simulator = Simulator(PILES[kind](bodies), choose_solve)
+    simulator.step()  # warm-up
+    timers = {name: _Timed(getattr(simulator, name))
+              for name in ("find_contacts", "impact_problem", "_solve")}
+    for name, timer in timers.items():
+        setattr(simulator, name, timer)
+    contacts_found = 0
+    failure = None
+    start = time.perf_counter()
+    for _ in range(steps):
+        try:
+            event = simulator.step()
+        except InnerSolveFailed as error:
+            failure = error.detail
+            break
+        contacts_found += event.contacts.count
+    wall = time.perf_counter() - start
+    done = max(1, simulator.step_index - 1)
+    parts = {"contacts_s": timers["find_contacts"].seconds,
+             "assembly_s": timers["impact_problem"].seconds,
+             "solve_s": timers["_solve"].seconds}
+    parts["integration_s"] = max(0.0, wall - sum(parts.values()))
+    own = parts["contacts_s"] + parts["assembly_s"] + parts["integration_s"]
+    scale = 1e6 / (bodies * done)
+    return {
+        "kind": kind, "bodies": bodies, "steps": done, "wall_s": wall, **parts,
+        "own_s": own, "contacts_per_body": contacts_found / (bodies * done),
+        "own_per_body_step_us": own * scale,
+        "solve_per_body_step_us": parts["solve_s"] * scale,
+        "contacts_per_body_step_us": parts["contacts_s"] * scale,
+        "assembly_per_body_step_us": parts["assembly_s"] * scale,
+        "integration_per_body_step_us": parts["integration_s"] * scale,
+        "success": failure is None, "failure": failure,
+    }
+
+
+def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
+                 steps: int = DEFAULT_PILE_STEPS) -> dict[str, Any]:
+    """Every pile at every size; per kind, the growth of the simulator's own cost per body per
+    step (largest size against the smallest, target <= 1.5x) and of the inner solves'."""
+    report: dict[str, Any] = {"steps": steps, "target_ratio": TARGET_RATIO, "kinds": {}}
+    for kind, kind_sizes in sizes.items():
+        rows = [measure_pile(kind, n, steps, choose_solve) for n in kind_sizes]
+        first, last = rows[0], rows[-1]
+        own_ratio = last["own_per_body_step_us"] / max(first["own_per_body_step_us"], 1e-300)
+        solve_ratio = (last["solve_per_body_step_us"]
+                       / max(first["solve_per_body_step_us"], 1e-300))
+        report["kinds"][kind] = {
+            "sizes": list(kind_sizes), "rows": rows, "own_ratio": own_ratio,
+            "solve_ratio": solve_ratio, "meets_target": bool(own_ratio <= TARGET_RATIO),
+        }
+    return report
+
+
+def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
+    """The pile measurements as Markdown (a subsection of the scaling section)."""
+    lines = [
+        "### Dense piles",
+        "",
+        "Bodies settled in a container (floor and two walls) under gravity, each pressing on "
+        "its neighbours and moving down slowly, so every step has contacts: circles in a "
+        "hexagonal packing (`ball2d`), unit boxes in a grid (`rigidbody2d`); inelastic "
+        f"`lcp` impacts, {report['steps']} timed steps after one warm-up step, inner solver "
+        f"`{solver}`. The simulator's own cost (contact detection, assembly of the impact "
+        "problem, integration and the rest of the step) is per body per step; the inner "
+        "solves are beside it with their own growth.",
+        "",
+        "| pile | bodies | steps | contacts per body | contacts (us) | assembly (us) "
+        "| integration (us) | own cost per body per step (us) | inner solves (us) |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for kind, entry in report["kinds"].items():
+        for row in entry["rows"]:
+            failed = "" if row["success"] else " (solver failed)"
+            lines.append(
+                f"| {kind}{failed} | {row['bodies']} | {row['steps']} "
+                f"| {row['contacts_per_body']:.2f} | {row['contacts_per_body_step_us']:.2f} "
+                f"| {row['assembly_per_body_step_us']:.2f} "
+                f"| {row['integration_per_body_step_us']:.2f} "
+                f"| {row['own_per_body_step_us']:.2f} | {row['solve_per_body_step_us']:.2f} |")
+    lines.append("")
+    for kind, entry in report["kinds"].items():
+        small, large = entry["sizes"][0], entry["sizes"][-1]
+        verdict = "meets" if entry["meets_target"] else "misses"
+        lines.append(
+            f"- {kind}: own cost per body per step, {large} vs {small} bodies: "
+            f"**{entry['own_ratio']:.2f}x** ({verdict} the target <= "
+            f"{report['target_ratio']}x); inner solves {entry['solve_ratio']:.2f}x.")
+    if "boxes" in report["kinds"] and report["kinds"]["boxes"]["sizes"][-1] < 10000:
+        lines.append(f"- boxes are measured up to {report['kinds']['boxes']['sizes'][-1]} "
+                     "bodies, not 10,000: box contacts are found pair by pair, and 10,000 "
+                     "boxes would keep `make bench` waiting too long.")
     return "\n".join(lines) + "\n"

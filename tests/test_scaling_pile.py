@@ -1,0 +1,57 @@
+"""The dense piles of ``qpbench scaling``: most bodies in contact, parts that add up."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qpbench.cli import main
+from qpbench.inner_solvers import choose_by_name
+from qpbench.simulation.scaling import PARTS, box_pile, circle_pile, pile_scaling
+
+CLARABEL = choose_by_name("clarabel/dual")
+
+
+def test_the_piles_rest_on_the_floor_inside_their_walls() -> None:
+    for scene in (circle_pile(400), box_pile(400)):
+        bodies = scene.bodies
+        assert bodies.count == 400 and scene.gravity is not None and scene.gravity[1] < 0
+        assert np.all(bodies.velocities[:, 1] < 0)
+        width = scene.plane_points[2, 0]
+        reach = 0.5
+        assert np.all(bodies.positions[:, 0] - reach <= width)
+        assert np.all(bodies.positions[:, 0] >= reach - 1e-2)
+        assert np.min(bodies.positions[:, 1]) <= reach  # the bottom row touches the floor
+    assert box_pile(4).bodies.has_boxes and not circle_pile(4).bodies.rotates
+
+
+def test_a_pile_keeps_most_bodies_in_contact_and_its_parts_add_up() -> None:
+    report = pile_scaling(CLARABEL, {"circles": (100, 400), "boxes": (100, 400)}, steps=2)
+    for kind, entry in report["kinds"].items():
+        assert [row["bodies"] for row in entry["rows"]] == [100, 400]
+        assert entry["own_ratio"] > 0 and entry["solve_ratio"] > 0
+        for row in entry["rows"]:
+            assert row["success"] and row["steps"] == 2
+            assert all(row[part] >= 0 for part in PARTS)
+            assert sum(row[part] for part in PARTS) == pytest.approx(row["wall_s"], rel=1e-9)
+            assert row["own_s"] == pytest.approx(
+                row["contacts_s"] + row["assembly_s"] + row["integration_s"])
+            own = row["contacts_per_body_step_us"] + row["assembly_per_body_step_us"] \
+                + row["integration_per_body_step_us"]
+            assert row["own_per_body_step_us"] == pytest.approx(own)
+            assert row["contacts_per_body"] >= (1.5 if kind == "circles" else 1.0)
+
+
+def test_scaling_writes_the_piles_beside_the_sparse_boxes(tmp_path: Path) -> None:
+    output = tmp_path / "scaling.json"
+    assert main(["scaling", "--sizes", "50,200", "--steps", "2", "--pile-steps", "1",
+                 "--box-pile-sizes", "20,60", "-o", str(output)]) == 0
+    report = json.loads(output.read_text())
+    assert [row["balls"] for row in report["rows"]] == [50, 200]  # the existing fields stay
+    assert {"ratio", "ratio_without_solves", "meets_target"} <= set(report)
+    piles = report["piles"]["kinds"]
+    assert piles["circles"]["sizes"] == [50, 200] and piles["boxes"]["sizes"] == [20, 60]
+    assert "### Dense piles" in report["markdown"] and "own cost" in report["markdown"]
