@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from qpbench.errors import InputError
+from qpbench.errors import InputError, UnsupportedError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import parse_scene
 from qpbench.simulation.stepper import Simulator
@@ -85,3 +85,19 @@ def test_a_lees_edwards_box_builds_the_shear_profile_it_imposes() -> None:
     lower, upper = vx[y < -0.7].mean(), vx[y > 0.7].mean()
     assert upper > lower + 0.2
     assert np.polyfit(y, vx, 1)[0] > 0.1
+
+
+def test_portals_with_box_geometry_are_refused_in_one_line() -> None:
+    scene = """<rigidbody2d_scene>
+      <integrator type="symplectic_euler" dt="0.01"/>
+      <geometry type="box" r="0.5 0.5"/>
+      <rigid_body x="0 0" theta="0" v="1 0" omega="0" rho="1" geo_idx="0" fixed="0"/>
+      <static_plane x="-2 0" n="1 0"/>
+      <static_plane x="2 0" n="-1 0"/>
+      <planar_portal planeA="0" planeB="1"/>
+    </rigidbody2d_scene>"""
+    with pytest.raises(UnsupportedError) as raised:
+        parse_scene(scene, "boxes.xml")
+    message = str(raised.value)
+    assert message.startswith("boxes.xml: <planar_portal>") and "box geometry" in message
+    assert "\n" not in message

@@ -3,7 +3,7 @@
 XML is parsed with defusedxml, so entity declarations (billion-laughs bombs) and
 external references are refused. Every fault in the input is one
 :class:`~qpbench.errors.InputError` naming the file, the element and the
-attribute; a feature qpbench does not simulate (portals) is an
+attribute; a feature qpbench does not simulate (portals in a scene with boxes) is an
 :class:`~qpbench.errors.UnsupportedError`. Friction solvers are checked by SCISim's own
 rules (``Ball2DSceneParser.cpp::loadSobogusFrictionSolver`` and its rigidbody2d analogue).
 Unknown elements and attributes are accepted, as SCISim does, and named once in ``Scene.warnings``.
@@ -261,6 +261,10 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     scene.plane_points, scene.plane_normals = _planes(reader, children)
     scene.portals, scene.plane_points, scene.plane_normals = _portals(
         reader, children, scene.plane_points, scene.plane_normals)
+    if scene.portals and bodies.has_boxes:
+        raise UnsupportedError(f"{path}: <planar_portal>/<lees_edwards_portal>: not supported "
+                               "with box geometry: qpbench finds contacts across portals for "
+                               "circles only (SCISim stops on a box crossing one too)")
     if dialect == "ball2d":
         scene.drum_centers, scene.drum_radii = _drums(reader, children)
     scene.impact, scene.friction = _impact(reader, children, dialect)
