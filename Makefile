@@ -65,7 +65,8 @@ bench: setup
 		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
 	$(BIN)/qpbench run $(BENCH_PROBLEMS) --kind frictional --accuracy $(BENCH_FRICTION_ACCURACY) \
 		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
-	$(BIN)/qpbench scaling -o $(BENCH_RESULTS)/scaling.json
+	$(BIN)/qpbench scaling --solver pi-robust --pile-steps 3 --box-pile-sizes 250,1000 \
+		-o $(BENCH_RESULTS)/scaling.json
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
 	$(BIN)/qpbench sequence --steps 40 -o $(BENCH_RESULTS)/sequence.json
 	$(BIN)/qpbench breakdown -o $(BENCH_RESULTS)/breakdown.json
