@@ -188,3 +188,37 @@ def test_the_recorded_angles_follow_a_spinning_circle() -> None:
     assert recording.frame_thetas[0] is not None
     assert np.allclose(recording.frame_thetas[0], [0.5, 0.0])
     assert np.allclose(recording.frame_thetas[-1], [0.5, 3 * 0.01 * 50])
+
+
+PORTAL_SCENE = """<ball2d_scene>
+  <integrator type="symplectic_euler" dt="0.01"/>
+  <ball x="0" y="0" vx="0.5" vy="0" m="1" r="0.5" fixed="0"/>
+  <static_plane x="-3 0" n="1 0"/>
+  <static_plane x="3 0" n="-1 0"/>
+  <planar_portal planeA="0" planeB="1"/>
+</ball2d_scene>
+"""
+
+
+def test_a_portal_is_drawn_as_its_two_planes_dashed_in_one_colour(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    scene_path = tmp_path / "portal.xml"
+    scene_path.write_text(PORTAL_SCENE)
+    axes_seen: list = []
+    real_save = render_module._save
+
+    def save(figure, path, write) -> None:
+        figure.canvas.draw()
+        axes_seen.extend((axes, figure) for axes in figure.axes)
+        real_save(figure, path, write)
+
+    monkeypatch.setattr(render_module, "_save", save)
+    output = tmp_path / "portal.png"
+    assert main(["render", str(scene_path), "-o", str(output), "--steps", "1"]) == 0
+    (axes, _figure), = axes_seen
+    portal_lines = [line for line in axes.get_lines() if line.get_label() == "portal"]
+    assert len(portal_lines) == 2  # plane A and plane B
+    assert {line.get_linestyle() for line in portal_lines} == {"--"}
+    assert len({line.get_color() for line in portal_lines}) == 1
+    xs = sorted(float(np.mean(line.get_xdata())) for line in portal_lines)
+    assert xs == pytest.approx([-3.0, 3.0])

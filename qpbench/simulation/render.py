@@ -1,6 +1,7 @@
 """Pictures of a simulated scene (matplotlib, Agg backend): a PNG or an animated GIF.
 
-The PNG shows the planes, drums and bodies at the end of the run, each body's
+The PNG shows the planes, drums, portals (each pair of planes dashed in one colour) and
+bodies at the end of the run, each body's
 path, the start positions dashed, and the contact normals of the strongest impact
 event (the largest total impulse) as arrows coloured by impulse. The GIF shows the
 bodies frame by frame with the contact normals of the latest impact.
@@ -118,7 +119,8 @@ def _limits(scene: Scene, recording: Recording) -> tuple[np.ndarray, np.ndarray]
     for positions in recording.frames:
         corners += [positions - radii[:, None], positions + radii[:, None]]
     corners += [scene.drum_centers - scene.drum_radii[:, None],
-                scene.drum_centers + scene.drum_radii[:, None], scene.plane_points]
+                scene.drum_centers + scene.drum_radii[:, None], scene.plane_points,
+                *[np.stack([portal.point_a, portal.point_b]) for portal in scene.portals]]
     points = np.concatenate(corners)
     if points.shape[0] == 0:
         points = np.concatenate([scene.plane_points, np.zeros((1, 2))])
@@ -139,6 +141,17 @@ def _draw_boundaries(axes: plt.Axes, scene: Scene, lower: np.ndarray, upper: np.
         axes.fill(shade[:, 0], shade[:, 1], color="0.85", zorder=0)
     for center, radius in zip(scene.drum_centers, scene.drum_radii, strict=True):
         axes.add_patch(Circle(tuple(center), radius, fill=False, color="0.2", linewidth=1.5))
+    for index, portal in enumerate(scene.portals):
+        colour = PORTAL_COLOURS[index % len(PORTAL_COLOURS)]
+        for point, normal in ((portal.point_a, portal.normal_a),
+                              (portal.point_b, portal.normal_b)):
+            tangent = np.array([-normal[1], normal[0]])
+            ends = np.stack([point - span * tangent, point + span * tangent])
+            axes.plot(ends[:, 0], ends[:, 1], color=colour, linewidth=1.5, linestyle="--",
+                      label="Lees-Edwards portal" if portal.v else "portal")
+
+
+PORTAL_COLOURS = ("tab:purple", "tab:green", "tab:brown")  # the two planes of a portal share one
 
 
 def box_corners(position: np.ndarray, theta: float, half: np.ndarray) -> np.ndarray:
