@@ -142,10 +142,11 @@ BOX_AND_CIRCLE = """<rigidbody2d_scene>
 """
 
 
-def test_a_box_is_drawn_as_its_rotated_rectangle_and_a_circle_with_its_radius_line(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    scene_path = tmp_path / "box_and_circle.xml"
-    scene_path.write_text(BOX_AND_CIRCLE)
+def render_one_step(scene: str, output: Path, monkeypatch: pytest.MonkeyPatch) -> list:
+    """Renders ``scene`` (XML text) after one step to ``output`` with ``qpbench render`` and
+    returns the (axes, figure) pairs drawn, for mapping world points to pixels."""
+    scene_path = output.with_suffix(".xml")
+    scene_path.write_text(scene)
     axes_seen: list = []
     real_save = render_module._save
 
@@ -155,8 +156,14 @@ def test_a_box_is_drawn_as_its_rotated_rectangle_and_a_circle_with_its_radius_li
         real_save(figure, path, write)
 
     monkeypatch.setattr(render_module, "_save", save)
-    output = tmp_path / "box.png"
     assert main(["render", str(scene_path), "-o", str(output), "--steps", "1"]) == 0
+    return axes_seen
+
+
+def test_a_box_is_drawn_as_its_rotated_rectangle_and_a_circle_with_its_radius_line(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    output = tmp_path / "box.png"
+    axes_seen = render_one_step(BOX_AND_CIRCLE, output, monkeypatch)
     image = matplotlib.image.imread(output)
     (axes, figure), = axes_seen  # no impact: one panel
     height = int(round(figure.get_figheight() * figure.dpi))
@@ -202,20 +209,7 @@ PORTAL_SCENE = """<ball2d_scene>
 
 def test_a_portal_is_drawn_as_its_two_planes_dashed_in_one_colour(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    scene_path = tmp_path / "portal.xml"
-    scene_path.write_text(PORTAL_SCENE)
-    axes_seen: list = []
-    real_save = render_module._save
-
-    def save(figure, path, write) -> None:
-        figure.canvas.draw()
-        axes_seen.extend((axes, figure) for axes in figure.axes)
-        real_save(figure, path, write)
-
-    monkeypatch.setattr(render_module, "_save", save)
-    output = tmp_path / "portal.png"
-    assert main(["render", str(scene_path), "-o", str(output), "--steps", "1"]) == 0
-    (axes, _figure), = axes_seen
+    (axes, _figure), = render_one_step(PORTAL_SCENE, tmp_path / "portal.png", monkeypatch)
     portal_lines = [line for line in axes.get_lines() if line.get_label() == "portal"]
     assert len(portal_lines) == 2  # plane A and plane B
     assert {line.get_linestyle() for line in portal_lines} == {"--"}
