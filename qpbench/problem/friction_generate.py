@@ -39,9 +39,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from qpbench.errors import QpbenchError
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.problem.generate import Layout, ball_pairs
+from qpbench.problem.generate import Layout, ball_pairs, family_entry
 from qpbench.problem.generate import generate as generate_frictionless
 from qpbench.problem.jacobian import contact_jacobian
 
@@ -226,13 +225,7 @@ def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1
              ) -> list[FrictionalProblem]:
     """``count`` problems of the frictional ``family``; problem i uses seed ``seed + i``.
     ``restitution`` and ``mu`` replace the family's own values on every contact."""
-    if family not in FRICTION_FAMILIES:
-        raise QpbenchError(f"unknown frictional family '{family}' "
-                           f"(known: {', '.join(FRICTION_FAMILIES)})")
-    builder, default_size = FRICTION_FAMILIES[family]
-    size = default_size if size is None else int(size)
-    if size < 1:
-        raise QpbenchError(f"family '{family}': size must be >= 1, got {size}")
+    builder, size = family_entry(FRICTION_FAMILIES, family, size, "frictional family")
     problems = []
     for index in range(count):
         problem_seed = seed + index

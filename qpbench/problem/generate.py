@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -207,18 +208,26 @@ FAMILIES: dict[str, tuple[Builder, int]] = {
 }
 
 
+def family_entry(families: dict[str, tuple[Any, int]], family: str, size: int | None,
+                 label: str = "family") -> tuple[Any, int]:
+    """(builder, size) of ``family`` in a family table, its default size when ``size`` is
+    None; QpbenchError for an unknown family or a size below 1."""
+    if family not in families:
+        raise QpbenchError(f"unknown {label} '{family}' (known: {', '.join(families)})")
+    builder, default_size = families[family]
+    size = default_size if size is None else int(size)
+    if size < 1:
+        raise QpbenchError(f"family '{family}': size must be >= 1, got {size}")
+    return builder, size
+
+
 def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1,
              restitution: float | None = None) -> list[ImpactProblem]:
     """``count`` problems of ``family``; problem i uses seed ``seed + i``.
 
     For k3, k4, k4-middle and cradle, seed 0 is the canonical, unrotated case.
     """
-    if family not in FAMILIES:
-        raise QpbenchError(f"unknown family '{family}' (known: {', '.join(FAMILIES)})")
-    builder, default_size = FAMILIES[family]
-    size = default_size if size is None else int(size)
-    if size < 1:
-        raise QpbenchError(f"family '{family}': size must be >= 1, got {size}")
+    builder, size = family_entry(FAMILIES, family, size)
     problems = []
     for index in range(count):
         problem_seed = seed + index
