@@ -3,6 +3,8 @@ qpbench's own metrics on the hard families and on known answers."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,21 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
+
+
+@pytest.fixture
+def pi_robust_row(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[str, object], None]]:
+    """``set(key, value)``: changes one entry of pi-robust's accuracy-table row for this test
+    (pi-robust reads its row once per level, so that reading is redone on both ends)."""
+    from qpbench.solvers import accuracy
+    from qpbench.solvers.pi_robust import settings_for
+
+    def set_entry(key: str, value: object) -> None:
+        monkeypatch.setitem(accuracy.OPTIONS["pi-robust"], key, value)
+        settings_for.cache_clear()
+
+    yield set_entry
+    settings_for.cache_clear()
 
 HARD_CASES = [("k3", 3), ("k4", 4), ("k4-middle", 5), ("grid", 3), ("grid", 5), ("grid", 7),
               ("grid", 10), ("cradle", 50), ("mass-ratio", 5), ("near-duplicate", 4)]
@@ -126,22 +143,16 @@ def test_pi_robust_claims_exactly_what_qpbench_measures_on_extreme_mass_ratios()
 
 
 @pytest.mark.parametrize(("family", "size"), HARD_CASES)
-def test_pi_robust_compiled_path_matches_qpbench_and_the_python_path(family: str,
-                                                                      size: int) -> None:
+def test_pi_robust_compiled_path_matches_qpbench_and_the_python_path(
+        family: str, size: int, pi_robust_row: Callable[[str, object], None]) -> None:
     """The compiled dense path answers (info "compiled": True) with qpbench's verdict; the
     Python path, run with the compiled path switched off, reaches the same v+."""
-    from qpbench.solvers import accuracy
-
     problem = hard_problem(family, size, seed=1)
     row, compiled = solve_and_judge(get("pi-robust"), problem, 1e-8)
     assert row["success"] and compiled.claimed_success
     assert compiled.info["compiled"] is True, compiled.info
-    original = accuracy.OPTIONS["pi-robust"]["compiled_limit"]
-    accuracy.OPTIONS["pi-robust"]["compiled_limit"] = 0
-    try:
-        python_row, python = solve_and_judge(get("pi-robust"), problem, 1e-8)
-    finally:
-        accuracy.OPTIONS["pi-robust"]["compiled_limit"] = original
+    pi_robust_row("compiled_limit", 0)
+    python_row, python = solve_and_judge(get("pi-robust"), problem, 1e-8)
     assert python_row["success"] and "compiled" not in python.info
     assert problem.m_norm(problem.v_plus(compiled.impulses) - problem.v_plus(python.impulses)) \
         <= 1e-7 * max(problem.m_norm(problem.v_minus), 1e-300)
@@ -158,7 +169,7 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
     for problem in [generate("mass-ratio", 10, seed=3)[0], generate("grid", 7, seed=0)[0],
                     k3_collinear()]:
         lcp = Lcp.of(problem, dense_limit=300)
-        csc = csc_arrays(lcp)
+        csc = csc_arrays(problem.Q)
         for _ in range(5):
             impulses = rng.uniform(0.0, 1.0, problem.n_contacts) * lcp.scale / lcp.safe_diag
             ours = natural_residual(csc, lcp.b, lcp.diag, lcp.scale, impulses)
@@ -188,18 +199,13 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
 
-def test_pi_robust_compiled_path_declines_a_too_wide_envelope() -> None:
+def test_pi_robust_compiled_path_declines_a_too_wide_envelope(
+        pi_robust_row: Callable[[str, object], None]) -> None:
     """With no envelope work allowed the kernel declines before any solve, and the sparse
     Python path answers (here a 1,000-ball box packing)."""
-    from qpbench.solvers import accuracy
-
     problem = generate("box", 1000, seed=4)[0]
-    original = accuracy.OPTIONS["pi-robust"]["compiled_work_limit"]
-    accuracy.OPTIONS["pi-robust"]["compiled_work_limit"] = 0.0
-    try:
-        row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
-    finally:
-        accuracy.OPTIONS["pi-robust"]["compiled_work_limit"] = original
+    pi_robust_row("compiled_work_limit", 0.0)
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 

@@ -47,15 +47,19 @@ otherwise it reports failure and returns its best l.
 
 from __future__ import annotations
 
+import functools
+from typing import Any, NamedTuple
+
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output, start_of
 from qpbench.solvers.lcp_interior import NormalMatrix, interior_point, jacobi_scaled
 from qpbench.solvers.registry import register
 
@@ -247,62 +251,81 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
 ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
 
 
-def csc_arrays(lcp: Lcp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses."""
-    Q = lcp.problem.Q if lcp.problem is not None else sp.csc_matrix(lcp.Q)
+    Q = Q if sp.isspmatrix_csc(Q) else sp.csc_matrix(Q)
     return Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data
 
 
-def _compiled(lcp: Lcp, csc: tuple[np.ndarray, np.ndarray, np.ndarray],
-              start: np.ndarray, options: dict, work_limit: float
-              ) -> tuple[np.ndarray, bool, str, int, dict] | None:
-    """The compiled path (``pi_robust_envelope``): its answer when qpbench's residual confirms
-    it, else None (the caller then runs the Python path)."""
+class Settings(NamedTuple):
+    """pi-robust's accuracy-table row at one level, split by who reads it."""
+
+    kernel: Any  # the compiled path's options (pi_robust_envelope.Options)
+    python: dict  # the Python path's keyword arguments (without tol's scale: it is relative)
+    dense_limit: int
+    compiled_limit: int
+    compiled_work_limit: float
+
+
+@functools.lru_cache(maxsize=64)
+def settings_for(eps: float) -> Settings:
+    """The accuracy table's row for level ``eps``, read once per level (tolerances here are
+    relative to the problem's scale, so they do not depend on it)."""
     from qpbench.solvers import pi_robust_envelope as envelope
 
-    settings = envelope.options_of(options)
+    options = accuracy.options_for(NAME, eps, 1.0)
+    limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
+                                                "compiled_work_limit")}
+    return Settings(kernel=envelope.options_of(options), python=options,
+                    dense_limit=int(limits["dense_limit"]),
+                    compiled_limit=int(limits["compiled_limit"]),
+                    compiled_work_limit=float(limits["compiled_work_limit"]))
+
+
+def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray | None
+              ) -> SolverOutput | None:
+    """The compiled path (``pi_robust_envelope``) straight from the posed problem: its answer
+    when a rounding bound or qpbench's residual confirms it, else None (the caller then runs
+    the Python path). One call into compiled code; in Python only what it needs."""
+    from qpbench.solvers import pi_robust_envelope as envelope
+
+    csc = csc_arrays(problem.Q)
+    b = np.asarray(problem.b, dtype=float)
+    diag = np.asarray(problem.diag_Q, dtype=float)
+    start = start_of(warm_start, b.size)
     try:
-        impulses, converged, path, solves, interior, factorizations = \
-            envelope.envelope_pi_robust(csc, lcp.b, lcp.diag, lcp.safe_diag, lcp.scale, start,
-                                        ORDERING_ABOVE, work_limit, settings)
+        impulses, converged, path, solves, interior, factorizations, certified = \
+            envelope.envelope_pi_robust(csc, b, diag, start, ORDERING_ABOVE,
+                                        settings.compiled_work_limit, settings.kernel)
     except np.linalg.LinAlgError:
         return None
     if not converged:
         return None
-    tol = options["tol"]
     # the kernel's residual is qpbench's formula in the same summation order; accepted when
     # even a worst-case rounding difference keeps it within tol, else qpbench's own metric
-    certified = envelope.natural_residual(csc, lcp.b, lcp.diag, lcp.scale, impulses) \
-        + envelope.residual_rounding_bound(csc, lcp.b, lcp.scale, impulses) <= tol
-    if not (certified or lcp.converged(impulses, tol)):
+    if not (certified or metrics.residual(problem, impulses) <= settings.kernel.tol):
         return None
     info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
                   "factorizations": int(factorizations),
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
     if path == envelope.PATH_INTERIOR:
         info["interior_iterations"] = int(interior)
-    return impulses, True, "converged", int(solves), info
+    return output(impulses, True, "converged", int(solves), **info)
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    options = accuracy.options_for(NAME, eps, 1.0)
-    lcp = Lcp.of(problem, dense_limit=options.pop("dense_limit"))
-    options = accuracy.options_for(NAME, eps, lcp.scale)
-    options.pop("dense_limit")
-    csc = None
-    work_limit = float(options.pop("compiled_work_limit"))
-    if lcp.n <= options.pop("compiled_limit"):
-        csc = csc_arrays(lcp)
-        _ = lcp.safe_diag
-    blocks = BlockSolver(lcp)
-    start = lcp.start(warm_start)
-    result = _compiled(lcp, csc, start, options, work_limit) if csc is not None else None
-    if result is None:
-        result = pi_robust(lcp, blocks, start, **options)
-        if csc is not None:
-            result[4]["compiled"] = "declined or not confirmed; Python path"
-    impulses, converged, status, iterations, info = result
+    settings = settings_for(eps)
+    compiled = 0 < problem.n_contacts <= settings.compiled_limit
+    if compiled:
+        answer = _compiled(problem, settings, warm_start)
+        if answer is not None:
+            return answer
+    lcp = Lcp.of(problem, dense_limit=settings.dense_limit)
+    impulses, converged, status, iterations, info = pi_robust(
+        lcp, BlockSolver(lcp), lcp.start(warm_start), **settings.python)
+    if compiled:
+        info["compiled"] = "declined or not confirmed; Python path"
     return output(impulses, converged, status, iterations, **info)
 
 

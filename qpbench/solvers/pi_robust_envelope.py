@@ -49,7 +49,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
-from numba.typed import List
+
+from qpbench.problem.metrics import TINY
 
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
@@ -119,28 +120,31 @@ class OrderedLcp(NamedTuple):
 
 class FactorCache(NamedTuple):
     """The kept envelope Cholesky factors of blocks ``Q_FF + rho D_F``, one per slot s:
-    ``factors[s]`` (a typed list of arrays, regrown as needed) its rows, ``offsets[s]`` its row
-    starts (row i in ``factors[s][offsets[s, i]:offsets[s, i + 1]]``), ``policies[s]`` and
-    ``rhos[s]`` the key it belongs to (``rhos[s] = -1``: invalid), ``ages[s]`` its last use;
-    ``counters = [factorizations, uses]``. The least recently used slot is replaced."""
+    ``factors[s]`` its rows, ``offsets[s]`` its row starts (row i in
+    ``factors[s, offsets[s, i]:offsets[s, i + 1]]``), ``policies[s]`` and ``rhos[s]`` the key
+    it belongs to (``rhos[s] = -1``: invalid), ``ages[s]`` its last use;
+    ``counters = [factorizations, uses, rows factored, rows kept]``; ``position`` a work
+    array (all -1 between uses). The least recently used slot is replaced. A block's envelope
+    is never wider than the whole matrix's in the same order, so each slot holds the whole
+    envelope's size."""
 
-    factors: List
+    factors: np.ndarray
     offsets: np.ndarray
     policies: np.ndarray
     rhos: np.ndarray
     ages: np.ndarray
     counters: np.ndarray
+    position: np.ndarray
 
 
 @njit(cache=True)
-def _factor_cache(n: int, slots: int) -> FactorCache:
-    """An empty cache of ``slots`` factors for blocks of at most n contacts."""
-    factors = List()
-    for _ in range(slots):
-        factors.append(np.empty(0))
-    return FactorCache(factors, np.zeros((slots, n + 1), dtype=np.int64),
+def _factor_cache(n: int, slots: int, capacity: int) -> FactorCache:
+    """An empty cache of ``slots`` factors of at most ``capacity`` entries each (the whole
+    matrix's envelope), for blocks of at most n contacts."""
+    return FactorCache(np.empty((slots, capacity)), np.zeros((slots, n + 1), dtype=np.int64),
                        np.zeros((slots, n), dtype=np.bool_), np.full(slots, -1.0),
-                       np.zeros(slots, dtype=np.int64), np.zeros(2, dtype=np.int64))
+                       np.zeros(slots, dtype=np.int64), np.zeros(4, dtype=np.int64),
+                       np.full(n, -1, dtype=np.int64))
 
 
 @njit(cache=True)
@@ -207,13 +211,15 @@ def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int) -> None:
+def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
+                       first_row: int = 0) -> None:
     """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
     has the same envelope (Jennings, "A compact storage scheme for the solution of symmetric
     linear simultaneous equations", Comput. J. 9(3), 1966). Row i is stored in
     ``values[offsets[i]:offsets[i + 1]]``, its columns first(i) .. i (the diagonal last).
-    Raises LinAlgError when a pivot is not positive."""
-    for i in range(size):
+    Rows before ``first_row`` are already L's (row i of L depends on the rows up to i of the
+    matrix only). Raises LinAlgError when a pivot is not positive."""
+    for i in range(first_row, size):
         base_i = offsets[i]
         first_i = i + 1 - (offsets[i + 1] - base_i)
         for j in range(first_i, i):
@@ -255,11 +261,13 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
 
 @njit(cache=True)
 def _envelope_pattern(A: Csc, index: np.ndarray,
-                      position: np.ndarray, offsets: np.ndarray) -> None:
-    """Row offsets of the lower envelope of Q_II (``position[r]`` = r's place in I, or -1)."""
+                      position: np.ndarray, offsets: np.ndarray, first_row: int = 0) -> None:
+    """Row offsets of the lower envelope of Q_II (``position[r]`` = r's place in I, or -1),
+    from row ``first_row`` on (``offsets[:first_row + 1]`` are kept)."""
     indptr, indices, _ = A
-    offsets[0] = 0
-    for a in range(index.size):
+    if first_row == 0:
+        offsets[0] = 0
+    for a in range(first_row, index.size):
         column = index[a]
         row_first = a
         for k in range(indptr[column], indptr[column + 1]):
@@ -272,13 +280,13 @@ def _envelope_pattern(A: Csc, index: np.ndarray,
 @njit(cache=True)
 def _fill(A: Csc, index: np.ndarray,
           position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
-          offsets: np.ndarray) -> None:
-    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``;
-    entries (r, c) scale as (Q_rc s_r) s_c."""
+          offsets: np.ndarray, first_row: int = 0) -> None:
+    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``, rows
+    ``first_row`` on; entries (r, c) scale as (Q_rc s_r) s_c."""
     indptr, indices, data = A
     size = index.size
-    values[:offsets[size]] = 0.0
-    for a in range(size):
+    values[offsets[first_row]:offsets[size]] = 0.0
+    for a in range(first_row, size):
         column = index[a]
         base = offsets[a]
         first = a + 1 - (offsets[a + 1] - base)
@@ -294,33 +302,54 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
                  rho: float, rhs: np.ndarray, cache: FactorCache) -> np.ndarray:
     """x_F with (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's free contacts), from
     the cache's factor of (policy, rho) when it holds one, else by factoring
-    ``L L^T = Q_FF + rho D_F`` into the least recently used slot."""
+    ``L L^T = Q_FF + rho D_F`` into the least recently used slot.
+
+    A new factor starts from the kept factor (same rho) whose policy agrees with this one on
+    the longest run of leading contacts: rows of L for the free contacts in that run are the
+    same (row i of a Cholesky factor depends on the leading rows of the matrix only), so they
+    are copied and only the rows after them are factored."""
     n = safe_diag.size
     size = index.size
-    factors, offsets, policies, rhos, ages, counters = cache
+    factors, offsets, policies, rhos, ages, counters, position = cache
     counters[1] += 1
+    source, agreeing = -1, 0
     for slot in range(rhos.size):
-        if rhos[slot] == rho and np.all(policies[slot] == policy):
+        if rhos[slot] != rho:
+            continue
+        k = 0
+        while k < n and policies[slot, k] == policy[k]:
+            k += 1
+        if k == n:
             ages[slot] = counters[1]
             return _envelope_solve(factors[slot], offsets[slot], size, rhs)
+        if k > agreeing:
+            source, agreeing = slot, k
     slot = int(np.argmin(ages))
     rhos[slot] = -1.0  # invalid until the factorization succeeds
-    position = np.full(n, -1, dtype=np.int64)
-    position[index] = np.arange(size)
-    _envelope_pattern(A, index, position, offsets[slot])
-    needed = offsets[slot, size]
-    if factors[slot].size < needed:
-        factors[slot] = np.empty(max(needed, 2 * factors[slot].size))
-    values = factors[slot]
-    _fill(A, index, position, np.ones(n), values, offsets[slot])
+    kept = 0
+    if source >= 0:
+        for k in range(agreeing):
+            kept += policy[k]
+        if source != slot and kept > 0:
+            offsets[slot, :kept + 1] = offsets[source, :kept + 1]
+            factors[slot, :offsets[slot, kept]] = factors[source, :offsets[source, kept]]
     for a in range(size):
-        values[offsets[slot, a + 1] - 1] += rho * safe_diag[index[a]]
-    _envelope_cholesky(values, offsets[slot], size)
+        position[index[a]] = a
+    values, slot_offsets = factors[slot], offsets[slot]
+    _envelope_pattern(A, index, position, slot_offsets, kept)
+    _fill(A, index, position, np.ones(n), values, slot_offsets, kept)
+    for a in range(size):
+        position[index[a]] = -1
+    for a in range(kept, size):
+        values[slot_offsets[a + 1] - 1] += rho * safe_diag[index[a]]
+    _envelope_cholesky(values, slot_offsets, size, kept)
     counters[0] += 1
+    counters[2] += size - kept
+    counters[3] += kept
     policies[slot] = policy
     rhos[slot] = rho
     ages[slot] = counters[1]
-    return _envelope_solve(values, offsets[slot], size, rhs)
+    return _envelope_solve(values, slot_offsets, size, rhs)
 
 
 @njit(cache=True)
@@ -456,7 +485,10 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options):
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
-    cache = _factor_cache(n, 2)
+    everything = np.arange(n)
+    normal_first = np.zeros(n + 1, dtype=np.int64)
+    _envelope_pattern(A, everything, everything, normal_first)
+    cache = _factor_cache(n, 2, normal_first[n])
     counters = cache.counters
     if _original_residual(original, scale, start) <= tol:
         return start, True, PATH_START, 0, 0, 0
@@ -468,9 +500,6 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options):
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
-    everything = np.arange(n)
-    normal_first = np.zeros(n + 1, dtype=np.int64)
-    _envelope_pattern(A, everything, everything, normal_first)
     normal = np.empty(normal_first[n])
     scaled_b = b * root
     scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
@@ -600,18 +629,21 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 
 
 @njit(cache=True)
-def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, safe_diag: np.ndarray,
-                       scale: float, start: np.ndarray, order_above: int,
-                       max_envelope_work: float, options: Options):
+def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
+                       order_above: int, max_envelope_work: float, options: Options):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
-    iterations, factorizations) of pi-robust on LCP(Q, b), Q given by its CSC arrays ``csc``,
-    from ``start`` (l >= 0). Above ``order_above`` contacts the contacts are first put in
-    reverse Cuthill-McKee order (inside the timed call), which keeps the envelope factors
-    narrow. When one factorization of the whole envelope would cost more than
+    iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC
+    arrays ``csc``, from ``start`` (l >= 0). Above ``order_above`` contacts the contacts are
+    first put in reverse Cuthill-McKee order (inside the timed call), which keeps the
+    envelope factors narrow. When one factorization of the whole envelope would cost more than
     ``max_envelope_work`` multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide
-    grids), it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs."""
+    grids), it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs.
+    ``certified``: converged, and qpbench's residual plus :func:`residual_rounding_bound` is
+    at most tol, so that no other summation order of ``Q l + b`` can put it above tol."""
     indptr, indices, data = csc
     n = b.size
+    scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
+    safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.arange(n)
     A = (indptr, indices, data)
     if n > order_above:
@@ -624,14 +656,16 @@ def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, safe_diag: np.
     for i in range(n):
         work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
     if work > max_envelope_work:
-        return start.copy(), False, PATH_DECLINED, 0, 0, 0
+        return start.copy(), False, PATH_DECLINED, 0, 0, 0, False
     lcp = OrderedLcp(A, Posed((indptr, indices, data), b, diag, order), b[order], diag[order],
                      safe_diag[order], scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
         lcp, start[order], options)
     impulses = np.empty(n)
     impulses[order] = answer
-    return impulses, converged, path, solves, interior, factorizations
+    certified = converged and natural_residual(csc, b, diag, scale, impulses) \
+        + residual_rounding_bound(csc, b, scale, impulses) <= options.tol
+    return impulses, converged, path, solves, interior, factorizations, certified
 
 
 _warm = False
@@ -652,8 +686,8 @@ def warm_up() -> None:
                               single_exchanges=True, pi_budget=10, finish_budget=3,
                               finish_below=1e-3, ipm_iters=80))
     for order_above in (64, 0):  # both branches' types
-        impulses, _, _, _, _, _ = envelope_pi_robust(csc, b, diag, diag, 4.0, np.zeros(3),
-                                                     order_above, 1e9, options)
+        impulses, _, _, _, _, _, _ = envelope_pi_robust(csc, b, diag, np.zeros(3), order_above,
+                                                        1e9, options)
     natural_residual(csc, b, diag, 4.0, impulses)
     residual_rounding_bound(csc, b, 4.0, impulses)
     _warm = True
