@@ -53,6 +53,7 @@ test: setup
 BENCH_SET ?= problems/default.toml
 BENCH_PROBLEMS ?= build/problems/default
 BENCH_RESULTS ?= results
+HEAD_TO_HEAD_PROBLEMS ?= build/problems/head_to_head
 BENCH_ACCURACY ?= 1e-2,1e-4,1e-6,1e-8,1e-10
 BENCH_TIMEOUT ?= 10
 # frictional problems: two levels (staggered through cvxpy re-compiles every inner QP, so
@@ -70,6 +71,9 @@ bench: setup
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
 	$(BIN)/qpbench sequence --steps 40 -o $(BENCH_RESULTS)/sequence.json
 	$(BIN)/qpbench breakdown -o $(BENCH_RESULTS)/breakdown.json
+	$(BIN)/qpbench build-set problems/head_to_head.toml -o $(HEAD_TO_HEAD_PROBLEMS)
+	$(BIN)/qpbench head-to-head $(HEAD_TO_HEAD_PROBLEMS) --results $(BENCH_RESULTS)/bench.parquet \
+		-o $(BENCH_RESULTS)/head_to_head.json
 	$(BIN)/qpbench report $(BENCH_RESULTS)/bench.parquet -o $(BENCH_RESULTS)
 
 # The larger sweep, in its own folders.

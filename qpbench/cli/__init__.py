@@ -37,6 +37,7 @@ COMMANDS = (
     "speed",
     "sequence",
     "breakdown",
+    "head_to_head",
 )
 
 EXIT_INPUT_ERROR = 2

@@ -1,0 +1,212 @@
+"""Head to head, cold: pi-robust against the fastest external pairs on the sets that matter.
+
+The sets (``problems/head_to_head.toml``, built with ``qpbench build-set``): the SCISim
+research fork's 50 dumps of its 5x5 grid scene, impacts captured from its 7x7, 5x5 and 3x3
+grid scenes, box packings of 1,000 and 4,000 balls, and the frictional families (pi-robust as
+the inner solver of ``staggered`` and on ``ccp``). A problem's set is named by its family
+(:func:`set_of`).
+
+The external pairs: for impact problems the ``candidates`` fastest external pairs of the main
+benchmark (``results/bench.parquet``: shifted geometric mean of charged times at 1e-8 over
+the families ``dump``, ``grid``, ``box`` and the captured grid scenes), for frictional
+problems the fastest external ``staggered`` and ``ccp`` pairs there, so that the choice is
+made by measurement, not by hand. pi-robust's own pairs are ``pi-robust/lcp`` (impact) and
+``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
+
+Every solve goes through the one stopwatch (``call_solver``), the minimum of ``repeats``;
+every answer is judged by qpbench's residual at ``accuracy``; problems without a solution
+(``no-solution``) are left out of the sets' figures, as the report does. Per set and pair:
+the shifted geometric mean (``qpbench.bench.stats``: shift on the set's own time scale) of
+times charged with the largest time of the set where a solve failed, and
+``speedup = SGM(fastest external) / SGM(pi-robust)`` (above 1: pi-robust faster), against the
+target of 3.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from qpbench.bench import stats
+from qpbench.problem import files
+from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.run import NO_SOLUTION, call_solver, judge
+
+ACCURACY = 1e-8
+DEFAULT_REPEATS = 5
+DEFAULT_CANDIDATES = 6
+TARGET_SPEEDUP = 3.0
+REPEAT_BUDGET_S = 0.2
+OWN_IMPACT = ("pi-robust/lcp",)
+OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")
+FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
+# the main benchmark's families whose fastest external pairs are the impact candidates
+CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
+SETS = ("fork 5x5 grid dumps", "7x7 grid scene", "grid scene captures", "box packings",
+        "frictional")
+
+
+def set_of(problem: ImpactProblem | FrictionalProblem) -> str | None:
+    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to."""
+    if isinstance(problem, FrictionalProblem):
+        return "frictional"
+    family = str(problem.family or "")
+    if family == "dump":
+        return "fork 5x5 grid dumps"
+    if family == "scene:grid7_itr_0":
+        return "7x7 grid scene"
+    if family.startswith("scene:grid"):
+        return "grid scene captures"
+    if family == "box":
+        return "box packings"
+    return None
+
+
+def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACCURACY
+                     ) -> dict[str, list[str]]:
+    """{"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES,
+    "frictional": the fastest external pair of each frictional formulation}, by the shifted
+    geometric mean of charged times at ``accuracy`` in the main benchmark's table."""
+    level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
+                  & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
+    level = level.assign(key=stats.solver_keys(level), charged=stats.charged_times(level))
+    frictional = level["kind"].astype(str) == "frictional"
+    chosen: dict[str, list[str]] = {}
+    impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
+    chosen["impact"] = _ranked(impact)[:candidates]
+    chosen["frictional"] = []
+    for formulation in FRICTIONAL_FORMULATIONS:
+        ranked = _ranked(level[frictional & (level["formulation"].astype(str) == formulation)])
+        chosen["frictional"] += ranked[:max(1, candidates // 3)]
+    return chosen
+
+
+def _ranked(frame: pd.DataFrame) -> list[str]:
+    """Pair keys by the SGM of their charged times, fastest first (pairs with every problem)."""
+    if frame.empty:
+        return []
+    shift = stats.time_scale_shift(frame)
+    problems = frame["problem"].nunique()
+    sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)
+           for key, group in frame.groupby("key") if group["problem"].nunique() == problems}
+    return sorted(sgm, key=sgm.get)
+
+
+def measure(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, repeats: int,
+            accuracy: float = ACCURACY) -> dict[str, Any]:
+    """One problem, one pair: the fastest of ``repeats`` solves (fewer once they have taken
+    REPEAT_BUDGET_S in all: a slow solve varies little), judged by qpbench."""
+    outputs = [call_solver(spec, problem, accuracy)]
+    while len(outputs) < repeats and sum(o.time_s for o in outputs) < REPEAT_BUDGET_S:
+        outputs.append(call_solver(spec, problem, accuracy))
+    fastest = min(outputs, key=lambda output: output.time_s)
+    row = judge(spec, problem, fastest, accuracy)
+    return {"problem": problem.name, "set": set_of(problem), "solver": spec.key,
+            "own": spec.backend == stats.OWN_BACKEND, "contacts": problem.n_contacts,
+            "status": row["status"], "success": bool(row["success"]),
+            "residual": row["residual"], "time_s": fastest.time_s}
+
+
+def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per set: every pair's success and SGM (module docstring), pi-robust's best pair, the
+    fastest external pair and the speedup."""
+    frame = pd.DataFrame(rows)
+    frame = frame[frame["status"] != NO_SOLUTION]  # charged to no solver (see judge)
+    summary = []
+    for name in [s for s in SETS if s in set(frame["set"])]:
+        group = frame[frame["set"] == name].copy()
+        charge = float(group["time_s"].max())
+        group["charged"] = group["time_s"].where(group["success"], charge)
+        group["accuracy"] = ACCURACY
+        shift = stats.time_scale_shift(group)
+        pairs = []
+        for key, mine in group.groupby("solver"):
+            pairs.append({"solver": key, "own": bool(mine["own"].iloc[0]),
+                          "sgm_s": stats.shifted_geometric_mean(mine["charged"], shift),
+                          "median_s": float(mine["charged"].median()),
+                          "success_rate": float(mine["success"].mean())})
+        pairs.sort(key=lambda pair: pair["sgm_s"])
+        own = [pair for pair in pairs if pair["own"]]
+        external = [pair for pair in pairs if not pair["own"]]
+        entry: dict[str, Any] = {"set": name, "problems": int(group["problem"].nunique()),
+                                 "contacts_min": int(group["contacts"].min()),
+                                 "contacts_max": int(group["contacts"].max()), "pairs": pairs}
+        if own and external:
+            entry["own"], entry["external"] = own[0], external[0]
+            entry["speedup"] = external[0]["sgm_s"] / own[0]["sgm_s"]
+            entry["target_met"] = bool(entry["speedup"] >= TARGET_SPEEDUP
+                                       and own[0]["success_rate"] == 1.0)
+        summary.append(entry)
+    return summary
+
+
+def markdown(summary: Sequence[dict[str, Any]], repeats: int) -> str:
+    lines = [
+        "## Head to head, cold: pi-robust against the fastest external pairs per set\n",
+        f"Accuracy {ACCURACY:g}; `time_s` of the one stopwatch, the fastest of {repeats} "
+        f"repeats (fewer once they took {REPEAT_BUDGET_S:g} s); problems with no solution "
+        "left out; a failed solve is charged the set's largest time; SGM shifted on the set's "
+        "own time scale. External pairs: the fastest of the main benchmark "
+        "(`bench.parquet`) on the grid, dump and box families and per frictional "
+        "formulation. speedup = SGM of the fastest external pair / SGM of pi-robust's best "
+        f"pair (target >= {TARGET_SPEEDUP:g}, with every problem solved).\n",
+        "| set | problems | contacts | pi-robust pair | SGM [ms] | solved | fastest external "
+        "pair | SGM [ms] | solved | speedup | target |",
+        "|---|---:|---|---|---:|---:|---|---:|---:|---:|---|",
+    ]
+    for entry in summary:
+        own, external = entry.get("own"), entry.get("external")
+        if own is None or external is None:
+            lines.append(f"| {entry['set']} | {entry['problems']} | | (not measured) "
+                         "| | | | | | | |")
+            continue
+        lines.append(
+            f"| {entry['set']} | {entry['problems']} | {entry['contacts_min']}-"
+            f"{entry['contacts_max']} | `{own['solver']}` | {1e3 * own['sgm_s']:.3f} | "
+            f"{100 * own['success_rate']:.0f}% | `{external['solver']}` | "
+            f"{1e3 * external['sgm_s']:.3f} | {100 * external['success_rate']:.0f}% | "
+            f"{entry['speedup']:.2f}x | {'met' if entry['target_met'] else 'not met'} |")
+    held = [entry["set"] for entry in summary if entry.get("target_met")]
+    missed = [entry["set"] for entry in summary if "target_met" in entry
+              and not entry["target_met"]]
+    lines.append("")
+    lines.append(f"The 3x target holds on: {', '.join(held) if held else 'no set'}; it does "
+                 f"not hold on: {', '.join(missed) if missed else 'no set'}.")
+    lines.append("\nEvery pair per set (SGM [ms], solved):\n")
+    for entry in summary:
+        lines.append(f"- {entry['set']}: " + ", ".join(
+            f"`{pair['solver']}` {1e3 * pair['sgm_s']:.3f} ({100 * pair['success_rate']:.0f}%)"
+            for pair in entry["pairs"]))
+    return "\n".join(lines) + "\n"
+
+
+def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = DEFAULT_REPEATS,
+                 candidates: int = DEFAULT_CANDIDATES,
+                 progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """The JSON object of ``qpbench head-to-head``: rows, per-set summary, ``markdown``."""
+    from qpbench.solvers.registry import get
+
+    chosen = fastest_external(bench, candidates)
+    problems = [problem for problem in files.load_all(files.find([str(folder)]))
+                if set_of(problem) is not None]
+    specs = {"impact": [get(key) for key in (*OWN_IMPACT, *chosen["impact"])],
+             "frictional": [get(key, "frictional")
+                            for key in (*OWN_FRICTIONAL, *chosen["frictional"])]}
+    rows = []
+    for number, problem in enumerate(problems):
+        kind = "frictional" if isinstance(problem, FrictionalProblem) else "impact"
+        if progress is not None:
+            progress(f"[{number + 1}/{len(problems)}] {problem.name}")
+        rows += [measure(spec, problem, repeats) for spec in specs[kind]
+                 if spec.solve is not None]
+    summary = summarize(rows)
+    return {"accuracy": ACCURACY, "repeats": repeats, "candidates": chosen,
+            "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
+            "markdown": markdown(summary, repeats) if rows else "", "problems": len(problems),
+            "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}

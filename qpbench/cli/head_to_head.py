@@ -1,0 +1,54 @@
+"""``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 5]
+[--candidates 6] -o results/head_to_head.json``: pi-robust against the fastest external pairs
+of the main benchmark, cold, per set of ``problems/head_to_head.toml`` (built into FOLDER by
+``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with single-threaded BLAS, in a
+child process unless this one already has it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
+from qpbench.errors import InputError, QpbenchError
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "head-to-head", help="pi-robust against the fastest external pairs, per set, cold")
+    parser.add_argument("folder", help="problem folder built from problems/head_to_head.toml")
+    parser.add_argument("--results", required=True,
+                        help="the main benchmark's table, which names the fastest pairs")
+    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("--candidates", type=int, default=6,
+                        help="fastest external impact pairs compared (6)")
+    parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.repeats < 1 or args.candidates < 1:
+        raise QpbenchError("--repeats and --candidates must be at least 1")
+    if not Path(args.folder).is_dir():
+        raise InputError(args.folder, "no such problem folder")
+    output = writable_output(args.output)
+    from qpbench.bench.results import ResultStore
+
+    bench = ResultStore(args.results).read()
+    if bench.empty:
+        raise InputError(args.results, "no results to choose the external pairs from")
+    child = single_threaded_rerun(
+        ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
+         "--candidates", str(args.candidates), "-o", str(args.output)])
+    if child is not None:
+        return child
+    from qpbench.bench.head_to_head import head_to_head
+
+    report = head_to_head(args.folder, bench, args.repeats, args.candidates,
+                          progress=lambda text: print(text, file=sys.stderr))
+    if not report["rows"]:
+        raise InputError(args.folder, "no problem of a head-to-head set")
+    write_json(output, report)
+    print(report["markdown"], end="")
+    return 0

@@ -1,0 +1,83 @@
+"""``qpbench head-to-head``: the external pairs come from the main table's measurements, and
+each set's speedup is the fastest external SGM over pi-robust's. Correctness only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from qpbench.bench import head_to_head
+from qpbench.cli import main
+from qpbench.problem import files
+from qpbench.problem.dumps import import_dump
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def bench_rows(solver: str, backend: str, family: str, times: list[float],
+               kind: str = "", formulation: str = "dual") -> list[dict]:
+    return [{"problem": f"p{i}", "family": family, "solver": solver, "formulation": formulation,
+             "backend": backend, "accuracy": 1e-8, "success": True, "time_s": time,
+             "time_limit_s": 10.0, "kind": kind} for i, time in enumerate(times)]
+
+
+def test_the_candidates_are_the_fastest_external_pairs_of_the_main_table() -> None:
+    frame = pd.DataFrame(
+        bench_rows("slow", "x", "grid", [3e-3, 4e-3])
+        + bench_rows("fast", "y", "grid", [1e-4, 2e-4])
+        + bench_rows("pi-robust", "qpbench", "grid", [1e-5, 1e-5])  # ours: never a candidate
+        + bench_rows("other", "z", "k3", [1e-6, 1e-6])  # not a candidate family
+        + bench_rows("fric", "y", "incline", [1e-3], kind="frictional", formulation="ccp"))
+    chosen = head_to_head.fastest_external(frame, candidates=2)
+    assert chosen["impact"] == ["fast/dual", "slow/dual"]
+    assert chosen["frictional"] == ["fric/ccp"]
+
+
+def row(solver: str, own: bool, problem: str, time: float, success: bool = True) -> dict:
+    return {"problem": problem, "set": "box packings", "solver": solver, "own": own,
+            "contacts": 10, "status": "solved" if success else "failed", "success": success,
+            "residual": 0.0, "time_s": time}
+
+
+def test_a_sets_speedup_is_the_fastest_external_sgm_over_pi_robusts() -> None:
+    rows = [row("pi-robust/lcp", True, "a", 1e-4), row("pi-robust/lcp", True, "b", 1e-4),
+            row("daqp/dual", False, "a", 4e-4), row("daqp/dual", False, "b", 4e-4),
+            row("osqp/dual", False, "a", 1e-5, False), row("osqp/dual", False, "b", 5e-4, False)]
+    [entry] = head_to_head.summarize(rows)
+    # osqp fails quickly, but failures are charged the set's largest time (5e-4): daqp is the
+    # fastest external pair
+    assert entry["external"]["solver"] == "daqp/dual"
+    assert entry["speedup"] == pytest.approx(4.0)
+    assert entry["target_met"]
+    assert "| box packings | 2 |" in head_to_head.markdown([entry], 5)
+
+
+def test_a_dump_is_in_the_grid_dump_set_and_a_k3_in_none() -> None:
+    assert head_to_head.set_of(import_dump(ROOT / "problems/dumps/grid5_itr_0.out")) \
+        == "fork 5x5 grid dumps"
+    from qpbench.problem.generate import generate
+
+    assert head_to_head.set_of(generate("k3", None, seed=0)[0]) is None
+
+
+def test_the_command_measures_a_folder_against_the_named_table(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture
+                                                               ) -> None:
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    files.save(import_dump(ROOT / "problems/dumps/grid5_itr_0.out"), folder / "grid5.npz")
+    table = tmp_path / "bench.parquet"
+    pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])).to_parquet(table)
+    out = tmp_path / "h2h.json"
+    assert main(["head-to-head", str(folder), "--results", str(table), "--repeats", "1",
+                 "-o", str(out)]) == 0
+    assert out.exists() and "fork 5x5 grid dumps" in capsys.readouterr().out
+
+
+def test_a_missing_folder_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    code = main(["head-to-head", str(tmp_path / "nothing"), "--results", "x.parquet",
+                 "-o", str(tmp_path / "h.json")])
+    assert code != 0 and "no such problem folder" in capsys.readouterr().err
+    assert not (tmp_path / "h.json").exists()
