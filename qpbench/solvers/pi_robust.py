@@ -37,10 +37,12 @@ steps on a settled policy cost triangular solves only.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
 (``qpbench.solvers.pi_robust_envelope``: numba, contacts in reverse Cuthill-McKee order,
-envelope Cholesky factors); its answer is reported when a rounding bound or qpbench's own
-residual confirms it, otherwise (or when a factor fails) this Python path runs, and the time
-of both counts. The kernel is loaded from numba's cache (compiled once, ``cache=True``) by
-:func:`prepare`, which the harness calls before it starts any clock.
+envelope Cholesky factors, a start improved by ``start_sweeps`` projected Gauss-Seidel
+sweeps, new factors that copy the rows they share with a kept one); its answer is reported
+when a rounding bound or qpbench's own residual confirms it, otherwise (or when a factor
+fails) this Python path runs, and the time of both counts. The kernel is loaded from numba's
+cache (compiled once, ``cache=True``) by :func:`prepare`, which the harness calls before it
+starts any clock.
 Converged means qpbench's ``residual(l) <= tol`` (confirmed with qpbench's own metric);
 otherwise it reports failure and returns its best l.
 """
@@ -276,7 +278,9 @@ def settings_for(eps: float) -> Settings:
     options = accuracy.options_for(NAME, eps, 1.0)
     limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
                                                 "compiled_work_limit")}
-    return Settings(kernel=envelope.options_of(options), python=options,
+    kernel = envelope.options_of(options)
+    options.pop("start_sweeps")  # the compiled path's alone
+    return Settings(kernel=kernel, python=options,
                     dense_limit=int(limits["dense_limit"]),
                     compiled_limit=int(limits["compiled_limit"]),
                     compiled_work_limit=float(limits["compiled_work_limit"]))
