@@ -69,7 +69,8 @@ bench: setup
 	$(BIN)/qpbench scaling --solver pi-robust --pile-steps 3 --box-pile-sizes 250,1000 \
 		-o $(BENCH_RESULTS)/scaling.json
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
-	$(BIN)/qpbench sequence --steps 40 -o $(BENCH_RESULTS)/sequence.json
+	$(BIN)/qpbench sequence --steps 40 --results $(BENCH_RESULTS)/bench.parquet \
+		-o $(BENCH_RESULTS)/sequence.json
 	$(BIN)/qpbench breakdown -o $(BENCH_RESULTS)/breakdown.json
 	$(BIN)/qpbench build-set problems/head_to_head.toml -o $(HEAD_TO_HEAD_PROBLEMS)
 	$(BIN)/qpbench head-to-head $(HEAD_TO_HEAD_PROBLEMS) --results $(BENCH_RESULTS)/bench.parquet \

@@ -171,3 +171,24 @@ def test_breakdown_default_problems_are_in_the_repository() -> None:
         assert (ROOT / path).is_file(), path
     grid7 = breakdown.first_impact(ROOT / breakdown.GRID7_SCENE)
     assert grid7.n_contacts > 100 and np.any(grid7.b < 0)
+
+
+def test_the_cold_pairs_beside_are_the_main_tables_fastest_without_warm_starts() -> None:
+    """osqp takes warm starts (it is compared anyway), a k3 row is not a captured scene and
+    pi-robust is ours: only the cold-only external pairs on scenes, fastest first."""
+    import pandas as pd
+
+    from qpbench.bench.sequence import fastest_cold
+
+    def rows(solver: str, formulation: str, backend: str, family: str, time: float) -> list:
+        return [{"problem": f"p{i}", "family": family, "solver": solver,
+                 "formulation": formulation, "backend": backend, "accuracy": 1e-8,
+                 "success": True, "time_s": time, "time_limit_s": 10.0, "kind": None}
+                for i in range(2)]
+
+    frame = pd.DataFrame(rows("quadprog", "dual", "quadprog", "scene:K4", 2e-4)
+                         + rows("quadprog", "primal", "quadprog", "scene:K4", 1e-4)
+                         + rows("osqp", "dual", "osqp", "scene:K4", 1e-5)
+                         + rows("quadprog", "dual", "quadprog", "k3", 1e-6)
+                         + rows("pi-robust", "lcp", "qpbench", "scene:K4", 1e-6))
+    assert fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]

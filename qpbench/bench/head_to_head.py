@@ -79,16 +79,17 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
     frictional = level["kind"].astype(str) == "frictional"
     chosen: dict[str, list[str]] = {}
     impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
-    chosen["impact"] = _ranked(impact)[:candidates]
+    chosen["impact"] = ranked(impact)[:candidates]
     chosen["frictional"] = []
     for formulation in FRICTIONAL_FORMULATIONS:
-        ranked = _ranked(level[frictional & (level["formulation"].astype(str) == formulation)])
-        chosen["frictional"] += ranked[:max(1, candidates // 3)]
+        fastest = ranked(level[frictional & (level["formulation"].astype(str) == formulation)])
+        chosen["frictional"] += fastest[:max(1, candidates // 3)]
     return chosen
 
 
-def _ranked(frame: pd.DataFrame) -> list[str]:
-    """Pair keys by the SGM of their charged times, fastest first (pairs with every problem)."""
+def ranked(frame: pd.DataFrame) -> list[str]:
+    """Pair keys (column ``key``) by the SGM of their times (column ``charged``), fastest
+    first; only pairs with a row for every problem of ``frame``."""
     if frame.empty:
         return []
     shift = stats.time_scale_shift(frame)

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from qpbench.errors import InputError
 from qpbench.problem import files
@@ -51,8 +52,7 @@ DEFAULT_SCENES = (
     "problems/scenes/ura/10_balls_in_box.xml",
     "problems/scenes/scisim/butterfly.xml",
 )
-# the fastest cold pairs that take no warm start (results/bench.parquet, scene problems, 1e-8)
-FASTEST_COLD = ("quadprog/dual", "quadprog-reg/dual", "piqp/dual-factored", "clarabel/primal")
+COLD_PAIRS = 4  # the fastest pairs without warm starts of the main table, shown beside
 KEYS = "contact_keys"
 # time steps simulated per requested impact step at most (scenes with quiet stretches)
 STEP_BUDGET = 40
@@ -265,8 +265,26 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
     return "\n".join(lines) + "\n"
 
 
-def default_solvers() -> list[SolverSpec]:
-    """pi-robust, every usable warm-startable external impact pair, the fastest cold ones."""
+def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
+                 accuracy: float = ACCURACY) -> list[str]:
+    """The ``count`` fastest external impact pairs that take no warm start on the captured
+    scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM of charged times)."""
+    from qpbench.bench.head_to_head import ranked
+    from qpbench.bench.stats import OWN_BACKEND, charged_times, solver_keys
+    from qpbench.solvers.registry import usable_solvers
+
+    cold_only = {spec.key for spec in usable_solvers()
+                 if not spec.warm_start and spec.backend != OWN_BACKEND}
+    level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
+                  & bench["family"].astype(str).str.startswith("scene:")
+                  & (bench["kind"].astype(str) != "frictional")]
+    level = level.assign(key=solver_keys(level), charged=charged_times(level))
+    return ranked(level[level["key"].isin(cold_only)])[:count]
+
+
+def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
+    """pi-robust, every usable warm-startable external impact pair, and the pairs ``cold``
+    (the fastest that take no warm start: :func:`fastest_cold`)."""
     from qpbench.bench.stats import OWN_BACKEND
     from qpbench.solvers.registry import usable_solvers
 
@@ -274,7 +292,7 @@ def default_solvers() -> list[SolverSpec]:
     for spec in usable_solvers():
         if spec.formulation in ("nsgs", "ccp", "staggered") or "staggered" in spec.name:
             continue
-        if spec.key == OWN or spec.key in FASTEST_COLD or (
+        if spec.key == OWN or spec.key in cold or (
                 spec.warm_start and spec.backend != OWN_BACKEND):
             chosen.append(spec)
     return chosen

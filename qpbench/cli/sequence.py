@@ -23,6 +23,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--solvers", default=None,
                         help="comma-separated NAME[/FORMULATION] (default: pi-robust, every "
                              "warm-startable external pair and the fastest cold ones)")
+    parser.add_argument("--results", default=None,
+                        help="the main benchmark's table: its fastest pairs without warm "
+                             "starts are shown beside (default: none of those)")
     parser.add_argument("--steps", type=int, default=30, help="impact steps per scene (30)")
     parser.add_argument("--accuracy", type=float, default=1e-8)
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
@@ -40,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(scene, "no such scene file or capture folder")
     child = single_threaded_rerun(
         ["sequence", *args.scenes, "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
-         "-o", str(args.output), *(["--solvers", args.solvers] if args.solvers else [])])
+         "-o", str(args.output), *(["--solvers", args.solvers] if args.solvers else []),
+         *(["--results", args.results] if args.results else [])])
     if child is not None:
         return child
     from qpbench.bench import sequence
@@ -52,7 +56,15 @@ def run(args: argparse.Namespace) -> int:
         if unusable:
             raise QpbenchError(f"not usable here: {', '.join(unusable)}")
     else:
-        specs = sequence.default_solvers()
+        cold: list[str] = []
+        if args.results:
+            from qpbench.bench.results import ResultStore
+
+            bench = ResultStore(args.results).read()
+            if bench.empty:
+                raise InputError(args.results, "no results to choose the cold pairs from")
+            cold = sequence.fastest_cold(bench, accuracy=args.accuracy)
+        specs = sequence.default_solvers(cold)
     report = sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs,
                                args.steps, args.accuracy,
                                progress=lambda text: print(text, file=sys.stderr))
