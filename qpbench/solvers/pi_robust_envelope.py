@@ -54,6 +54,10 @@ from numba import njit
 
 from qpbench.problem.metrics import TINY
 
+# floating-point freedoms of the factor and its solves: sums may be reordered (so that their
+# inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
+# is still caught
+REDUCTIONS = {"reassoc", "contract"}
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
@@ -213,7 +217,7 @@ def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
     return product
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=REDUCTIONS)
 def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
                        first_row: int = 0) -> None:
     """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
@@ -240,7 +244,7 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
         values[offsets[i + 1] - 1] = np.sqrt(total)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=REDUCTIONS)
 def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
                     rhs: np.ndarray) -> np.ndarray:
     """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky``."""
