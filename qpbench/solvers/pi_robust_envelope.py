@@ -373,15 +373,21 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     backup = backup_steps
     solves = 0
     x = np.zeros(n)
+    infeasible = np.zeros(n, dtype=np.bool_)
     while solves < budget:
         index = np.flatnonzero(policy)
         x = np.zeros(n)
         if index.size:
             x[index] = _block_solve(A, safe_diag, policy, index, rho, -q[index], cache)
         solves += 1
-        y = _matvec(A, x) + shift * x + q
-        infeasible = (policy & (x < -tol_l)) | (np.logical_not(policy) & (y < -tol_w))
-        count = int(np.count_nonzero(infeasible))
+        y = _matvec(A, x)
+        count = 0
+        for i in range(n):  # y = Q x + rho D x + q, compared in place
+            if policy[i]:
+                infeasible[i] = x[i] < -tol_l[i]
+            else:
+                infeasible[i] = y[i] + shift[i] * x[i] + q[i] < -tol_w
+            count += infeasible[i]
         if count == 0:
             return x, policy, solves, True
         policy = policy.copy()
