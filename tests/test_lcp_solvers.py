@@ -229,3 +229,15 @@ def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
         _envelope_pattern(arrays, everything, everything, offsets)
         widths[name] = int(offsets[-1])
     assert widths["rcm"] < widths["natural"]
+
+
+def test_the_kernels_packed_options_unpack_to_the_accuracy_table_row() -> None:
+    """Options travel to the compiled kernel as one array; unpacked they are the row's."""
+    from qpbench.solvers import accuracy
+    from qpbench.solvers.pi_robust_envelope import options_of, unpacked
+
+    row = accuracy.options_for("pi-robust", 1e-6)
+    options = unpacked(options_of(row))
+    flat = {**options._asdict(), **options.prox._asdict()}
+    assert {name: flat[name] for name in flat if name != "prox"} == {
+        name: row[name] for name in flat if name != "prox"}

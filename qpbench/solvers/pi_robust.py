@@ -50,7 +50,7 @@ otherwise it reports failure and returns its best l.
 from __future__ import annotations
 
 import functools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg as la
@@ -262,7 +262,7 @@ def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 class Settings(NamedTuple):
     """pi-robust's accuracy-table row at one level, split by who reads it."""
 
-    kernel: Any  # the compiled path's options (pi_robust_envelope.Options)
+    kernel: np.ndarray  # the compiled path's options, packed (pi_robust_envelope.options_of)
     python: dict  # the Python path's keyword arguments (without tol's scale: it is relative)
     dense_limit: int
     compiled_limit: int
@@ -299,7 +299,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     start = start_of(warm_start, b.size)
     try:
         impulses, converged, path, solves, interior, factorizations, certified = \
-            envelope.envelope_pi_robust(csc, b, diag, start, ORDERING_ABOVE,
+            envelope.envelope_pi_robust(*csc, b, diag, start, ORDERING_ABOVE,
                                         settings.compiled_work_limit, settings.kernel)
     except np.linalg.LinAlgError:
         return None
@@ -307,7 +307,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
         return None
     # the kernel's residual is qpbench's formula in the same summation order; accepted when
     # even a worst-case rounding difference keeps it within tol, else qpbench's own metric
-    if not (certified or metrics.residual(problem, impulses) <= settings.kernel.tol):
+    if not (certified or metrics.residual(problem, impulses) <= settings.python["tol"]):
         return None
     info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
                   "factorizations": int(factorizations),

@@ -95,11 +95,25 @@ class Options(NamedTuple):
     start_sweeps: int  # projected Gauss-Seidel sweeps on a start that is not converged
 
 
-def options_of(settings: dict[str, Any]) -> Options:
-    """The kernel's :class:`Options` from pi-robust's accuracy-table row (other keys ignored)."""
-    prox = Prox(*(settings[name] for name in Prox._fields))
-    return Options(prox=prox, **{name: settings[name] for name in Options._fields
-                                 if name != "prox"})
+# the order in which options travel packed into one array (a call with arrays only is typed
+# by numba's fast path; tuples of options cost microseconds on every call)
+PACKED = ("tol", "rho", *Prox._fields, "pi_budget", "finish_budget", "finish_below",
+          "ipm_iters", "start_sweeps")
+
+
+def options_of(settings: dict[str, Any]) -> np.ndarray:
+    """The kernel's options, packed in the order PACKED, from pi-robust's accuracy-table row
+    (other keys ignored)."""
+    return np.array([float(settings[name]) for name in PACKED])
+
+
+@njit(cache=True)
+def unpacked(values: np.ndarray) -> Options:
+    """:class:`Options` from the array :func:`options_of` packs (positions as in PACKED)."""
+    prox = Prox(values[2], values[3], values[4], int(values[5]), int(values[6]),
+                values[7] != 0.0)
+    return Options(values[0], values[1], prox, int(values[8]), int(values[9]), values[10],
+                   int(values[11]), int(values[12]))
 
 
 class Posed(NamedTuple):
@@ -663,23 +677,25 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 
 
 @njit(cache=True)
-def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
-                       order_above: int, max_envelope_work: float, options: Options):
+def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
+                       diag: np.ndarray, start: np.ndarray, order_above: int,
+                       max_envelope_work: float, packed_options: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC
-    arrays ``csc``, from ``start`` (l >= 0). Above ``order_above`` contacts the contacts are
-    first put in reverse Cuthill-McKee order (inside the timed call), which keeps the
-    envelope factors narrow. When one factorization of the whole envelope would cost more than
-    ``max_envelope_work`` multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide
-    grids), it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs.
+    arrays, from ``start`` (l >= 0), with the options :func:`options_of` packs. Above
+    ``order_above`` contacts the contacts are first put in reverse Cuthill-McKee order (inside
+    the timed call), which keeps the envelope factors narrow. When one factorization of the
+    whole envelope would cost more than ``max_envelope_work`` multiply-adds
+    (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at once (path
+    ``PATH_DECLINED``) and the caller's sparse path runs.
     ``certified``: converged, and qpbench's residual plus :func:`residual_rounding_bound` is
     at most tol, so that no other summation order of ``Q l + b`` can put it above tol."""
-    indptr, indices, data = csc
+    options = unpacked(packed_options)
     n = b.size
     scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.arange(n)
-    A = (indptr, indices, data)
+    A = A_posed = (indptr, indices, data)
     if n > order_above:
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
@@ -697,8 +713,8 @@ def envelope_pi_robust(csc: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndar
         lcp, start[order], options)
     impulses = np.empty(n)
     impulses[order] = answer
-    certified = converged and natural_residual(csc, b, diag, scale, impulses) \
-        + residual_rounding_bound(csc, b, scale, impulses) <= options.tol
+    certified = converged and natural_residual(A_posed, b, diag, scale, impulses) \
+        + residual_rounding_bound(A_posed, b, scale, impulses) <= options.tol
     return impulses, converged, path, solves, interior, factorizations, certified
 
 
@@ -719,9 +735,10 @@ def warm_up() -> None:
                               stall_ratio=0.5, stall_steps=3, backup_steps=3,
                               single_exchanges=True, pi_budget=10, finish_budget=3,
                               finish_below=1e-3, ipm_iters=80, start_sweeps=5))
+    unpacked(options)
     for order_above in (64, 0):  # both branches' types
-        impulses, _, _, _, _, _, _ = envelope_pi_robust(csc, b, diag, np.zeros(3), order_above,
-                                                        1e9, options)
+        impulses, _, _, _, _, _, _ = envelope_pi_robust(*csc, b, diag, np.zeros(3),
+                                                        order_above, 1e9, options)
     natural_residual(csc, b, diag, 4.0, impulses)
     residual_rounding_bound(csc, b, 4.0, impulses)
     _warm = True
