@@ -241,3 +241,13 @@ def test_the_kernels_packed_options_unpack_to_the_accuracy_table_row() -> None:
     flat = {**options._asdict(), **options.prox._asdict()}
     assert {name: flat[name] for name in flat if name != "prox"} == {
         name: row[name] for name in flat if name != "prox"}
+
+
+def test_pi_robusts_row_does_not_depend_on_the_problems_scale() -> None:
+    """pi-robust reads its row once per level (``settings_for``), which is right only while
+    no entry of the row depends on the problem's scale."""
+    from qpbench.solvers import accuracy
+
+    for eps in (1e-2, 1e-8):
+        assert accuracy.options_for("pi-robust", eps, 1.0) \
+            == accuracy.options_for("pi-robust", eps, 1e6)
