@@ -10,7 +10,7 @@ import pytest
 
 from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
-from qpbench.simulation.scaling import PARTS, box_pile, circle_pile, pile_scaling
+from qpbench.simulation.scaling import PARTS, box_pile, circle_pile, pile_markdown, pile_scaling
 
 CLARABEL = choose_by_name("clarabel/dual")
 
@@ -55,3 +55,26 @@ def test_scaling_writes_the_piles_beside_the_sparse_boxes(tmp_path: Path) -> Non
     piles = report["piles"]["kinds"]
     assert piles["circles"]["sizes"] == [50, 200] and piles["boxes"]["sizes"] == [20, 60]
     assert "### Dense piles" in report["markdown"] and "own cost" in report["markdown"]
+
+
+def test_a_pile_past_its_solve_budget_stops_after_one_step_and_says_so() -> None:
+    report = pile_scaling(CLARABEL, {"boxes": (20, 60)}, steps=3, solve_budget_s=1e-9)
+    assert report["solve_budget_s"] == 1e-9 and report["warmup_bodies"] == 20
+    for row in report["kinds"]["boxes"]["rows"]:
+        assert row["success"] and row["steps"] == 1 and row["steps_asked"] == 3
+        assert row["stopped_by_solve_budget"] and row["solve_s"] > 0
+    text = pile_markdown(report, "clarabel/dual")
+    assert "boxes, 60 bodies: 1 of 3 timed steps" in text and "1e-09 s budget" in text
+    unlimited = pile_scaling(CLARABEL, {"boxes": (20, 60)}, steps=2)
+    assert all(row["steps"] == 2 and not row["stopped_by_solve_budget"]
+               for row in unlimited["kinds"]["boxes"]["rows"])
+    assert "timed steps; the inner solves took" not in pile_markdown(unlimited, None)
+
+
+def test_scaling_refuses_a_solve_budget_that_is_not_positive(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture
+                                                             ) -> None:
+    output = tmp_path / "scaling.json"
+    assert main(["scaling", "--sizes", "20,40", "--pile-solve-budget", "0",
+                 "-o", str(output)]) == 2
+    assert "--pile-solve-budget" in capsys.readouterr().err and not output.exists()

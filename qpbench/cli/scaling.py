@@ -1,5 +1,6 @@
 """``qpbench scaling [--sizes 1000,10000] [--steps N] [--solver NAME] [--pile-sizes 1000,10000]
-[--box-pile-sizes 1000,4000] [--pile-steps N] [--no-piles] -o results/scaling.json``."""
+[--box-pile-sizes 1000,10000] [--pile-steps N] [--pile-solve-budget S] [--no-piles]
+-o results/scaling.json``."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from qpbench.cli.output import write_json
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.simulation.scaling import (
-    BOX_PILE_CAP,
+    DEFAULT_PILE_SOLVE_BUDGET_S,
     DEFAULT_PILE_STEPS,
     DEFAULT_SIZES,
     DEFAULT_STEPS,
@@ -41,10 +42,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--pile-sizes", type=_sizes, default=None,
                         help="body counts of the dense circle pile (default: --sizes)")
     parser.add_argument("--box-pile-sizes", type=_sizes, default=None,
-                        help="body counts of the dense box pile (default: --sizes, each "
-                             f"capped at {BOX_PILE_CAP})")
+                        help="body counts of the dense box pile (default: --sizes)")
     parser.add_argument("--pile-steps", type=int, default=DEFAULT_PILE_STEPS,
                         help=f"timed steps per pile ({DEFAULT_PILE_STEPS})")
+    parser.add_argument("--pile-solve-budget", type=float, default=DEFAULT_PILE_SOLVE_BUDGET_S,
+                        help="seconds of inner solves after which a pile stops timing further "
+                             f"steps; at least one is timed ({DEFAULT_PILE_SOLVE_BUDGET_S:g})")
     parser.add_argument("--no-piles", action="store_true", help="only the sparse box scenes")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
@@ -55,13 +58,13 @@ def run(args: argparse.Namespace) -> int:
         raise QpbenchError("--steps must be at least 1")
     if args.pile_steps < 1:
         raise QpbenchError("--pile-steps must be at least 1")
+    if not args.pile_solve_budget > 0:
+        raise QpbenchError("--pile-solve-budget must be a positive number of seconds")
     circles = args.pile_sizes or args.sizes
-    boxes = args.box_pile_sizes or tuple(dict.fromkeys(min(n, BOX_PILE_CAP) for n in args.sizes))
-    if len(boxes) < 2:
-        boxes = args.sizes
+    boxes = args.box_pile_sizes or args.sizes
     piles = None if args.no_piles else {"circles": circles, "boxes": boxes}
     report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed, piles,
-                     args.pile_steps)
+                     args.pile_steps, args.pile_solve_budget)
     write_json(args.output, report)
     print(report["markdown"], end="")
     return 0

@@ -9,7 +9,10 @@ solver and not on the stepper.
 The sparse box scenes have few contacts. The dense piles (``circle_pile``, ``box_pile``)
 keep most bodies in contact at every step; there the simulator's own cost per body per
 step (contact detection, assembly, integration) is reported apart from the inner solves,
-with its growth from the smallest to the largest size against the same target.
+with its growth from the smallest to the largest size against the same target. Each kind
+is warmed up once by one untimed step of a small pile, and every pile is timed from its
+first step, so a large pile pays for no untimed step; a pile whose inner solves pass a time
+budget stops after fewer steps (at least one), and its row says so.
 """
 
 from __future__ import annotations
@@ -34,10 +37,12 @@ DEFAULT_STEPS = 20
 PILE_SPACING = 0.999  # centre distance / (2 r): neighbours overlap by 0.1 % of a diameter
 PILE_SPEED = 0.01  # downward start velocity, so every step presses the pile together
 PILE_GRAVITY = 9.81
-DEFAULT_PILE_SIZES = (1000, 10000)
-DEFAULT_BOX_PILE_SIZES = (1000, 4000)  # 10,000 boxes take too long for ``make bench``
 DEFAULT_PILE_STEPS = 5
-BOX_PILE_CAP = DEFAULT_BOX_PILE_SIZES[-1]  # box piles stop here by default (make bench)
+PILE_WARMUP_BODIES = 100  # every kind's one untimed warm-up step is on a pile this small
+# (or smaller: the smallest pile measured)
+# a pile's timed steps stop early once its inner solves have taken this long (at least one
+# step is always timed, and the steps done are reported)
+DEFAULT_PILE_SOLVE_BUDGET_S = 60.0
 
 
 def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
@@ -64,7 +69,8 @@ def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
 def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
             steps: int = DEFAULT_STEPS, seed: int = 0,
             pile_sizes: dict[str, tuple[int, ...]] | None = None,
-            pile_steps: int = DEFAULT_PILE_STEPS) -> dict[str, Any]:
+            pile_steps: int = DEFAULT_PILE_STEPS,
+            pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S) -> dict[str, Any]:
     """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table;
     with ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``."""
     measured = [measure(balls, steps, choose_solve, seed) for balls in sizes]
@@ -79,7 +85,8 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
         "target_ratio": TARGET_RATIO, "meets_target": bool(ratio <= TARGET_RATIO),
     }
     if pile_sizes:
-        report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps)
+        report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps,
+                                       pile_solve_budget_s)
     report["markdown"] = markdown(report)
     return report
 
@@ -189,39 +196,50 @@ class _Timed:
             self.seconds += time.perf_counter() - start
 
 
-def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve
-                 ) -> dict[str, Any]:
-    """One pile: ``steps`` timed steps after one warm-up step, split into the simulator's own
-    parts (contact detection, assembly of the impact problem, the rest of the step:
-    integration and bookkeeping) and the inner solves (the whole call into the impact
-    operator, the solver's own formulation included)."""
+def warm_up_pile(kind: str, bodies: int, choose_solve: ChooseSolve) -> None:
+    """One untimed step of a pile of ``kind`` with ``bodies`` bodies: the first calls into
+    numpy, scipy, the compiled box contacts and the solver happen here, not in a measured
+    step (a separate small pile, so that a large pile need not pay for an untimed step)."""
+    Simulator(PILES[kind](bodies), choose_solve).step()
+
+
+def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
+                 solve_budget_s: float = math.inf) -> dict[str, Any]:
+    """One pile, warmed up beforehand (``warm_up_pile``): up to ``steps`` timed steps from
+    its first, split into the simulator's own parts (contact detection, assembly of the
+    impact problem, the rest of the step: integration and bookkeeping) and the inner solves
+    (the whole call into the impact operator, the solver's own formulation included). The
+    steps stop early, after at least one, once the inner solves have taken
+    ``solve_budget_s``; the row says so."""
     simulator = Simulator(PILES[kind](bodies), choose_solve)
-    simulator.step()  # warm-up
     timers = {name: _Timed(getattr(simulator, name))
               for name in ("find_contacts", "impact_problem", "_solve")}
     for name, timer in timers.items():
         setattr(simulator, name, timer)
     contacts_found = 0
+    done = 0
     failure = None
     start = time.perf_counter()
-    for _ in range(steps):
+    while done < steps and (done == 0 or timers["_solve"].seconds < solve_budget_s):
         try:
             event = simulator.step()
         except InnerSolveFailed as error:
             failure = error.detail
             break
+        done += 1
         contacts_found += event.contacts.count
     wall = time.perf_counter() - start
-    done = max(1, simulator.step_index - 1)
     parts = {"contacts_s": timers["find_contacts"].seconds,
              "assembly_s": timers["impact_problem"].seconds,
              "solve_s": timers["_solve"].seconds}
     parts["integration_s"] = max(0.0, wall - sum(parts.values()))
     own = parts["contacts_s"] + parts["assembly_s"] + parts["integration_s"]
-    scale = 1e6 / (bodies * done)
+    scale = 1e6 / (bodies * max(1, done))
     return {
-        "kind": kind, "bodies": bodies, "steps": done, "wall_s": wall, **parts,
-        "own_s": own, "contacts_per_body": contacts_found / (bodies * done),
+        "kind": kind, "bodies": bodies, "steps": done, "steps_asked": steps,
+        "stopped_by_solve_budget": failure is None and done < steps,
+        "wall_s": wall, **parts,
+        "own_s": own, "contacts_per_body": contacts_found / (bodies * max(1, done)),
         "own_per_body_step_us": own * scale,
         "solve_per_body_step_us": parts["solve_s"] * scale,
         "contacts_per_body_step_us": parts["contacts_s"] * scale,
@@ -232,12 +250,18 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve
 
 
 def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
-                 steps: int = DEFAULT_PILE_STEPS) -> dict[str, Any]:
-    """Every pile at every size; per kind, the growth of the simulator's own cost per body per
-    step (largest size against the smallest, target <= 1.5x) and of the inner solves'."""
-    report: dict[str, Any] = {"steps": steps, "target_ratio": TARGET_RATIO, "kinds": {}}
+                 steps: int = DEFAULT_PILE_STEPS,
+                 solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S) -> dict[str, Any]:
+    """Every pile at every size (each kind warmed up once on a small pile); per kind, the
+    growth of the simulator's own cost per body per step (largest size against the smallest,
+    target <= 1.5x) and of the inner solves'."""
+    warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
+    report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
+                              "warmup_bodies": warmup, "target_ratio": TARGET_RATIO,
+                              "kinds": {}}
     for kind, kind_sizes in sizes.items():
-        rows = [measure_pile(kind, n, steps, choose_solve) for n in kind_sizes]
+        warm_up_pile(kind, warmup, choose_solve)
+        rows = [measure_pile(kind, n, steps, choose_solve, solve_budget_s) for n in kind_sizes]
         first, last = rows[0], rows[-1]
         own_ratio = last["own_per_body_step_us"] / max(first["own_per_body_step_us"], 1e-300)
         solve_ratio = (last["solve_per_body_step_us"]
@@ -251,13 +275,18 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
 
 def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
     """The pile measurements as Markdown (a subsection of the scaling section)."""
+    budget = report.get("solve_budget_s", math.inf)
+    budget_text = ("" if math.isinf(budget) else
+                   f" (fewer when a pile's inner solves pass {budget:g} s; at least one)")
     lines = [
         "### Dense piles",
         "",
         "Bodies settled in a container (floor and two walls) under gravity, each pressing on "
         "its neighbours and moving down slowly, so every step has contacts: circles in a "
         "hexagonal packing (`ball2d`), unit boxes in a grid (`rigidbody2d`); inelastic "
-        f"`lcp` impacts, {report['steps']} timed steps after one warm-up step, inner solver "
+        f"`lcp` impacts, up to {report['steps']} timed steps per pile{budget_text}, from "
+        "its first step, each kind warmed up once beforehand by one untimed step of a "
+        f"{report.get('warmup_bodies', PILE_WARMUP_BODIES)}-body pile; inner solver "
         f"`{solver}`. The simulator's own cost (contact detection, assembly of the impact "
         "problem, integration and the rest of the step) is per body per step; the inner "
         "solves are beside it with their own growth.",
@@ -283,8 +312,12 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
             f"- {kind}: own cost per body per step, {large} vs {small} bodies: "
             f"**{entry['own_ratio']:.2f}x** ({verdict} the target <= "
             f"{report['target_ratio']}x); inner solves {entry['solve_ratio']:.2f}x.")
-    if "boxes" in report["kinds"] and report["kinds"]["boxes"]["sizes"][-1] < 10000:
-        lines.append(f"- boxes are measured up to {report['kinds']['boxes']['sizes'][-1]} "
-                     "bodies, not 10,000: box contacts are found pair by pair, and 10,000 "
-                     "boxes would keep `make bench` waiting too long.")
+    for kind, entry in report["kinds"].items():
+        for row in entry["rows"]:
+            if row.get("stopped_by_solve_budget"):
+                lines.append(
+                    f"- {kind}, {row['bodies']} bodies: {row['steps']} of "
+                    f"{row['steps_asked']} timed steps; the inner solves took "
+                    f"{row['solve_s']:.0f} s, past the {budget:g} s budget of a pile "
+                    "(`--pile-solve-budget`); the simulator's own cost is per step done.")
     return "\n".join(lines) + "\n"
