@@ -66,7 +66,7 @@ bench: setup
 		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
 	$(BIN)/qpbench run $(BENCH_PROBLEMS) --kind frictional --accuracy $(BENCH_FRICTION_ACCURACY) \
 		--timeout $(BENCH_TIMEOUT) -o $(BENCH_RESULTS)/bench.parquet
-	$(BIN)/qpbench scaling --solver pi-robust --pile-steps 3 --box-pile-sizes 250,1000 \
+	$(BIN)/qpbench scaling --solver pi-robust --pile-steps 3 --box-pile-sizes 1000,10000 \
 		-o $(BENCH_RESULTS)/scaling.json
 	$(BIN)/qpbench speed -o $(BENCH_RESULTS)/speed.json
 	$(BIN)/qpbench sequence --steps 40 --results $(BENCH_RESULTS)/bench.parquet \
