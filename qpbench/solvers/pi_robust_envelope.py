@@ -53,6 +53,7 @@ import numpy as np
 from numba import njit
 
 from qpbench.problem.metrics import TINY
+from qpbench.solvers import accuracy
 
 # floating-point freedoms of the factor and its solves: sums may be reordered (so that their
 # inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
@@ -144,7 +145,7 @@ class FactorCache(NamedTuple):
     ``factors[s]`` its rows, ``offsets[s]`` its row starts (row i in
     ``factors[s, offsets[s, i]:offsets[s, i + 1]]``), ``policies[s]`` and ``rhos[s]`` the key
     it belongs to (``rhos[s] = -1``: invalid), ``ages[s]`` its last use;
-    ``counters = [factorizations, uses, rows factored, rows kept]``; ``position`` a work
+    ``counters = [factorizations, uses]``; ``position`` a work
     array (all -1 between uses). The least recently used slot is replaced. A block's envelope
     is never wider than the whole matrix's in the same order, so each slot holds the whole
     envelope's size."""
@@ -164,7 +165,7 @@ def _factor_cache(n: int, slots: int, capacity: int) -> FactorCache:
     matrix's envelope), for blocks of at most n contacts."""
     return FactorCache(np.empty((slots, capacity)), np.zeros((slots, n + 1), dtype=np.int64),
                        np.zeros((slots, n), dtype=np.bool_), np.full(slots, -1.0),
-                       np.zeros(slots, dtype=np.int64), np.zeros(4, dtype=np.int64),
+                       np.zeros(slots, dtype=np.int64), np.zeros(2, dtype=np.int64),
                        np.full(n, -1, dtype=np.int64))
 
 
@@ -365,8 +366,6 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
         values[slot_offsets[a + 1] - 1] += rho * safe_diag[index[a]]
     _envelope_cholesky(values, slot_offsets, size, kept)
     counters[0] += 1
-    counters[2] += size - kept
-    counters[3] += kept
     policies[slot] = policy
     rhos[slot] = rho
     ages[slot] = counters[1]
@@ -521,20 +520,20 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
 
 
 @njit(cache=True)
-def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options):
+def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
+                   normal_first: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0).
 
     ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
-    on ``lcp.original``."""
+    on ``lcp.original``; ``normal_first`` are the row offsets of the whole matrix's lower
+    envelope (``_envelope_pattern``)."""
     A, original, b, diag, safe_diag, scale = lcp
     tol, rho = options.tol, options.rho
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
     everything = np.arange(n)
-    normal_first = np.zeros(n + 1, dtype=np.int64)
-    _envelope_pattern(A, everything, everything, normal_first)
     cache = _factor_cache(n, 2, normal_first[n])
     counters = cache.counters
     if _original_residual(original, scale, start) <= tol:
@@ -707,10 +706,10 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
     if work > max_envelope_work:
         return start.copy(), False, PATH_DECLINED, 0, 0, 0, False
-    lcp = OrderedLcp(A, Posed((indptr, indices, data), b, diag, order), b[order], diag[order],
+    lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b[order], diag[order],
                      safe_diag[order], scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
-        lcp, start[order], options)
+        lcp, start[order], options, widths)
     impulses = np.empty(n)
     impulses[order] = answer
     certified = converged and natural_residual(A_posed, b, diag, scale, impulses) \
@@ -731,14 +730,7 @@ def warm_up() -> None:
     diag = np.diag(Q).copy()
     csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
            Q.T.ravel().copy())
-    options = options_of(dict(tol=1e-8, rho=1e-8, rho_min=1e-14, rho_decrease=0.01,
-                              stall_ratio=0.5, stall_steps=3, backup_steps=3,
-                              single_exchanges=True, pi_budget=10, finish_budget=3,
-                              finish_below=1e-3, ipm_iters=80, start_sweeps=5))
-    unpacked(options)
+    options = options_of(accuracy.options_for("pi-robust", 1e-8))
     for order_above in (64, 0):  # both branches' types
-        impulses, _, _, _, _, _, _ = envelope_pi_robust(*csc, b, diag, np.zeros(3),
-                                                        order_above, 1e9, options)
-    natural_residual(csc, b, diag, 4.0, impulses)
-    residual_rounding_bound(csc, b, 4.0, impulses)
+        envelope_pi_robust(*csc, b, diag, np.zeros(3), order_above, 1e9, options)
     _warm = True
