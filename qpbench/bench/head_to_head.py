@@ -71,11 +71,11 @@ def set_of(problem: ImpactProblem | FrictionalProblem) -> str | None:
 def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACCURACY
                      ) -> dict[str, list[str]]:
     """{"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES,
-    "frictional": the fastest external pair of each frictional formulation}, by the shifted
-    geometric mean of charged times at ``accuracy`` in the main benchmark's table."""
+    "frictional": the ``candidates // 3`` (at least one) fastest external pairs of each
+    frictional formulation}, by :func:`ranked` at ``accuracy`` in the main benchmark's
+    table."""
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
-    level = level.assign(key=stats.solver_keys(level), charged=stats.charged_times(level))
     frictional = level["kind"].astype(str) == "frictional"
     chosen: dict[str, list[str]] = {}
     impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
@@ -88,10 +88,12 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
 
 
 def ranked(frame: pd.DataFrame) -> list[str]:
-    """Pair keys (column ``key``) by the SGM of their times (column ``charged``), fastest
-    first; only pairs with a row for every problem of ``frame``."""
+    """``solver/formulation`` keys of a results table's rows by the shifted geometric mean of
+    their charged times (``qpbench.bench.stats``), fastest first; only pairs with a row for
+    every problem of ``frame``."""
     if frame.empty:
         return []
+    frame = frame.assign(key=stats.solver_keys(frame), charged=stats.charged_times(frame))
     shift = stats.time_scale_shift(frame)
     problems = frame["problem"].nunique()
     sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)

@@ -270,7 +270,7 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
     """The ``count`` fastest external impact pairs that take no warm start on the captured
     scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM of charged times)."""
     from qpbench.bench.head_to_head import ranked
-    from qpbench.bench.stats import OWN_BACKEND, charged_times, solver_keys
+    from qpbench.bench.stats import OWN_BACKEND, solver_keys
     from qpbench.solvers.registry import usable_solvers
 
     cold_only = {spec.key for spec in usable_solvers()
@@ -278,8 +278,7 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & bench["family"].astype(str).str.startswith("scene:")
                   & (bench["kind"].astype(str) != "frictional")]
-    level = level.assign(key=solver_keys(level), charged=charged_times(level))
-    return ranked(level[level["key"].isin(cold_only)])[:count]
+    return ranked(level[solver_keys(level).isin(cold_only)])[:count]
 
 
 def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:

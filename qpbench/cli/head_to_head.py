@@ -33,18 +33,17 @@ def run(args: argparse.Namespace) -> int:
     if not Path(args.folder).is_dir():
         raise InputError(args.folder, "no such problem folder")
     output = writable_output(args.output)
-    from qpbench.bench.results import ResultStore
-
-    bench = ResultStore(args.results).read()
-    if bench.empty:
-        raise InputError(args.results, "no results to choose the external pairs from")
     child = single_threaded_rerun(
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
          "--candidates", str(args.candidates), "-o", str(args.output)])
     if child is not None:
         return child
     from qpbench.bench.head_to_head import head_to_head
+    from qpbench.bench.results import ResultStore
 
+    bench = ResultStore(args.results).read()
+    if bench.empty:
+        raise InputError(args.results, "no results to choose the external pairs from")
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
                           progress=lambda text: print(text, file=sys.stderr))
     if not report["rows"]:
