@@ -53,13 +53,6 @@ _REFUSALS = {KINEMATIC_BOX_BOX: "kinematic box-box", KINEMATIC_CIRCLE_BOX: "kine
 
 
 @njit(cache=True, error_model="numpy")
-def box_extents(theta: float, hx: float, hy: float) -> tuple[float, float]:
-    """Half-extents of a box's axis-aligned bounding box, ``|R(theta)| (hx, hy)``."""
-    c, s = math.cos(theta), math.sin(theta)
-    return abs(c) * hx + abs(s) * hy, abs(s) * hx + abs(c) * hy
-
-
-@njit(cache=True, error_model="numpy")
 def circle_box(xc: float, yc: float, radius: float, xb: float, yb: float, theta: float,
                hx: float, hy: float) -> tuple[bool, float, float, float, float]:
     """(hit, n, p) of a circle against a box: n (unit, from the box towards the circle) and
@@ -266,24 +259,19 @@ def _box_plane_table(boxes: np.ndarray, x1: np.ndarray, theta0: np.ndarray,
     return count, body, plane, arms, vertex_number
 
 
-@njit(cache=True, error_model="numpy")
 def _collision_boxes(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, theta1: np.ndarray,
                      half_widths: np.ndarray, is_box: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper corners of each body's collision box: a circle's swept over the step,
-    ``[min(x0, x1) - r, max(x0, x1) + r]``; a box's at x1 alone, ``x1 -+ |R(theta1)| h``
-    (as SCISim)."""
-    count = x0.shape[0]
-    lower, upper = np.empty((count, 2)), np.empty((count, 2))
-    for k in range(count):
-        if is_box[k]:
-            ex, ey = box_extents(theta1[k], half_widths[k, 0], half_widths[k, 1])
-            lower[k, 0], lower[k, 1] = x1[k, 0] - ex, x1[k, 1] - ey
-            upper[k, 0], upper[k, 1] = x1[k, 0] + ex, x1[k, 1] + ey
-        else:
-            for axis in range(2):
-                lower[k, axis] = min(x0[k, axis], x1[k, axis]) - radii[k]
-                upper[k, axis] = max(x0[k, axis], x1[k, axis]) + radii[k]
+    """Lower and upper corners of each body's collision box: a circle's swept over the step
+    (``broad_phase.swept_boxes``); a box's at x1 alone, ``x1 -+ |R(theta1)| h`` (as SCISim)."""
+    from qpbench.simulation.broad_phase import swept_boxes
+
+    lower, upper = swept_boxes(x0, x1, radii)
+    boxes = np.flatnonzero(is_box)
+    cos, sin = np.abs(np.cos(theta1[boxes])), np.abs(np.sin(theta1[boxes]))
+    hx, hy = half_widths[boxes, 0], half_widths[boxes, 1]
+    extents = np.column_stack([cos * hx + sin * hy, sin * hx + cos * hy])
+    lower[boxes], upper[boxes] = x1[boxes] - extents, x1[boxes] + extents
     return lower, upper
 
 
