@@ -254,9 +254,11 @@ ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
 
 
 def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses."""
+    """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses;
+    indices as 32-bit integers, as SciPy stores them (no copy then), for the kernel."""
     Q = Q if sp.isspmatrix_csc(Q) else sp.csc_matrix(Q)
-    return Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data
+    return (Q.indptr.astype(np.int32, copy=False), Q.indices.astype(np.int32, copy=False),
+            Q.data)
 
 
 class Settings(NamedTuple):

@@ -243,20 +243,26 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
     matrix only). Raises LinAlgError when a pivot is not positive."""
     for i in range(first_row, size):
         base_i = offsets[i]
-        first_i = i + 1 - (offsets[i + 1] - base_i)
+        end_i = offsets[i + 1]
+        first_i = i + 1 - (end_i - base_i)
+        row_i = values[base_i:end_i]  # views indexed from 0: the loops below vectorise
         for j in range(first_i, i):
             base_j = offsets[j]
-            first_j = j + 1 - (offsets[j + 1] - base_j)
-            total = values[base_i + j - first_i]
-            for k in range(max(first_i, first_j), j):
-                total -= values[base_i + k - first_i] * values[base_j + k - first_j]
-            values[base_i + j - first_i] = total / values[offsets[j + 1] - 1]
-        total = values[offsets[i + 1] - 1]
-        for k in range(base_i, offsets[i + 1] - 1):
-            total -= values[k] * values[k]
+            end_j = offsets[j + 1]
+            first_j = j + 1 - (end_j - base_j)
+            lo = max(first_i, first_j)
+            left = row_i[lo - first_i:j - first_i]
+            right = values[base_j + lo - first_j:end_j - 1]
+            total = row_i[j - first_i]
+            for k in range(j - lo):
+                total -= left[k] * right[k]
+            row_i[j - first_i] = total / values[end_j - 1]
+        total = row_i[i - first_i]
+        for k in range(i - first_i):
+            total -= row_i[k] * row_i[k]
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
-        values[offsets[i + 1] - 1] = np.sqrt(total)
+        row_i[i - first_i] = np.sqrt(total)
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
@@ -266,18 +272,24 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
     x = rhs.copy()
     for i in range(size):
         base = offsets[i]
-        first = i + 1 - (offsets[i + 1] - base)
+        end = offsets[i + 1]
+        first = i + 1 - (end - base)
+        row = values[base:end - 1]  # views indexed from 0: the loops vectorise
+        leading = x[first:i]
         total = x[i]
-        for k in range(first, i):
-            total -= values[base + k - first] * x[k]
-        x[i] = total / values[offsets[i + 1] - 1]
+        for k in range(i - first):
+            total -= row[k] * leading[k]
+        x[i] = total / values[end - 1]
     for i in range(size - 1, -1, -1):
         base = offsets[i]
-        first = i + 1 - (offsets[i + 1] - base)
-        x[i] /= values[offsets[i + 1] - 1]
+        end = offsets[i + 1]
+        first = i + 1 - (end - base)
+        x[i] /= values[end - 1]
         value = x[i]
-        for k in range(first, i):
-            x[k] -= values[base + k - first] * value
+        row = values[base:end - 1]
+        leading = x[first:i]
+        for k in range(i - first):
+            leading[k] -= row[k] * value
     return x
 
 
@@ -688,7 +700,9 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at once (path
     ``PATH_DECLINED``) and the caller's sparse path runs.
     ``certified``: converged, and qpbench's residual plus :func:`residual_rounding_bound` is
-    at most tol, so that no other summation order of ``Q l + b`` can put it above tol."""
+    at most tol, so that no other summation order of ``Q l + b`` can put it above tol.
+    ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed without a copy)."""
+    indptr, indices = indptr.astype(np.int64), indices.astype(np.int64)
     options = unpacked(packed_options)
     n = b.size
     scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
@@ -728,7 +742,7 @@ def warm_up() -> None:
     Q = np.array([[2.0, 1.0, -1.0], [1.0, 2.0, 1.0], [-1.0, 1.0, 2.0]])
     b = np.array([-4.0, -2.0, 2.0])
     diag = np.diag(Q).copy()
-    csc = (np.array([0, 3, 6, 9], dtype=np.int64), np.array([0, 1, 2] * 3, dtype=np.int64),
+    csc = (np.array([0, 3, 6, 9], dtype=np.int32), np.array([0, 1, 2] * 3, dtype=np.int32),
            Q.T.ravel().copy())
     options = options_of(accuracy.options_for("pi-robust", 1e-8))
     for order_above in (64, 0):  # both branches' types
