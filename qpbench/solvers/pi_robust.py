@@ -50,6 +50,7 @@ otherwise it reports failure and returns its best l.
 from __future__ import annotations
 
 import functools
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
@@ -61,7 +62,7 @@ from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output, start_of
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import NormalMatrix, interior_point, jacobi_scaled
 from qpbench.solvers.registry import register
 
@@ -251,6 +252,18 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
 
 
 ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
+NO_START = np.empty(0)  # the kernel's "start from zero"
+_kernel: ModuleType | None = None
+
+
+def _kernel_module() -> ModuleType:
+    """``pi_robust_envelope``, imported on first use (it loads numba)."""
+    global _kernel
+    if _kernel is None:
+        from qpbench.solvers import pi_robust_envelope
+
+        _kernel = pi_robust_envelope
+    return _kernel
 
 
 def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -293,12 +306,11 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     """The compiled path (``pi_robust_envelope``) straight from the posed problem: its answer
     when a rounding bound or qpbench's residual confirms it, else None (the caller then runs
     the Python path). One call into compiled code; in Python only what it needs."""
-    from qpbench.solvers import pi_robust_envelope as envelope
-
+    envelope = _kernel_module()
     csc = csc_arrays(problem.Q)
     b = np.asarray(problem.b, dtype=float)
     diag = np.asarray(problem.diag_Q, dtype=float)
-    start = start_of(warm_start, b.size)
+    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     try:
         impulses, converged, path, solves, interior, factorizations, certified = \
             envelope.envelope_pi_robust(*csc, b, diag, start, ORDERING_ABOVE,
@@ -316,7 +328,8 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
     if path == envelope.PATH_INTERIOR:
         info["interior_iterations"] = int(interior)
-    return output(impulses, True, "converged", int(solves), **info)
+    return SolverOutput(impulses=impulses, status="converged", claimed_success=True,
+                        iterations=int(solves), info=info)
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
@@ -337,9 +350,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 def prepare() -> None:
     """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
-    from qpbench.solvers.pi_robust_envelope import warm_up
-
-    warm_up()
+    _kernel_module().warm_up()
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

@@ -688,17 +688,30 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 
 
 @njit(cache=True)
+def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
+    """The start: ``max(warm_start, 0)`` when it has n entries, all finite, else zeros (as
+    ``qpbench.solvers.lcp.start_of``, in compiled code: no NumPy call overhead)."""
+    if warm_start.size != n:
+        return np.zeros(n)
+    for value in warm_start:
+        if not np.isfinite(value):
+            return np.zeros(n)
+    return np.maximum(warm_start, 0.0)
+
+
+@njit(cache=True)
 def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
-                       diag: np.ndarray, start: np.ndarray, order_above: int,
+                       diag: np.ndarray, warm_start: np.ndarray, order_above: int,
                        max_envelope_work: float, packed_options: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC
-    arrays, from ``start`` (l >= 0), with the options :func:`options_of` packs. Above
-    ``order_above`` contacts the contacts are first put in reverse Cuthill-McKee order (inside
-    the timed call), which keeps the envelope factors narrow. When one factorization of the
-    whole envelope would cost more than ``max_envelope_work`` multiply-adds
-    (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at once (path
-    ``PATH_DECLINED``) and the caller's sparse path runs.
+    arrays, from ``clean_start(warm_start)`` (an empty array: from zero), with the options
+    :func:`options_of` packs. A start that is already converged (and certified) is returned
+    before any set-up. Above ``order_above`` contacts the contacts are first put in reverse
+    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow.
+    When one factorization of the whole envelope would cost more than ``max_envelope_work``
+    multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at
+    once (path ``PATH_DECLINED``) and the caller's sparse path runs.
     ``certified``: converged, and qpbench's residual plus :func:`residual_rounding_bound` is
     at most tol, so that no other summation order of ``Q l + b`` can put it above tol.
     ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed without a copy)."""
@@ -706,9 +719,14 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     options = unpacked(packed_options)
     n = b.size
     scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
+    A_posed = (indptr, indices, data)
+    start = clean_start(warm_start, n)
+    if natural_residual(A_posed, b, diag, scale, start) \
+            + residual_rounding_bound(A_posed, b, scale, start) <= options.tol:
+        return start, True, PATH_START, 0, 0, 0, True
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.arange(n)
-    A = A_posed = (indptr, indices, data)
+    A = A_posed
     if n > order_above:
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
@@ -719,7 +737,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     for i in range(n):
         work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
     if work > max_envelope_work:
-        return start.copy(), False, PATH_DECLINED, 0, 0, 0, False
+        return start, False, PATH_DECLINED, 0, 0, 0, False
     lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b[order], diag[order],
                      safe_diag[order], scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
@@ -746,5 +764,5 @@ def warm_up() -> None:
            Q.T.ravel().copy())
     options = options_of(accuracy.options_for("pi-robust", 1e-8))
     for order_above in (64, 0):  # both branches' types
-        envelope_pi_robust(*csc, b, diag, np.zeros(3), order_above, 1e9, options)
+        envelope_pi_robust(*csc, b, diag, np.empty(0), order_above, 1e9, options)
     _warm = True
