@@ -131,6 +131,49 @@ def test_sequence_summary_and_markdown_judge_the_target(captured: list[ImpactPro
     assert text.startswith("## ") and ("does not hold" in text) != compared["target_met"]
 
 
+def test_the_resting_pile_scene_is_the_generated_pile() -> None:
+    """The committed pile of the default scenes is ``circle_pile(30, "ql")``, written as is."""
+    from qpbench.scenes.builders import scene_xml
+    from qpbench.simulation.scaling import circle_pile
+
+    committed = ROOT / "problems/scenes/piles/circle_pile_30.xml"
+    assert str(committed.relative_to(ROOT)) in sequence.DEFAULT_SCENES
+    assert committed.read_text(encoding="utf-8") == scene_xml(circle_pile(30, "ql"))
+
+
+def test_a_resting_pile_keeps_its_contacts_and_pi_robust_returns_a_converged_start(
+        tmp_path: Path) -> None:
+    """In a pile coming to rest its contacts persist (one may flicker while it settles), and
+    pi-robust hands back its own previous answer once that already meets the accuracy (no
+    linear solve)."""
+    paths = sequence.capture(ROOT / "problems/scenes/piles/circle_pile_30.xml", tmp_path, 8)
+    problems = sequence.load_sequence(paths)
+    assert len(problems) == 8
+    rows = sequence.replay(get("pi-robust"), problems, 1e-8, "pile")
+    persisting = sum(row["persisting"] for row in rows[1:])
+    assert persisting >= 0.95 * sum(row["contacts"] for row in rows[1:])
+    assert all(row["cold_success"] and row["sequence_success"] for row in rows)
+    assert rows[-1]["sequence_iterations"] == 0 < rows[-1]["cold_iterations"]
+
+
+def test_by_scene_compares_each_scene_on_its_own_rows(captured: list[ImpactProblem]) -> None:
+    specs = [get("pi-robust"), get("osqp/dual")]
+    first, second = captured[:6], captured[6:12]
+    rows = [row for spec in specs for scene, problems in (("a", first), ("b", second))
+            for row in sequence.replay(spec, problems, 1e-8, scene)]
+    per_scene = sequence.by_scene(rows)
+    assert [entry["scene"] for entry in per_scene] == ["a", "b"]
+    for entry in per_scene:
+        alone = sequence.comparison(sequence.summarize(
+            [row for row in rows if row["scene"] == entry["scene"]]))
+        assert entry["sequence"] == alone["sequence"]
+        assert entry["target_met"] == alone["target_met"]
+    text = sequence.markdown(sequence.summarize(rows), sequence.comparison(
+        sequence.summarize(rows)), [{"scene": "a", "steps": 6, "contacts_min": 1,
+                                     "contacts_max": 9}], 1e-8, per_scene)
+    assert "| `a` |" in text and "| `b` |" in text and "The 3x target holds on:" in text
+
+
 def test_sequence_command_replays_a_capture_folder(tmp_path: Path) -> None:
     folder = tmp_path / "capture"
     sequence.capture(SCENE, folder, 3)

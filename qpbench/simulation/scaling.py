@@ -126,9 +126,11 @@ def markdown(report: dict[str, Any]) -> str:
 PARTS = ("contacts_s", "assembly_s", "integration_s", "solve_s")
 
 
-def _pile_scene(name: str, dialect: str, bodies: Bodies, width: float) -> Scene:
-    """A container (floor and two walls) under gravity, inelastic ``lcp`` impacts."""
-    solver = SolverChoice("policy_iteration", SCISIM_TO_QPBENCH["policy_iteration"])
+def _pile_scene(name: str, dialect: str, bodies: Bodies, width: float,
+                solver_name: str = "policy_iteration") -> Scene:
+    """A container (floor and two walls) under gravity, inelastic ``lcp`` impacts solved by
+    the SCISim solver ``solver_name``."""
+    solver = SolverChoice(solver_name, SCISIM_TO_QPBENCH[solver_name])
     return Scene(
         path=f"{name}.xml", dialect=dialect, bodies=bodies, integrator="symplectic_euler",
         dt=BOX_DT, gravity=np.array([0.0, -PILE_GRAVITY]),
@@ -139,10 +141,11 @@ def _pile_scene(name: str, dialect: str, bodies: Bodies, width: float) -> Scene:
     )
 
 
-def circle_pile(n_bodies: int) -> Scene:
+def circle_pile(n_bodies: int, solver_name: str = "policy_iteration") -> Scene:
     """``n_bodies`` balls of radius 1/2 in a hexagonal packing resting on the floor of a
     container about twice as wide as the pile is high; every ball presses on its neighbours
-    (centre distance ``PILE_SPACING``), moving down at ``PILE_SPEED``."""
+    (centre distance ``PILE_SPACING``), moving down at ``PILE_SPEED``; impacts solved by the
+    SCISim solver ``solver_name``."""
     if n_bodies < 1:
         raise ValueError("a pile needs at least one body")
     columns = math.ceil(math.sqrt(2.0 * n_bodies))
@@ -155,7 +158,7 @@ def circle_pile(n_bodies: int) -> Scene:
                     velocities=np.tile([0.0, -PILE_SPEED], (n_bodies, 1)),
                     masses=np.ones(n_bodies), radii=np.full(n_bodies, BOX_RADIUS),
                     fixed=np.zeros(n_bodies, dtype=bool))
-    return _pile_scene(f"circle_pile_{n_bodies}", "ball2d", bodies, width)
+    return _pile_scene(f"circle_pile_{n_bodies}", "ball2d", bodies, width, solver_name)
 
 
 def box_pile(n_bodies: int) -> Scene:
