@@ -13,7 +13,7 @@ from qpbench.bench import breakdown, sequence
 from qpbench.bench.runner import fingerprint
 from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
-from qpbench.problem import metrics
+from qpbench.problem import files, metrics
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene
@@ -172,6 +172,33 @@ def test_by_scene_compares_each_scene_on_its_own_rows(captured: list[ImpactProbl
         sequence.summarize(rows)), [{"scene": "a", "steps": 6, "contacts_min": 1,
                                      "contacts_max": 9}], 1e-8, per_scene)
     assert "| `a` |" in text and "| `b` |" in text and "The 3x target holds on:" in text
+
+
+def test_a_pair_past_the_scene_budget_stops_and_is_left_out(
+        captured: list[ImpactProblem], tmp_path: Path) -> None:
+    """A pair whose solves on one scene take longer than the budget stops there and drops out
+    of every summary; the others are compared on all their steps."""
+    import time
+
+    def slow(problem: ImpactProblem, accuracy: float,
+             warm_start: np.ndarray | None = None) -> SolverOutput:
+        time.sleep(0.01)
+        return SolverOutput(impulses=np.zeros(problem.n_contacts), status="slow",
+                            claimed_success=False)
+
+    slow_spec = SolverSpec(name="test-slow", formulation="lcp", backend="qpbench-tests",
+                           solve=slow, version="0", warm_start=True)
+    assert len(sequence.replay(slow_spec, captured[:6], 1e-8, "box", budget_s=0.03)) < 6
+    folder = tmp_path / "capture"
+    folder.mkdir()
+    for problem in captured[:6]:
+        files.save(problem, folder / f"{problem.name}{files.SUFFIX}")
+    report = sequence.sequence([str(folder)], [get("pi-robust"), slow_spec], steps=6,
+                               budget_s=0.03)
+    assert list(report["stopped"]) == ["test-slow/lcp"]
+    assert {row["solver"] for row in report["rows"]} == {"pi-robust/lcp"}
+    assert len(report["rows"]) == 6
+    assert "Stopped after 0.03 s" in report["markdown"] and "test-slow/lcp" in report["markdown"]
 
 
 def test_sequence_command_replays_a_capture_folder(tmp_path: Path) -> None:

@@ -20,7 +20,9 @@ its sequence times are cold times measured again.
 
 Summaries charge a failed solve with the largest time of any solve of the measurement (the
 report's rule: failing quickly never looks fast) and use the report's shifted geometric mean
-(``qpbench.bench.stats``).
+(``qpbench.bench.stats``). A pair whose solves on one scene add up to more than
+``SCENE_BUDGET_S`` stops there and is left out of every summary (named in the report), so
+that all pairs compared solved the same steps.
 """
 
 from __future__ import annotations
@@ -59,6 +61,10 @@ COLD_PAIRS = 4  # the fastest pairs without warm starts of the main table, shown
 KEYS = "contact_keys"
 # time steps simulated per requested impact step at most (scenes with quiet stretches)
 STEP_BUDGET = 40
+# a pair's time_s on one scene (cold and sequence solves) past which it stops there: far
+# beyond the fastest pairs (well under a second), it keeps solvers that take seconds per
+# solve on degenerate piles (cvxpy with IPOPT) from taking the benchmark's time
+SCENE_BUDGET_S = 30.0
 
 
 # --- the sequence ---------------------------------------------------------------------------
@@ -121,20 +127,26 @@ def _figures(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float = ACCURACY,
-           scene: str = "") -> list[dict[str, Any]]:
+           scene: str = "", budget_s: float = math.inf) -> list[dict[str, Any]]:
     """One row per step: the cold solve and the sequence solve of ``spec`` (module
-    docstring)."""
+    docstring); it stops early, with fewer rows than problems, once its ``time_s`` on this
+    scene add up to more than ``budget_s``."""
     rows = []
     previous: ImpactProblem | None = None
     previous_answer: np.ndarray | None = None
+    spent = 0.0
     for index, problem in enumerate(problems):
-        cold = judge(spec, problem, call_solver(spec, problem, accuracy), accuracy)
+        if spent > budget_s:
+            break
+        cold_output = call_solver(spec, problem, accuracy)
+        cold = judge(spec, problem, cold_output, accuracy)
         warm, persisting = None, 0
         if previous is not None and previous_answer is not None:
             warm, persisting = carried(previous.data[KEYS], previous_answer, problem.data[KEYS])
             if not persisting:
                 warm = None
         output = call_solver(spec, problem, accuracy, warm)
+        spent += cold_output.time_s + output.time_s
         sequence = judge(spec, problem, output, accuracy)
         answer = output.impulses
         finite = answer is not None and answer.shape == (problem.n_contacts,) \
@@ -232,7 +244,8 @@ def _own_backend(solver: str, own_backend: str) -> bool:
 
 def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              scenes: Sequence[dict[str, Any]], accuracy: float,
-             per_scene: Sequence[dict[str, Any]] = ()) -> str:
+             per_scene: Sequence[dict[str, Any]] = (), stopped: dict[str, str] | None = None,
+             budget_s: float = SCENE_BUDGET_S) -> str:
     lines = [
         "## Sequence mode: warm starts from each solver's own previous answer\n",
         "Each captured scene is replayed in order; every solver solves each step cold and "
@@ -257,6 +270,10 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
             f"{1e3 * entry['sequence_sgm_s']:.3f} | {100 * entry['sequence_success_rate']:.0f}% | "
             f"{entry['cold_sgm_s'] / entry['sequence_sgm_s']:.2f}x |")
     lines.append("")
+    if stopped:
+        lines.append(f"Stopped after {budget_s:g} s of solves on one scene, and left out of "
+                     "the summaries: " + "; ".join(f"`{key}` ({where})"
+                                                   for key, where in stopped.items()) + ".\n")
     for mode in ("cold", "sequence"):
         figures = compared.get(mode)
         if figures:
@@ -339,11 +356,14 @@ def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
 
 def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DEFAULT_STEPS,
              accuracy: float = ACCURACY,
-             progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+             progress: Callable[[str], None] | None = None,
+             budget_s: float = SCENE_BUDGET_S) -> dict[str, Any]:
     """The JSON object of ``qpbench sequence``: per-step rows, per-solver summary, the
     comparison with the target and a ``markdown`` section. A scene argument that is a folder
-    is read as an existing capture."""
+    is read as an existing capture. A pair whose solves on one scene take more than
+    ``budget_s`` stops (``stopped``: where) and is left out of every summary."""
     rows: list[dict[str, Any]] = []
+    stopped: dict[str, str] = {}
     described = []
     with tempfile.TemporaryDirectory(prefix="qpbench-sequence-") as scratch:
         for number, scene in enumerate(scenes):
@@ -361,13 +381,21 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DE
                               "contacts_min": min(counts), "contacts_max": max(counts),
                               "persisting_share": float(np.mean(shared)) if shared else 0.0})
             for spec in specs:
+                if spec.key in stopped:
+                    continue
                 if progress is not None:
                     progress(f"{scene}: {spec.key}")
-                rows.extend(replay(spec, problems, accuracy, str(scene)))
+                replayed = replay(spec, problems, accuracy, str(scene), budget_s)
+                if len(replayed) < len(problems):
+                    stopped[spec.key] = f"{scene}: {len(replayed)} of {len(problems)} steps"
+                rows.extend(replayed)
+    rows = [row for row in rows if row["solver"] not in stopped]  # like with like
     summary = summarize(rows)
     compared = comparison(summary)
     per_scene = by_scene(rows)
     return {"title": "Sequence mode", "accuracy": accuracy, "steps": steps,
             "scenes": described, "summary": summary, "comparison": compared,
             "by_scene": per_scene, "target_met": compared["target_met"], "rows": rows,
-            "markdown": markdown(summary, compared, described, accuracy, per_scene)}
+            "stopped": stopped, "budget_s": budget_s,
+            "markdown": markdown(summary, compared, described, accuracy, per_scene, stopped,
+                                 budget_s)}
