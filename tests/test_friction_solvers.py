@@ -144,6 +144,39 @@ def test_the_box_gauss_seidel_reaches_the_box_qp_optimum() -> None:
     np.testing.assert_allclose(answer.x, [1.0, -0.5, -1.0], atol=1e-11)
 
 
+def test_a_fixed_coordinate_stays_at_its_bound_and_the_rest_solve_the_restricted_box() -> None:
+    """lower == upper fixes a coordinate (an empty friction box): the compiled sweeps leave
+    it there, and the others reach the optimum of the box QP restricted to them, which is
+    also what a backend gets through on_free_coordinates."""
+    from qpbench.solvers.friction_staggered import (
+        BoxAnswer,
+        BoxQP,
+        box_gauss_seidel,
+        box_residual,
+        on_free_coordinates,
+    )
+
+    P = np.array([[2.0, 1.0, 0.0], [1.0, 2.0, 1.0], [0.0, 1.0, 2.0]])
+    box = BoxQP(P=sp.csc_matrix(P), c=np.array([-4.0, 1.0, 3.0]),
+                lower=np.array([-1.0, 0.0, -1.0]), upper=np.array([1.0, 0.0, 1.0]))
+    answer = box_gauss_seidel(box, 1e-12, 10_000, 5, np.full(3, 0.5))
+    assert answer.claimed_success and box_residual(box, answer.x) <= 1e-12
+    assert answer.x[1] == 0.0
+    # x_1 = 0 decouples x_0 (g_0 = 2 x_0 - 4 < 0 on [-1, 1]: upper) and x_2 (g_2 = 2 x_2 + 3 > 0:
+    # lower)
+    np.testing.assert_allclose(answer.x, [1.0, 0.0, -1.0], atol=1e-12)
+    seen: list[BoxQP] = []
+
+    def recording(restricted: BoxQP, eps: float, scale: float,
+                  start: np.ndarray) -> BoxAnswer:
+        seen.append(restricted)
+        return box_gauss_seidel(restricted, 1e-12, 10_000, 5, start)
+
+    through = on_free_coordinates(recording)(box, 1e-12, 1.0, np.zeros(3))
+    assert seen[0].n == 2 and np.array_equal(seen[0].P.toarray(), P[np.ix_([0, 2], [0, 2])])
+    np.testing.assert_allclose(through.x, answer.x, atol=1e-12)
+
+
 # --- Anitescu's relaxation ------------------------------------------------------------------
 CCP = ["pi-robust/ccp", "clarabel/ccp", "osqp/ccp", "lemke/ccp", "pgs/ccp"]
 

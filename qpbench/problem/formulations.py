@@ -148,9 +148,13 @@ FRICTIONAL_FORMULATIONS = ("staggered", "lcp", "nsgs", "ccp")
 
 
 def _pose_frictional(problem: FrictionalProblem, formulation: str) -> None:
-    """``W``, ``q`` and ``diag(W_NN)`` for ``staggered`` and ``nsgs``; the relaxed impact
-    problem with its ``Q``, ``b`` for ``ccp``; the Stewart-Trinkle LCP for ``lcp``."""
-    if formulation in ("staggered", "nsgs"):
+    """``W``, ``q`` and ``diag(W_NN)`` for ``staggered`` and ``nsgs``, and for ``staggered``
+    W's blocks ``W_NT``, ``W_TT`` and ``W_TN`` of its two QPs; the relaxed impact problem with its
+    ``Q``, ``b`` for ``ccp``; the Stewart-Trinkle LCP for ``lcp``."""
+    if formulation == "staggered":
+        _ = (problem.W, problem.q, problem.diag_N, problem.scale, problem.W_NT, problem.W_TT,
+             problem.W_TN)
+    elif formulation == "nsgs":
         _ = problem.W, problem.q, problem.diag_N, problem.scale
     elif formulation == "ccp":
         relaxed = problem.relaxed()

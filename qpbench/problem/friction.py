@@ -187,6 +187,24 @@ class FrictionalProblem:
         return W
 
     @cached_property
+    def W_TT(self) -> sp.csc_matrix:
+        """W_TT = T^T M^-1 T, the tangential block of W (n x n): the friction QP's matrix."""
+        n = self.n_contacts
+        return sp.csc_matrix(sp.csr_matrix(self.W)[n:, n:])
+
+    @cached_property
+    def W_NT(self) -> sp.csr_matrix:
+        """W_NT = G^T M^-1 T, the block of W that couples l_T into the normal QP (n x n)."""
+        n = self.n_contacts
+        return sp.csr_matrix(self.W)[:n, n:]
+
+    @cached_property
+    def W_TN(self) -> sp.csr_matrix:
+        """W_TN = T^T M^-1 G, the block of W that couples l_N into the friction QP (n x n)."""
+        n = self.n_contacts
+        return sp.csr_matrix(self.W)[n:, :n]
+
+    @cached_property
     def q(self) -> np.ndarray:
         """q = ((1 + e)(G^T v- + n_rel), T^T v- + d_rel)."""
         return np.concatenate([self.normal.b, self.T.T @ self.v_minus + self.d_rel])
@@ -252,13 +270,16 @@ class FrictionalProblem:
 
     def normal_given(self, tangential: np.ndarray) -> ImpactProblem:
         """The normal QP of staggered projections for a fixed l_T: the impact problem with
-        ``b + W_NT l_T``, written as ``n_rel + (G^T M^-1 T l_T) / (1 + e)``."""
-        shift = self.normal.G.T @ (self.m_inv * (self.T @ tangential))
+        ``b + W_NT l_T``, written as ``n_rel + (G^T M^-1 T l_T) / (1 + e)``; its ``b`` is
+        formed as ``q_N + W_NT l_T`` (``W_NT = G^T M^-1 T``, a block of W)."""
+        shift = self.W_NT @ tangential
         normal = self.normal
-        return ImpactProblem(name=normal.name, G=normal.G, m_inv=normal.m_inv,
-                             v_minus=normal.v_minus, restitution=normal.restitution,
-                             n_rel=normal.n_rel + shift / (1.0 + normal.restitution),
-                             dofs_per_body=normal.dofs_per_body)
+        sub = ImpactProblem(name=normal.name, G=normal.G, m_inv=normal.m_inv,
+                            v_minus=normal.v_minus, restitution=normal.restitution,
+                            n_rel=normal.n_rel + shift / (1.0 + normal.restitution),
+                            dofs_per_body=normal.dofs_per_body)
+        sub.__dict__["b"] = self.q[:self.n_contacts] + shift  # the cached property, set
+        return sub
 
     def friction_box(self, normal_impulses: np.ndarray
                      ) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray, np.ndarray]:
@@ -266,11 +287,9 @@ class FrictionalProblem:
         ``min 1/2 l_T^T W_TT l_T + (q_T + W_TN l_N)^T l_T,  -mu l_N <= l_T <= mu l_N``, as
         (W_TT, linear term, lower, upper)."""
         n = self.n_contacts
-        W = sp.csr_matrix(self.W)
-        W_TT = sp.csc_matrix(W[n:, n:])
-        linear = self.q[n:] + W[n:, :n] @ normal_impulses
+        linear = self.q[n:] + self.W_TN @ normal_impulses
         bound = self.mu * np.maximum(normal_impulses, 0.0)
-        return W_TT, np.asarray(linear, dtype=float), -bound, bound
+        return self.W_TT, np.asarray(linear, dtype=float), -bound, bound
 
     def stewart_trinkle(self) -> tuple[np.ndarray, np.ndarray]:
         """The exact 2D problem as one LCP (Stewart-Trinkle), ``z = (l_N, b+, b-, s) >= 0``,

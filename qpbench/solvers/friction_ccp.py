@@ -80,14 +80,15 @@ def derived(spec: SolverSpec, formulation: str,
             build: Callable[[SolverSpec], tuple[Callable[..., SolverOutput], str]],
             **fields: Any) -> SolverSpec:
     """The frictional twin ``NAME/formulation`` of a frictionless solver ``spec``, whose solve
-    function and description ``build(spec)`` gives; unusable with spec's reason if spec is."""
+    function and description ``build(spec)`` gives; unusable with spec's reason if spec is.
+    Its set-up is spec's unless ``fields`` name a ``prepare`` of its own."""
     common = {"name": spec.name, "formulation": formulation, "backend": spec.backend,
               "version": spec.version, "kinds": ("frictional",)}
     if not spec.usable:
         return SolverSpec(**common, solve=None, reason=spec.reason)
     solve, description = build(spec)
-    return SolverSpec(**common, solve=solve, prepare=spec.prepare, description=description,
-                      **fields)
+    fields.setdefault("prepare", spec.prepare)
+    return SolverSpec(**common, solve=solve, description=description, **fields)
 
 
 def twin(spec: SolverSpec) -> SolverSpec:

@@ -11,9 +11,11 @@ multibody systems", SIGGRAPH Asia 2008; the loop follows SCISim's ``StaggeredPro
    ``min 1/2 l_T^T W_TT l_T + (q_T + W_TN l_N)^T l_T`` over ``-mu l_N <= l_T <= mu l_N``,
    solved by X's backend with bounds (qpsolvers ``lb``/``ub``, cvxpy box constraints, IPOPT
    variable bounds); for the LCP solvers written here, which take no bounds, by projected
-   Gauss-Seidel on the box (:func:`box_gauss_seidel`). Contacts with an empty box
-   (``l_N = 0`` or ``mu = 0``) keep ``l_T = 0`` and are not handed to the backend. The answer
-   is clipped into the box (IPOPT relaxes bounds slightly);
+   Gauss-Seidel on the box (:func:`box_gauss_seidel`, compiled: it skips the coordinates of
+   contacts with an empty box, ``l_N = 0`` or ``mu = 0``, which keep ``l_T = 0``). A backend
+   gets the box QP restricted to the other contacts (:func:`on_free_coordinates`, its
+   conversion inside its time). The answer is clipped into the box (IPOPT relaxes bounds
+   slightly). W's blocks are the formulation's matrices, built before the clock;
 3. qpbench's Coulomb residual (``friction_metrics.residual``) of ``(l_N, l_T)``; stop at
    ``<= eps``, or after ``max_outer`` rounds (the accuracy table's ``staggered`` row).
 
@@ -53,7 +55,8 @@ ROW = "staggered"  # the accuracy row of the outer loop and of the box Gauss-Sei
 
 @dataclass
 class BoxQP:
-    """``min 1/2 x^T P x + c^T x`` over ``lower <= x <= upper`` (every box non-empty)."""
+    """``min 1/2 x^T P x + c^T x`` over ``lower <= x <= upper`` (P symmetric PSD); a coordinate
+    with ``lower == upper`` (an empty friction box: l_N = 0 or mu = 0) is fixed there."""
 
     P: sp.csc_matrix
     c: np.ndarray
@@ -93,33 +96,31 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
                      start: np.ndarray) -> BoxAnswer:
     """Coordinate descent with clamping, ``x_i <- clip(x_i - g_i / P_ii, lower_i, upper_i)``,
     colour by colour on the graph of P (as ``qpbench.solvers.pgs``), until the box residual
-    (:func:`box_residual`) is at most ``tolerance`` (checked every ``check_every`` sweeps). A
-    coordinate with ``P_ii = 0`` has a zero row (P is PSD) and a constant gradient c_i: it goes
-    to the bound that gradient points to, once."""
-    P = sp.csr_matrix(box.P)
+    (:func:`box_residual`) is at most ``tolerance`` (checked every ``check_every`` sweeps); the
+    sweeps run compiled (``qpbench.solvers.box_sweeps``). A coordinate with ``P_ii = 0`` has a
+    zero row (P is PSD) and a constant gradient c_i: it goes to the bound that gradient points
+    to, once."""
+    from qpbench.solvers import box_sweeps
+
+    P = box.P if sp.isspmatrix_csc(box.P) else sp.csc_matrix(box.P)
+    P.sort_indices()  # P is symmetric: its CSC arrays are its CSR arrays, rows in order
     x = np.clip(start, box.lower, box.upper)
     d = P.diagonal()
-    flat = d <= 0.0
+    fixed = box.upper <= box.lower
+    flat = (d <= 0.0) & ~fixed
     x[flat] = np.where(box.c[flat] > 0.0, box.lower[flat],
                        np.where(box.c[flat] < 0.0, box.upper[flat], x[flat]))
-    colour = greedy_colours(P)
-    classes = []
-    for c in range(int(colour.max(initial=-1)) + 1):
-        index = np.flatnonzero((colour == c) & ~flat)
-        if index.size:
-            classes.append((index, P[index], box.c[index], d[index], box.lower[index],
-                            box.upper[index]))
-    if box_residual(box, x) <= tolerance:
+    movable = np.flatnonzero(~flat & ~fixed)
+    order = movable[np.argsort(greedy_colours(P)[movable], kind="stable")]  # class by class
+    arrays = (P.indptr, P.indices, P.data, np.ascontiguousarray(box.c, dtype=float),
+              np.ascontiguousarray(box.lower, dtype=float),
+              np.ascontiguousarray(box.upper, dtype=float))
+    if box_sweeps.box_residual(*arrays, x) <= tolerance:
         return BoxAnswer(x, "converged", True, 0)
-    sweeps = 0
-    while sweeps < max_sweeps:
-        for _ in range(min(check_every, max_sweeps - sweeps)):
-            for index, rows, linear, diag, lower, upper in classes:
-                gradient = rows @ x + linear
-                x[index] = np.clip(x[index] - gradient / diag, lower, upper)
-            sweeps += 1
-        if box_residual(box, x) <= tolerance:
-            return BoxAnswer(x, "converged", True, sweeps)
+    sweeps, converged = box_sweeps.box_sweeps(*arrays, d, order, x, tolerance, max_sweeps,
+                                              check_every)
+    if converged:
+        return BoxAnswer(x, "converged", True, sweeps)
     return BoxAnswer(x, f"max_sweeps ({max_sweeps}) reached", False, sweeps)
 
 
@@ -130,6 +131,30 @@ def _own_box_solver(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> 
 
 
 # --- the box QP through the backends --------------------------------------------------------
+def on_free_coordinates(solve: BoxSolver) -> BoxSolver:
+    """``solve`` on the coordinates whose box is not empty (``lower < upper``), the others
+    fixed at their bound: the backends get no degenerate bounds."""
+
+    def restricted(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
+        free = box.upper > box.lower
+        if free.all():
+            return solve(box, eps, scale, start)
+        x = box.lower.copy()
+        if not free.any():
+            return BoxAnswer(x, "empty boxes", True, 0)
+        index, others = np.flatnonzero(free), np.flatnonzero(~free)
+        rows = sp.csr_matrix(box.P)[index]
+        linear = box.c[index] + rows[:, others] @ x[others]
+        answer = solve(BoxQP(P=sp.csc_matrix(rows[:, index]), c=linear, lower=box.lower[index],
+                             upper=box.upper[index]), eps, scale, start[index])
+        if answer.x is None:
+            return answer
+        x[index] = answer.x
+        return BoxAnswer(x, answer.status, answer.claimed_success, answer.iterations)
+
+    return restricted
+
+
 def _qpsolvers_box_solver(name: str) -> BoxSolver:
     from qpbench.solvers import qpsolvers_
 
@@ -216,11 +241,12 @@ def box_solver_for(spec: SolverSpec) -> tuple[BoxSolver, str]:
     """The friction box QP solver that goes with the frictionless solver ``spec``, and how the
     description names it."""
     if spec.backend == "qpsolvers":
-        return _qpsolvers_box_solver(spec.name), f"{spec.name} with lb/ub"
+        return on_free_coordinates(_qpsolvers_box_solver(spec.name)), f"{spec.name} with lb/ub"
     if spec.backend == "cvxpy":
-        return _cvxpy_box_solver(spec.name), f"{spec.name} with box constraints"
+        return (on_free_coordinates(_cvxpy_box_solver(spec.name)),
+                f"{spec.name} with box constraints")
     if spec.backend == "cyipopt":
-        return _ipopt_box_solver(spec.name), "ipopt with variable bounds"
+        return on_free_coordinates(_ipopt_box_solver(spec.name)), "ipopt with variable bounds"
     return _own_box_solver, "projected Gauss-Seidel on the box (written here)"
 
 
@@ -260,19 +286,16 @@ class Inner:
 
     def friction(self, normal: np.ndarray, start: np.ndarray) -> tuple[np.ndarray | None, str]:
         W_TT, linear, lower, upper = self.problem.friction_box(normal)
-        tangential = np.zeros(self.problem.n_contacts)
-        free = np.flatnonzero(upper > lower)
-        if free.size == 0:
-            return tangential, "empty boxes"
-        box = BoxQP(P=sp.csc_matrix(W_TT[free][:, free]), c=linear[free], lower=lower[free],
-                    upper=upper[free])
+        if not np.any(upper > lower):
+            return np.zeros(self.problem.n_contacts), "empty boxes"
+        box = BoxQP(P=W_TT, c=linear, lower=lower, upper=upper)
         answer = self.box_solver(box, self.eps, self.problem.scale,
-                                 np.clip(start[free], box.lower, box.upper))
+                                 np.clip(start, lower, upper))
         self._count(answer.iterations)
-        if answer.x is None or not np.all(np.isfinite(answer.x)):
+        if answer.x is None or np.shape(answer.x) != (box.n,) or \
+                not np.all(np.isfinite(answer.x)):
             return None, answer.status
-        tangential[free] = np.clip(answer.x, box.lower, box.upper)
-        return tangential, answer.status
+        return np.clip(answer.x, lower, upper), answer.status
 
 
 def _share_matrices(sub: ImpactProblem, normal: ImpactProblem) -> None:
@@ -365,7 +388,16 @@ def twin(spec: SolverSpec) -> SolverSpec:
         return make_solve(inner, box_solver), (f"staggered projections: normal QP by "
                                                f"{inner.key}, friction box QP by {box_name}")
 
-    return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True)
+    def prepare() -> None:  # the inner solver's set-up, and the compiled box sweeps
+        from qpbench.solvers import box_sweeps
+
+        if spec.prepare is not None:
+            spec.prepare()
+        if box_solver_for(spec)[0] is _own_box_solver:
+            box_sweeps.warm_up()
+
+    return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True,
+                   prepare=prepare)
 
 
 for _spec in frictionless_solvers():
