@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from qpbench.errors import QpbenchError
-from qpbench.problem.generate import FAMILIES, generate
+from qpbench.problem.generate import FAMILIES, generate, libm
 
 
 @pytest.mark.parametrize("family", sorted(FAMILIES))
@@ -60,3 +62,14 @@ def test_box_has_wall_contacts() -> None:
 def test_unknown_family_is_a_clear_error() -> None:
     with pytest.raises(QpbenchError, match="unknown family 'k5'"):
         generate("k5")
+
+
+def test_libm_applies_the_c_librarys_function_to_each_value_and_keeps_the_shape() -> None:
+    """Generators take sin, cos, tan, atan and powers from ``math`` (the C library), so that a
+    problem's numbers do not depend on which vector code NumPy picks for this CPU."""
+    values = np.array([[0.1, 0.7, 1.3], [-2.0, 5.5, 1e-9]])
+    result = libm(math.atan, values)
+    assert result.shape == values.shape
+    assert [float(x) for x in result.ravel()] == [math.atan(float(x)) for x in values.ravel()]
+    assert libm(lambda exponent: 10.0 ** exponent, 3.0).shape == ()
+    assert float(libm(lambda exponent: 10.0 ** exponent, 3.0)) == 1000.0

@@ -32,6 +32,7 @@ Families (name: default size, what size counts):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.problem.generate import Layout, ball_pairs, family_entry
+from qpbench.problem.generate import Layout, ball_pairs, family_entry, libm
 from qpbench.problem.generate import generate as generate_frictionless
 from qpbench.problem.jacobian import contact_jacobian
 
@@ -116,18 +117,18 @@ def _resting(balls: int) -> np.ndarray:
 
 def incline(size: int, rng: np.random.Generator, seed: int) -> Draft:
     theta = 0.3 if seed == 0 else float(rng.uniform(0.1, 0.6))
-    normal = np.array([-np.sin(theta), np.cos(theta)])
-    along = np.array([np.cos(theta), np.sin(theta)])
+    normal = np.array([-math.sin(theta), math.cos(theta)])
+    along = np.array([math.cos(theta), math.sin(theta)])
     positions = np.array([3.0 * i * along + normal for i in range(size)])
     sticks = [(seed + i) % 2 == 0 for i in range(size)]
     margin = rng.uniform(0.1, 0.4, size) if seed else np.full(size, 0.25)
     # ball i sticks iff theta <= atan(mu_i): mu on the far side of tan(theta) for each
-    mu = np.where(sticks, np.tan(theta) / (1.0 - margin), np.tan(theta) * (1.0 - margin))
+    mu = np.where(sticks, math.tan(theta) / (1.0 - margin), math.tan(theta) * (1.0 - margin))
     layout = Layout(positions, _resting(size), np.ones(size), np.ones(size),
                     np.zeros((1, 2)), normal[None, :], restitution=0.0)
     draft = balls_draft(layout, 0.0)
     draft.mu = mu
-    draft.metadata = {"theta": theta, "friction_angles": np.arctan(mu).tolist(),
+    draft.metadata = {"theta": theta, "friction_angles": libm(math.atan, mu).tolist(),
                       "sticks": sticks}
     return draft
 
@@ -176,26 +177,27 @@ def wedge(size: int, rng: np.random.Generator, seed: int) -> Draft:
     mu = 0.8 if seed == 0 else rng.uniform(0.5, 1.0, size)
     mu = np.broadcast_to(mu, (size,))
     # face normals phi above horizontal, phi below the friction angle: jammed
-    phi = np.arctan(mu) * (0.5 if seed == 0 else rng.uniform(0.3, 0.8, size))
+    phi = libm(math.atan, mu) * (0.5 if seed == 0 else rng.uniform(0.3, 0.8, size))
     restitution = 0.5 if seed == 0 else float(rng.uniform(0.3, 0.9))
     down = np.ones(size) if seed == 0 else rng.uniform(0.5, 2.0, size)
     # sideways less than the faces' slope allows, so that both faces are approached
-    sideways = np.zeros(size) if seed == 0 else rng.uniform(-0.5, 0.5, size) * np.tan(phi)
+    sideways = np.zeros(size) if seed == 0 else rng.uniform(-0.5, 0.5, size) * libm(math.tan,
+                                                                                    phi)
     velocities = np.column_stack([sideways * down, -down])
     extra = []
     for i in range(size):
-        extra.append((i, -1, np.array([np.cos(phi[i]), np.sin(phi[i])])))
-        extra.append((i, -1, np.array([-np.cos(phi[i]), np.sin(phi[i])])))
+        extra.append((i, -1, np.array([math.cos(phi[i]), math.sin(phi[i])])))
+        extra.append((i, -1, np.array([-math.cos(phi[i]), math.sin(phi[i])])))
     layout = Layout(positions, velocities, np.ones(size), np.ones(size), restitution=restitution)
     draft = balls_draft(layout, np.repeat(mu, 2), extra)
-    draft.metadata = {"face_angles": phi.tolist(), "friction_angles": np.arctan(mu).tolist()}
+    draft.metadata = {"face_angles": phi.tolist(), "friction_angles": libm(math.atan, mu).tolist()}
     return draft
 
 
 def friction_mass_ratio(size: int, rng: np.random.Generator, seed: int) -> Draft:
     positions = np.column_stack([2.0 * np.arange(size), np.ones(size)])
     velocities = np.column_stack([rng.uniform(-1.0, 1.0, size), -rng.uniform(0.5, 1.0, size)])
-    masses = 10.0 ** rng.uniform(-3.0, 3.0, size)
+    masses = libm(lambda exponent: 10.0 ** exponent, rng.uniform(-3.0, 3.0, size))
     layout = Layout(positions, velocities, np.ones(size), masses, np.zeros((1, 2)),
                     np.array([[0.0, 1.0]]), restitution=0.0)
     return balls_draft(layout, rng.uniform(0.2, 0.8))

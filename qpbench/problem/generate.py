@@ -10,6 +10,7 @@ within ``touch_tolerance``) and approach each other or rest against each other
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -89,8 +90,17 @@ def assemble(name: str, family: str, layout: Layout, metadata: dict | None = Non
                                source="generated", metadata=metadata or {})
 
 
+def libm(function: Callable[[float], float], values: np.ndarray | float) -> np.ndarray:
+    """``function`` (from ``math``: the C library's) of each value. NumPy's vectorised sin, cos,
+    tan, arctan and power run CPU-specific code (AVX-512 SVML where there is AVX-512) whose
+    last bits differ from the C library's, which would make a generated problem's numbers, and
+    so the committed results' fingerprints, depend on the machine."""
+    return np.array([function(float(value)) for value in np.ravel(values)]).reshape(
+        np.shape(values))
+
+
 def _rotate(points: np.ndarray, angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
+    c, s = math.cos(angle), math.sin(angle)
     return points @ np.array([[c, s], [-s, c]])
 
 
@@ -176,7 +186,8 @@ def mass_ratio(size: int, rng: np.random.Generator | None) -> Layout:
     """A perturbed grid whose masses are log-uniform over 1e-6 .. 1e6."""
     rng = rng or np.random.default_rng(0)
     layout = grid(size, rng)
-    layout.masses = 10.0 ** rng.uniform(-6.0, 6.0, size=len(layout.masses))
+    layout.masses = libm(lambda exponent: 10.0 ** exponent,
+                         rng.uniform(-6.0, 6.0, size=len(layout.masses)))
     return layout
 
 
