@@ -91,16 +91,11 @@ class Lcp:
 
     def start(self, warm_start: np.ndarray | None) -> np.ndarray:
         """The warm start clipped to l >= 0 when it has the right size and is finite, else 0."""
-        return start_of(warm_start, self.n)
-
-
-def start_of(warm_start: np.ndarray | None, n: int) -> np.ndarray:
-    """The warm start clipped to l >= 0 when it has n finite entries, else 0."""
-    if warm_start is not None:
-        warm = np.asarray(warm_start, dtype=float).ravel()
-        if warm.shape == (n,) and np.all(np.isfinite(warm)):
-            return np.maximum(warm, 0.0)
-    return np.zeros(n)
+        if warm_start is not None:
+            warm = np.asarray(warm_start, dtype=float).ravel()
+            if warm.shape == (self.n,) and np.all(np.isfinite(warm)):
+                return np.maximum(warm, 0.0)
+        return np.zeros(self.n)
 
 
 def output(impulses: np.ndarray | None, converged: bool, status: str, iterations: int,

@@ -288,12 +288,10 @@ class Settings(NamedTuple):
 def settings_for(eps: float) -> Settings:
     """The accuracy table's row for level ``eps``, read once per level (tolerances here are
     relative to the problem's scale, so they do not depend on it)."""
-    from qpbench.solvers import pi_robust_envelope as envelope
-
     options = accuracy.options_for(NAME, eps, 1.0)
     limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
                                                 "compiled_work_limit")}
-    kernel = envelope.options_of(options)
+    kernel = _kernel_module().options_of(options)
     options.pop("start_sweeps")  # the compiled path's alone
     return Settings(kernel=kernel, python=options,
                     dense_limit=int(limits["dense_limit"]),

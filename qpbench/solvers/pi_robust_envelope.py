@@ -535,7 +535,8 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
 def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
                    normal_first: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
-    iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0).
+    iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0, not
+    converged: the caller has checked it).
 
     ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
     on ``lcp.original``; ``normal_first`` are the row offsets of the whole matrix's lower
@@ -548,8 +549,6 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     everything = np.arange(n)
     cache = _factor_cache(n, 2, normal_first[n])
     counters = cache.counters
-    if _original_residual(original, scale, start) <= tol:
-        return start, True, PATH_START, 0, 0, 0
     start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
     w = _matvec(A, start) + b
     first, converged, _, solves, _ = _prox_policy_iteration(
@@ -690,7 +689,7 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
 @njit(cache=True)
 def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
     """The start: ``max(warm_start, 0)`` when it has n entries, all finite, else zeros (as
-    ``qpbench.solvers.lcp.start_of``, in compiled code: no NumPy call overhead)."""
+    ``qpbench.solvers.lcp.Lcp.start``, in compiled code: no NumPy call overhead)."""
     if warm_start.size != n:
         return np.zeros(n)
     for value in warm_start:
@@ -700,30 +699,38 @@ def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
 
 
 @njit(cache=True)
+def _certified(csc: Csc, b: np.ndarray, scale: float, impulses: np.ndarray, residual: float,
+               tol: float) -> bool:
+    """``residual`` (qpbench's, summed in scipy's order) plus :func:`residual_rounding_bound`
+    is at most tol: no other summation order of ``Q l + b`` can put it above tol."""
+    return residual + residual_rounding_bound(csc, b, scale, impulses) <= tol
+
+
+@njit(cache=True)
 def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
                        diag: np.ndarray, warm_start: np.ndarray, order_above: int,
                        max_envelope_work: float, packed_options: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC
     arrays, from ``clean_start(warm_start)`` (an empty array: from zero), with the options
-    :func:`options_of` packs. A start that is already converged (and certified) is returned
-    before any set-up. Above ``order_above`` contacts the contacts are first put in reverse
-    Cuthill-McKee order (inside the timed call), which keeps the envelope factors narrow.
-    When one factorization of the whole envelope would cost more than ``max_envelope_work``
+    :func:`options_of` packs. A start that is already converged is returned before any
+    set-up. Above ``order_above`` contacts the contacts are first put in reverse Cuthill-McKee
+    order (inside the timed call), which keeps the envelope factors narrow. When one
+    factorization of the whole envelope would cost more than ``max_envelope_work``
     multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at
-    once (path ``PATH_DECLINED``) and the caller's sparse path runs.
-    ``certified``: converged, and qpbench's residual plus :func:`residual_rounding_bound` is
-    at most tol, so that no other summation order of ``Q l + b`` can put it above tol.
-    ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed without a copy)."""
+    once (path ``PATH_DECLINED``) and the caller's sparse path runs. ``certified``: converged,
+    and :func:`_certified`. ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed without
+    a copy)."""
     indptr, indices = indptr.astype(np.int64), indices.astype(np.int64)
     options = unpacked(packed_options)
     n = b.size
     scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
     A_posed = (indptr, indices, data)
     start = clean_start(warm_start, n)
-    if natural_residual(A_posed, b, diag, scale, start) \
-            + residual_rounding_bound(A_posed, b, scale, start) <= options.tol:
-        return start, True, PATH_START, 0, 0, 0, True
+    start_residual = natural_residual(A_posed, b, diag, scale, start)
+    if start_residual <= options.tol:  # converged already: returned before any set-up
+        return start, True, PATH_START, 0, 0, 0, _certified(
+            A_posed, b, scale, start, start_residual, options.tol)
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.arange(n)
     A = A_posed
@@ -744,8 +751,8 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         lcp, start[order], options, widths)
     impulses = np.empty(n)
     impulses[order] = answer
-    certified = converged and natural_residual(A_posed, b, diag, scale, impulses) \
-        + residual_rounding_bound(A_posed, b, scale, impulses) <= options.tol
+    certified = converged and _certified(A_posed, b, scale, impulses, natural_residual(
+        A_posed, b, diag, scale, impulses), options.tol)
     return impulses, converged, path, solves, interior, factorizations, certified
 
 
