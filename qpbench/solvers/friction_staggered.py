@@ -81,15 +81,24 @@ BoxSolver = Callable[[BoxQP, float, float, np.ndarray], BoxAnswer]
 
 
 # --- the box QP solved here: projected Gauss-Seidel ---------------------------------------
+def _symmetric_arrays(box: BoxQP) -> tuple[sp.csc_matrix, tuple[np.ndarray, ...]]:
+    """P as CSC with sorted indices, and the arrays ``qpbench.solvers.box_sweeps`` takes:
+    P is symmetric, so its CSC arrays are its CSR arrays (rows in order), then c, lower,
+    upper."""
+    P = box.P if sp.isspmatrix_csc(box.P) else sp.csc_matrix(box.P)
+    P.sort_indices()
+    return P, (P.indptr, P.indices, P.data, np.ascontiguousarray(box.c, dtype=float),
+               np.ascontiguousarray(box.lower, dtype=float),
+               np.ascontiguousarray(box.upper, dtype=float))
+
+
 def box_residual(box: BoxQP, x: np.ndarray) -> float:
     """``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
-    (1 where it is 0): the box QP's natural map, a velocity."""
-    if box.n == 0:
-        return 0.0
-    d = box.P.diagonal()
-    d = np.where(d > 0.0, d, 1.0)
-    g = box.P @ x + box.c
-    return float(np.max(np.abs(d * x - np.clip(d * x - g, d * box.lower, d * box.upper))))
+    (1 where it is 0): the box QP's natural map, a velocity (``box_sweeps.box_residual``)."""
+    from qpbench.solvers import box_sweeps
+
+    _, arrays = _symmetric_arrays(box)
+    return float(box_sweeps.box_residual(*arrays, np.ascontiguousarray(x, dtype=float)))
 
 
 def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every: int,
@@ -102,8 +111,7 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
     to, once."""
     from qpbench.solvers import box_sweeps
 
-    P = box.P if sp.isspmatrix_csc(box.P) else sp.csc_matrix(box.P)
-    P.sort_indices()  # P is symmetric: its CSC arrays are its CSR arrays, rows in order
+    P, arrays = _symmetric_arrays(box)
     x = np.clip(start, box.lower, box.upper)
     d = P.diagonal()
     fixed = box.upper <= box.lower
@@ -112,9 +120,6 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
                        np.where(box.c[flat] < 0.0, box.upper[flat], x[flat]))
     movable = np.flatnonzero(~flat & ~fixed)
     order = movable[np.argsort(greedy_colours(P)[movable], kind="stable")]  # class by class
-    arrays = (P.indptr, P.indices, P.data, np.ascontiguousarray(box.c, dtype=float),
-              np.ascontiguousarray(box.lower, dtype=float),
-              np.ascontiguousarray(box.upper, dtype=float))
     if box_sweeps.box_residual(*arrays, x) <= tolerance:
         return BoxAnswer(x, "converged", True, 0)
     sweeps, converged = box_sweeps.box_sweeps(*arrays, d, order, x, tolerance, max_sweeps,
@@ -237,16 +242,21 @@ def _ipopt_box_solver(name: str) -> BoxSolver:
     return solve
 
 
+# the backends that take the friction box QP themselves, with bounds: (box solver of a
+# solver name, description)
+BOUNDED_BACKENDS: dict[str, tuple[Callable[[str], BoxSolver], str]] = {
+    "qpsolvers": (_qpsolvers_box_solver, "{name} with lb/ub"),
+    "cvxpy": (_cvxpy_box_solver, "{name} with box constraints"),
+    "cyipopt": (_ipopt_box_solver, "ipopt with variable bounds"),
+}
+
+
 def box_solver_for(spec: SolverSpec) -> tuple[BoxSolver, str]:
     """The friction box QP solver that goes with the frictionless solver ``spec``, and how the
-    description names it."""
-    if spec.backend == "qpsolvers":
-        return on_free_coordinates(_qpsolvers_box_solver(spec.name)), f"{spec.name} with lb/ub"
-    if spec.backend == "cvxpy":
-        return (on_free_coordinates(_cvxpy_box_solver(spec.name)),
-                f"{spec.name} with box constraints")
-    if spec.backend == "cyipopt":
-        return on_free_coordinates(_ipopt_box_solver(spec.name)), "ipopt with variable bounds"
+    description names it: its backend's with bounds, else projected Gauss-Seidel."""
+    if spec.backend in BOUNDED_BACKENDS:
+        make, description = BOUNDED_BACKENDS[spec.backend]
+        return on_free_coordinates(make(spec.name)), description.format(name=spec.name)
     return _own_box_solver, "projected Gauss-Seidel on the box (written here)"
 
 
@@ -393,11 +403,11 @@ def twin(spec: SolverSpec) -> SolverSpec:
 
         if spec.prepare is not None:
             spec.prepare()
-        if box_solver_for(spec)[0] is _own_box_solver:
-            box_sweeps.warm_up()
+        box_sweeps.warm_up()
 
+    sweeps_here = spec.backend not in BOUNDED_BACKENDS
     return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True,
-                   prepare=prepare)
+                   prepare=prepare if sweeps_here else spec.prepare)
 
 
 for _spec in frictionless_solvers():
