@@ -226,7 +226,7 @@ def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     for name, arrays in (("natural", (indptr, indices, Q.data)),
                          ("rcm", _permuted(indptr, indices, Q.data, order))):
         offsets = np.zeros(Q.shape[0] + 1, dtype=np.int64)
-        _envelope_pattern(arrays, everything, everything, offsets)
+        _envelope_pattern(arrays, everything, everything, offsets, 0)
         widths[name] = int(offsets[-1])
     assert widths["rcm"] < widths["natural"]
 

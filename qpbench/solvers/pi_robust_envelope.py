@@ -234,7 +234,7 @@ def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, fastmath=REDUCTIONS)
 def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
-                       first_row: int = 0) -> None:
+                       first_row: int) -> None:
     """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
     has the same envelope (Jennings, "A compact storage scheme for the solution of symmetric
     linear simultaneous equations", Comput. J. 9(3), 1966). Row i is stored in
@@ -295,7 +295,7 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
 
 @njit(cache=True)
 def _envelope_pattern(A: Csc, index: np.ndarray,
-                      position: np.ndarray, offsets: np.ndarray, first_row: int = 0) -> None:
+                      position: np.ndarray, offsets: np.ndarray, first_row: int) -> None:
     """Row offsets of the lower envelope of Q_II (``position[r]`` = r's place in I, or -1),
     from row ``first_row`` on (``offsets[:first_row + 1]`` are kept)."""
     indptr, indices, _ = A
@@ -314,7 +314,7 @@ def _envelope_pattern(A: Csc, index: np.ndarray,
 @njit(cache=True)
 def _fill(A: Csc, index: np.ndarray,
           position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
-          offsets: np.ndarray, first_row: int = 0) -> None:
+          offsets: np.ndarray, first_row: int) -> None:
     """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``, rows
     ``first_row`` on; entries (r, c) scale as (Q_rc s_r) s_c."""
     indptr, indices, data = A
@@ -514,7 +514,7 @@ def _polish(lcp: OrderedLcp, impulses: np.ndarray, tol: float, rho: float,
     w = _matvec(lcp.A, impulses) + lcp.b
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
     polished, _, _, used, _ = _prox_policy_iteration(
-        lcp, impulses, w < lcp.diag * impulses, 0.1 * tol, rho, one_step, 1, cache)
+        lcp, impulses, w < lcp.diag * impulses, 0.1 * tol, rho, one_step, np.int64(1), cache)
     return polished, used
 
 
@@ -603,11 +603,11 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0]
-        _fill(A, everything, everything, root, normal, normal_first)
+        _fill(A, everything, everything, root, normal, normal_first, np.int64(0))
         ratio = slack / impulses
         for i in range(n):
             normal[normal_first[i + 1] - 1] += max(ratio[i], floor)
-        _envelope_cholesky(normal, normal_first, n)
+        _envelope_cholesky(normal, normal_first, n, np.int64(0))
         counters[0] += 1
         dl = _envelope_solve(normal, normal_first, n, -slack - infeasibility)
         dw = root * _matvec(A, root * dl) + infeasibility
@@ -739,7 +739,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         A = _permuted(indptr, indices, data, order)
     widths = np.zeros(n + 1, dtype=np.int64)
     everything = np.arange(n)
-    _envelope_pattern(A, everything, everything, widths)
+    _envelope_pattern(A, everything, everything, widths, np.int64(0))
     work = 0.0
     for i in range(n):
         work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
