@@ -120,6 +120,7 @@ def test_staggered_warm_started_from_an_answer_does_no_round() -> None:
     row, output = row_of("pi-robust/staggered", problem, accuracy=1e-8,
                          warm_start=answer.impulses)
     assert row["status"] == "solved" and output.info["outer_iterations"] == 0
+    assert output.info["compiled"] and output.info["returned"] == "warm start"
 
 
 def test_staggered_with_empty_friction_boxes_is_the_frictionless_solve() -> None:
@@ -129,6 +130,73 @@ def test_staggered_with_empty_friction_boxes_is_the_frictionless_solve() -> None
     row, output = row_of("quadprog/staggered", problem, accuracy=1e-8)
     assert row["status"] == "solved"
     assert np.all(problem.split(output.impulses)[1] == 0.0)
+
+
+def _generated_frictional() -> list[FrictionalProblem]:
+    from qpbench.problem.friction_generate import generate
+
+    return [*generate("pyramid", 3), *generate("friction-mass-ratio", 4, seed=1),
+            *generate("incline", 2), *generate("rough-box", 30), *generate("wedge", 1)]
+
+
+def test_pi_robust_staggered_runs_its_loop_compiled_with_the_python_loops_answers(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled loop is the Python loop with pi-robust inside, round for round: the same
+    impulses to the last bit, the same rounds, inner iterations and verdict; neither meets
+    1e-8 in 200 rounds on the rough box, nor on the wedge, which has no solution."""
+    from qpbench.solvers import friction_staggered
+
+    problems = [pair_on_floor(mu=0.6, seed=seed) for seed in range(3)] + _generated_frictional()
+    compiled = [row_of("pi-robust/staggered", problem, accuracy=1e-8) for problem in problems]
+    monkeypatch.setattr(friction_staggered, "COMPILED_LOOPS", ())
+    python = [row_of("pi-robust/staggered", problem, accuracy=1e-8) for problem in problems]
+    for problem, (row, output), (python_row, python_output) in zip(problems, compiled, python,
+                                                                   strict=True):
+        assert output.info["compiled"] and "compiled" not in python_output.info, problem.name
+        np.testing.assert_array_equal(output.impulses, python_output.impulses)
+        for key in ("outer_iterations", "inner_solves", "returned", "residual"):
+            assert output.info[key] == python_output.info[key], (problem.name, key)
+        assert output.iterations == python_output.iterations
+        assert (row["status"], row["claimed_success"]) == (python_row["status"],
+                                                           python_row["claimed_success"])
+        assert row["status_honest"]
+    statuses = {problem.name: row["status"] for problem, (row, _) in zip(problems, compiled,
+                                                                         strict=True)}
+    assert statuses.pop("rough-box-30-s0") == "inaccurate"
+    assert statuses.pop("wedge-1-s0") == "inaccurate"
+    assert set(statuses.values()) == {"solved"}
+
+
+def test_the_compiled_coulomb_residual_is_qpbenchs_to_the_last_bit() -> None:
+    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.staggered_compiled import coulomb_residual
+
+    rng = np.random.default_rng(7)
+    for problem in [pair_on_floor(mu=0.6, seed=1), *_generated_frictional()]:
+        n = problem.n_contacts
+        for impulses in (np.zeros(2 * n), rng.standard_normal(2 * n),
+                         np.concatenate([np.abs(rng.standard_normal(n)), np.zeros(n)])):
+            assert coulomb_residual(csc_arrays(problem.W), problem.q, problem.diag_N,
+                                    problem.mu, problem.scale, impulses) == \
+                fm.residual(problem, impulses)
+
+
+def test_a_declined_compiled_loop_leaves_the_answer_to_the_python_loop(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """When a normal solve inside the compiled loop is not certified, the loop ends with
+    FALLBACK and the Python loop answers (its time counts too)."""
+    from qpbench.solvers import staggered_compiled
+
+    declined = []
+
+    def declining(*args: object) -> tuple:
+        declined.append(True)
+        return np.zeros(0), np.inf, staggered_compiled.FALLBACK, 1, 0, 0, 0
+
+    monkeypatch.setattr(staggered_compiled, "staggered_pi_robust", declining)
+    row, output = row_of("pi-robust/staggered", pair_on_floor(mu=0.6, seed=2), accuracy=1e-8)
+    assert declined and "compiled" not in output.info
+    assert row["status"] == "solved" and row["status_honest"]
 
 
 def test_the_box_gauss_seidel_reaches_the_box_qp_optimum() -> None:

@@ -27,6 +27,10 @@ and the best iterate, by the Coulomb residual, is returned. A fixed point is exa
 friction; convergence is not guaranteed. ``iterations`` is the sum of the inner solvers'
 iterations (where they report them), ``info["outer_iterations"]`` the rounds. The claim is
 the Coulomb residual's test, qpbench's own.
+
+The twins of ``COMPILED_LOOPS`` (pi-robust) first run this whole loop as one compiled call
+(``qpbench.solvers.staggered_compiled``: the same rounds and the same answers, without a
+return to Python between inner solves); the loop here runs when that declines.
 """
 
 from __future__ import annotations
@@ -375,6 +379,11 @@ def _output(impulses: np.ndarray, residual: float, eps: float, status: str, roun
                               "residual": residual, "returned": ending})
 
 
+# the solvers whose staggered twin runs its whole loop compiled first
+# (``qpbench.solvers.staggered_compiled``), the Python loop when that declines
+COMPILED_LOOPS = ("pi-robust",)
+
+
 def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverOutput]:
     """The solve function of ``spec.name/staggered``."""
     assert spec.solve is not None
@@ -383,6 +392,13 @@ def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverO
     def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
         options = accuracy.options_for(ROW, eps, problem.scale)
+        if spec.name in COMPILED_LOOPS:
+            from qpbench.solvers import staggered_compiled
+
+            box_options = accuracy.options_for(ROW, options["inner_accuracy"], problem.scale)
+            answer = staggered_compiled.solve(problem, eps, warm_start, options, box_options)
+            if answer is not None:
+                return answer
         inner = Inner(problem, normal_solve, box_solver, spec.warm_start,
                       options["inner_accuracy"])
         return staggered(problem, inner, eps, options["max_outer"], warm_start)
@@ -398,12 +414,16 @@ def twin(spec: SolverSpec) -> SolverSpec:
         return make_solve(inner, box_solver), (f"staggered projections: normal QP by "
                                                f"{inner.key}, friction box QP by {box_name}")
 
-    def prepare() -> None:  # the inner solver's set-up, and the compiled box sweeps
+    def prepare() -> None:  # the inner solver's set-up, the compiled box sweeps and loop
         from qpbench.solvers import box_sweeps
 
         if spec.prepare is not None:
             spec.prepare()
         box_sweeps.warm_up()
+        if spec.name in COMPILED_LOOPS:
+            from qpbench.solvers import staggered_compiled
+
+            staggered_compiled.warm_up()
 
     sweeps_here = spec.backend not in BOUNDED_BACKENDS
     return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True,
