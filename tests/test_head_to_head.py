@@ -54,6 +54,30 @@ def test_a_sets_speedup_is_the_fastest_external_sgm_over_pi_robusts() -> None:
     assert "| box packings | 2 |" in head_to_head.markdown([entry], 5)
 
 
+def test_the_target_needs_every_problem_the_external_pair_solves() -> None:
+    """A problem neither pair solves is charged to both and named; one that only the external
+    pair solves keeps the target from holding, however fast pi-robust is elsewhere."""
+    easy = [f"a{i}" for i in range(4)]
+    rows = [row("pi-robust/lcp", True, name, 1e-5) for name in easy] \
+        + [row("daqp/dual", False, name, 1e-3) for name in easy] \
+        + [row("pi-robust/lcp", True, "b", 2e-3, False), row("daqp/dual", False, "b", 2e-3, False)]
+    [entry] = head_to_head.summarize(rows)
+    assert entry["speedup"] > 3 and entry["target_met"] and entry["unsolved_by_both"] == ["b"]
+    assert "solved by neither `pi-robust/lcp` nor `daqp/dual`" in head_to_head.markdown(
+        [entry], 5)
+    rows[-1] = row("daqp/dual", False, "b", 1.9e-3)
+    [entry] = head_to_head.summarize(rows)
+    assert entry["speedup"] > 3 and not entry["target_met"] and entry["unsolved_by_both"] == []
+
+
+def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
+    from friction_cases import pair_on_floor
+
+    problem = pair_on_floor(mu=0.5)
+    assert head_to_head.set_of(problem, "staggered") == "frictional, staggered"
+    assert head_to_head.set_of(problem, "ccp") == "frictional, ccp"
+
+
 def test_a_dump_is_in_the_grid_dump_set_and_a_k3_in_none() -> None:
     assert head_to_head.set_of(import_dump(ROOT / "problems/dumps/grid5_itr_0.out")) \
         == "fork 5x5 grid dumps"

@@ -19,7 +19,10 @@ every answer is judged by qpbench's residual at ``accuracy``; problems without a
 the shifted geometric mean (``qpbench.bench.stats``: shift on the set's own time scale) of
 times charged with the largest time of the set where a solve failed, and
 ``speedup = SGM(fastest external) / SGM(pi-robust)`` (above 1: pi-robust faster), against the
-target of 3.
+target of 3, met when pi-robust also solves every problem the external pair solves. The
+frictional problems form two sets, one per formulation (``staggered``, ``ccp``), so that each
+compares pairs that solve the same model; a problem that neither pair solves (staggered
+projections need not converge) is charged to both and named.
 """
 
 from __future__ import annotations
@@ -49,13 +52,15 @@ FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
 # the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
 SETS = ("fork 5x5 grid dumps", "7x7 grid scene", "grid scene captures", "box packings",
-        "frictional")
+        "frictional, staggered", "frictional, ccp")
 
 
-def set_of(problem: ImpactProblem | FrictionalProblem) -> str | None:
-    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to."""
+def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
+    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to; a
+    frictional problem's set is that of the pair's ``formulation`` (``frictional,
+    staggered`` or ``frictional, ccp``: each compares pairs of one formulation, one model)."""
     if isinstance(problem, FrictionalProblem):
-        return "frictional"
+        return f"frictional, {formulation}"
     family = str(problem.family or "")
     if family == "dump":
         return "fork 5x5 grid dumps"
@@ -110,7 +115,8 @@ def measure(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, repeat
         outputs.append(call_solver(spec, problem, accuracy))
     fastest = min(outputs, key=lambda output: output.time_s)
     row = judge(spec, problem, fastest, accuracy)
-    return {"problem": problem.name, "set": set_of(problem), "solver": spec.key,
+    return {"problem": problem.name, "set": set_of(problem, spec.formulation),
+            "solver": spec.key,
             "own": spec.backend == stats.OWN_BACKEND, "contacts": problem.n_contacts,
             "status": row["status"], "success": bool(row["success"]),
             "residual": row["residual"], "time_s": fastest.time_s}
@@ -143,8 +149,12 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         if own and external:
             entry["own"], entry["external"] = own[0], external[0]
             entry["speedup"] = external[0]["sgm_s"] / own[0]["sgm_s"]
-            entry["target_met"] = bool(entry["speedup"] >= TARGET_SPEEDUP
-                                       and own[0]["success_rate"] == 1.0)
+            solved = {key: set(mine.loc[mine["success"], "problem"])
+                      for key, mine in group.groupby("solver")}
+            entry["unsolved_by_both"] = sorted(
+                set(group["problem"]) - solved[own[0]["solver"]] - solved[external[0]["solver"]])
+            entry["target_met"] = bool(entry["speedup"] >= TARGET_SPEEDUP and solved[
+                external[0]["solver"]] <= solved[own[0]["solver"]])
         summary.append(entry)
     return summary
 
@@ -158,7 +168,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int) -> str:
         "own time scale. External pairs: the fastest of the main benchmark "
         "(`bench.parquet`) on the grid, dump and box families and per frictional "
         "formulation. speedup = SGM of the fastest external pair / SGM of pi-robust's best "
-        f"pair (target >= {TARGET_SPEEDUP:g}, with every problem solved).\n",
+        f"pair (target >= {TARGET_SPEEDUP:g}, with pi-robust solving every problem the "
+        "external pair solves).\n",
         "| set | problems | contacts | pi-robust pair | SGM [ms] | solved | fastest external "
         "pair | SGM [ms] | solved | speedup | target |",
         "|---|---:|---|---|---:|---:|---|---:|---:|---:|---|",
@@ -181,6 +192,11 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int) -> str:
     lines.append("")
     lines.append(f"The 3x target holds on: {', '.join(held) if held else 'no set'}; it does "
                  f"not hold on: {', '.join(missed) if missed else 'no set'}.")
+    for entry in summary:
+        if entry.get("unsolved_by_both"):
+            lines.append(f"\n{entry['set']}: solved by neither `{entry['own']['solver']}` nor "
+                         f"`{entry['external']['solver']}` (each charged the set's largest "
+                         f"time): {', '.join(entry['unsolved_by_both'])}.")
     lines.append("\nEvery pair per set (SGM [ms], solved):\n")
     for entry in summary:
         lines.append(f"- {entry['set']}: " + ", ".join(
