@@ -17,17 +17,19 @@ Jacobi-scaled Newton system ``(S Q S + diag(max(w / l, 1e-14))) dl = r`` (S = D^
 same factorization of the whole matrix.
 
 Linear algebra: Q stays in CSC (products are sparse, summed column by column). Above
-``order_above`` contacts the contacts are put in reverse Cuthill-McKee order (Q's graph is the
-line graph of the contact graph, so this order keeps every block's envelope narrow: a few tens
-of columns on grids and packings). Row i of a factor is stored contiguously, its columns
-``first(i) .. i`` (the diagonal last), with ``first(i)`` the leftmost nonzero of row i of the
-block; the factor has the same envelope (no fill outside it), so one factorization costs
-``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a solve ``2 sum_i w_i``. The
-last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho), so prox
-steps on a settled policy cost two triangular solves, and a new factor copies the leading
-rows it shares with a kept one. A start that is not converged first gets ``start_sweeps``
-projected Gauss-Seidel sweeps (:func:`_gauss_seidel`), which cut the pivots that follow. A
-factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
+``order_above`` contacts, or when the envelope in the posed order would cost more than
+``WIDE_ENVELOPE`` of a dense factorization, the contacts are put in reverse Cuthill-McKee
+order (Q's graph is the line graph of the contact graph, so this order keeps every block's
+envelope narrow: a few tens of columns on grids and packings). Row i of a factor is stored
+contiguously, its columns ``first(i) .. i`` (the diagonal last), with ``first(i)`` the
+leftmost nonzero of row i of the block; the factor has the same envelope (no fill outside it),
+so one factorization costs ``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a
+solve ``2 sum_i w_i``. The last two block factors are kept in a :class:`FactorCache`, keyed by
+(policy, rho), so prox steps on a settled policy cost two triangular solves, and a new factor
+copies the leading rows it shares with a kept one. A start that is not converged first gets
+``start_sweeps`` projected Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the kernel's order),
+which cut the pivots that follow. A factor that fails raises ``np.linalg.LinAlgError``; the
+caller then runs the Python path.
 
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
 caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
@@ -59,6 +61,11 @@ from qpbench.solvers import accuracy
 # inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
 # is still caught
 REDUCTIONS = {"reassoc", "contract"}
+# share of a dense factorization's n^3 / 6 multiply-adds above which an envelope in the posed
+# order counts as wide, and the contacts are put in reverse Cuthill-McKee order even below
+# ``order_above`` (Anitescu's relaxation puts the columns n + mu t and n - mu t of one contact
+# n apart)
+WIDE_ENVELOPE = 0.5
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
@@ -631,6 +638,16 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
 
 
 @njit(cache=True)
+def _envelope_work(offsets: np.ndarray) -> float:
+    """Multiply-adds of one envelope factorization, ``sum_i w_i^2 / 2`` over the row widths
+    ``w_i = offsets[i + 1] - offsets[i]``."""
+    work = 0.0
+    for i in range(offsets.size - 1):
+        work += 0.5 * float(offsets[i + 1] - offsets[i]) ** 2
+    return work
+
+
+@njit(cache=True)
 def reverse_cuthill_mckee(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
     """A reverse Cuthill-McKee order of the graph of a symmetric CSC pattern (Cuthill and
     McKee, "Reducing the bandwidth of sparse symmetric matrices", ACM 1969; George 1971):
@@ -711,16 +728,16 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
                        diag: np.ndarray, warm_start: np.ndarray, order_above: int,
                        max_envelope_work: float, packed_options: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
-    iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC
-    arrays, from ``clean_start(warm_start)`` (an empty array: from zero), with the options
-    :func:`options_of` packs. A start that is already converged is returned before any
-    set-up. Above ``order_above`` contacts the contacts are first put in reverse Cuthill-McKee
-    order (inside the timed call), which keeps the envelope factors narrow. When one
-    factorization of the whole envelope would cost more than ``max_envelope_work``
-    multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids), it declines at
-    once (path ``PATH_DECLINED``) and the caller's sparse path runs. ``certified``: converged,
-    and :func:`_certified`. ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed without
-    a copy)."""
+    iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC arrays,
+    from ``clean_start(warm_start)`` (an empty array: from zero), with the options
+    :func:`options_of` packs. A start that is already converged is returned before any set-up. Above
+    ``order_above`` contacts, or when the envelope in the posed order is wide (``WIDE_ENVELOPE``),
+    the contacts are first put in reverse Cuthill-McKee order (inside the timed call), which keeps
+    the envelope factors narrow. When one factorization of the whole envelope would cost more than
+    ``max_envelope_work`` multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids),
+    it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs. ``certified``:
+    converged, and :func:`_certified`. ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed
+    without a copy)."""
     indptr, indices = indptr.astype(np.int64), indices.astype(np.int64)
     options = unpacked(packed_options)
     n = b.size
@@ -734,15 +751,15 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.arange(n)
     A = A_posed
-    if n > order_above:
+    everything = np.arange(n)
+    widths = np.zeros(n + 1, dtype=np.int64)
+    _envelope_pattern(A, everything, everything, widths, np.int64(0))
+    work = _envelope_work(widths)
+    if n > order_above or work > WIDE_ENVELOPE * float(n) ** 3 / 6.0:
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
-    widths = np.zeros(n + 1, dtype=np.int64)
-    everything = np.arange(n)
-    _envelope_pattern(A, everything, everything, widths, np.int64(0))
-    work = 0.0
-    for i in range(n):
-        work += 0.5 * float(widths[i + 1] - widths[i]) ** 2
+        _envelope_pattern(A, everything, everything, widths, np.int64(0))
+        work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
     lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b[order], diag[order],
