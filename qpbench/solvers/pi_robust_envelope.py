@@ -61,11 +61,13 @@ from qpbench.solvers import accuracy
 # inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
 # is still caught
 REDUCTIONS = {"reassoc", "contract"}
-# share of a dense factorization's n^3 / 6 multiply-adds above which an envelope in the posed
-# order counts as wide, and the contacts are put in reverse Cuthill-McKee order even below
-# ``order_above`` (Anitescu's relaxation puts the columns n + mu t and n - mu t of one contact
-# n apart)
+# an envelope in the posed order is wide, and the contacts are put in reverse Cuthill-McKee
+# order even below ``order_above``, when its factorization costs more than this share of a
+# dense one's n^3 / 6 multiply-adds and more than WIDE_ENVELOPE_WORK (below that, about 5 us,
+# the ordering costs more than it saves). Anitescu's relaxation puts the columns n + mu t and
+# n - mu t of one contact n apart.
 WIDE_ENVELOPE = 0.5
+WIDE_ENVELOPE_WORK = 1e4
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
@@ -252,24 +254,23 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
         base_i = offsets[i]
         end_i = offsets[i + 1]
         first_i = i + 1 - (end_i - base_i)
-        row_i = values[base_i:end_i]  # views indexed from 0: the loops below vectorise
         for j in range(first_i, i):
             base_j = offsets[j]
             end_j = offsets[j + 1]
             first_j = j + 1 - (end_j - base_j)
             lo = max(first_i, first_j)
-            left = row_i[lo - first_i:j - first_i]
-            right = values[base_j + lo - first_j:end_j - 1]
-            total = row_i[j - first_i]
-            for k in range(j - lo):
-                total -= left[k] * right[k]
-            row_i[j - first_i] = total / values[end_j - 1]
-        total = row_i[i - first_i]
-        for k in range(i - first_i):
-            total -= row_i[k] * row_i[k]
+            # unsigned offsets: no negative-index wraparound, so the inner products vectorise
+            left, right = np.uint64(base_i + lo - first_i), np.uint64(base_j + lo - first_j)
+            total = values[base_i + j - first_i]
+            for k in range(np.uint64(j - lo)):
+                total -= values[left + k] * values[right + k]
+            values[base_i + j - first_i] = total / values[end_j - 1]
+        total = values[end_i - 1]
+        for k in range(np.uint64(base_i), np.uint64(end_i - 1)):
+            total -= values[k] * values[k]
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
-        row_i[i - first_i] = np.sqrt(total)
+        values[end_i - 1] = np.sqrt(total)
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
@@ -281,11 +282,10 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
         base = offsets[i]
         end = offsets[i + 1]
         first = i + 1 - (end - base)
-        row = values[base:end - 1]  # views indexed from 0: the loops vectorise
-        leading = x[first:i]
+        row, leading = np.uint64(base), np.uint64(first)  # unsigned: the loops vectorise
         total = x[i]
-        for k in range(i - first):
-            total -= row[k] * leading[k]
+        for k in range(np.uint64(i - first)):
+            total -= values[row + k] * x[leading + k]
         x[i] = total / values[end - 1]
     for i in range(size - 1, -1, -1):
         base = offsets[i]
@@ -293,10 +293,9 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
         first = i + 1 - (end - base)
         x[i] /= values[end - 1]
         value = x[i]
-        row = values[base:end - 1]
-        leading = x[first:i]
-        for k in range(i - first):
-            leading[k] -= row[k] * value
+        row, leading = np.uint64(base), np.uint64(first)
+        for k in range(np.uint64(i - first)):
+            x[leading + k] -= values[row + k] * value
     return x
 
 
@@ -755,7 +754,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     widths = np.zeros(n + 1, dtype=np.int64)
     _envelope_pattern(A, everything, everything, widths, np.int64(0))
     work = _envelope_work(widths)
-    if n > order_above or work > WIDE_ENVELOPE * float(n) ** 3 / 6.0:
+    if n > order_above or work > max(WIDE_ENVELOPE * float(n) ** 3 / 6.0, WIDE_ENVELOPE_WORK):
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
         _envelope_pattern(A, everything, everything, widths, np.int64(0))
