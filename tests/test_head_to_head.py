@@ -63,6 +63,7 @@ def test_the_target_needs_every_problem_the_external_pair_solves() -> None:
         + [row("pi-robust/lcp", True, "b", 2e-3, False), row("daqp/dual", False, "b", 2e-3, False)]
     [entry] = head_to_head.summarize(rows)
     assert entry["speedup"] > 3 and entry["target_met"] and entry["unsolved_by_both"] == ["b"]
+    assert entry["median_problem_speedup"] == pytest.approx(100.0)  # a0-a3: 1e-3 / 1e-5
     assert "solved by neither `pi-robust/lcp` nor `daqp/dual`" in head_to_head.markdown(
         [entry], 5)
     rows[-1] = row("daqp/dual", False, "b", 1.9e-3)
