@@ -16,20 +16,21 @@ by the envelope Cholesky factor ``L L^T = Q_FF + rho D_F``; the interior point s
 Jacobi-scaled Newton system ``(S Q S + diag(max(w / l, 1e-14))) dl = r`` (S = D^-1/2) by the
 same factorization of the whole matrix.
 
-Linear algebra: Q stays in CSC (products are sparse, summed column by column). Above
-``order_above`` contacts, or when the envelope in the posed order would cost more than
-``WIDE_ENVELOPE`` of a dense factorization, the contacts are put in reverse Cuthill-McKee
-order (Q's graph is the line graph of the contact graph, so this order keeps every block's
-envelope narrow: a few tens of columns on grids and packings). Row i of a factor is stored
-contiguously, its columns ``first(i) .. i`` (the diagonal last), with ``first(i)`` the
-leftmost nonzero of row i of the block; the factor has the same envelope (no fill outside it),
-so one factorization costs ``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a
-solve ``2 sum_i w_i``. The last two block factors are kept in a :class:`FactorCache`, keyed by
-(policy, rho), so prox steps on a settled policy cost two triangular solves, and a new factor
-copies the leading rows it shares with a kept one. A start that is not converged first gets
-``start_sweeps`` projected Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the kernel's order),
-which cut the pivots that follow. A factor that fails raises ``np.linalg.LinAlgError``; the
-caller then runs the Python path.
+Linear algebra: Q stays in CSC (products are sparse, summed column by column). Unless the
+envelope in the posed order is cheap to factor already (``WIDE_ENVELOPE_WORK``), above
+``order_above`` contacts, or when that envelope would cost more than ``WIDE_ENVELOPE`` of a
+dense factorization, the contacts are put in reverse Cuthill-McKee order (Q's graph is the
+line graph of the contact graph, so this order keeps every block's envelope narrow: a few tens
+of columns on grids and packings). Row i of a factor is stored contiguously, its columns
+``first(i) .. i`` (the diagonal last), with ``first(i)`` the leftmost nonzero of row i of the
+block; the factor has the same envelope (no fill outside it), so one factorization costs
+``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a solve ``2 sum_i w_i``. The
+last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho), so prox
+steps on a settled policy cost two triangular solves, and a new factor copies the leading rows
+it shares with a kept one. A start that is not converged first gets ``start_sweeps`` projected
+Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the kernel's order), which cut the pivots that
+follow. A factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python
+path.
 
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
 caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
@@ -61,11 +62,11 @@ from qpbench.solvers import accuracy
 # inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
 # is still caught
 REDUCTIONS = {"reassoc", "contract"}
-# an envelope in the posed order is wide, and the contacts are put in reverse Cuthill-McKee
-# order even below ``order_above``, when its factorization costs more than this share of a
-# dense one's n^3 / 6 multiply-adds and more than WIDE_ENVELOPE_WORK (below that, about 5 us,
-# the ordering costs more than it saves). Anitescu's relaxation puts the columns n + mu t and
-# n - mu t of one contact n apart.
+# the contacts are put in reverse Cuthill-McKee order when the envelope in the posed order
+# costs more than WIDE_ENVELOPE_WORK multiply-adds to factor (below that, about 5 us, the
+# ordering costs more than it saves) and either there are more than ``order_above`` contacts
+# or it costs more than WIDE_ENVELOPE of a dense factorization's n^3 / 6 (Anitescu's
+# relaxation puts the columns n + mu t and n - mu t of one contact n apart)
 WIDE_ENVELOPE = 0.5
 WIDE_ENVELOPE_WORK = 1e4
 # status codes of a prox run
@@ -729,9 +730,10 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC arrays,
     from ``clean_start(warm_start)`` (an empty array: from zero), with the options
-    :func:`options_of` packs. A start that is already converged is returned before any set-up. Above
-    ``order_above`` contacts, or when the envelope in the posed order is wide (``WIDE_ENVELOPE``),
-    the contacts are first put in reverse Cuthill-McKee order (inside the timed call), which keeps
+    :func:`options_of` packs. A start that is already converged is returned before any set-up.
+    Above ``order_above`` contacts, or when the envelope in the posed order is wide
+    (``WIDE_ENVELOPE``), and unless it is cheap already (``WIDE_ENVELOPE_WORK``), the contacts
+    are first put in reverse Cuthill-McKee order (inside the timed call), which keeps
     the envelope factors narrow. When one factorization of the whole envelope would cost more than
     ``max_envelope_work`` multiply-adds (``sum_i w_i^2 / 2`` over its row widths w_i: wide grids),
     it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs. ``certified``:
@@ -754,7 +756,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     widths = np.zeros(n + 1, dtype=np.int64)
     _envelope_pattern(A, everything, everything, widths, np.int64(0))
     work = _envelope_work(widths)
-    if n > order_above or work > max(WIDE_ENVELOPE * float(n) ** 3 / 6.0, WIDE_ENVELOPE_WORK):
+    if work > WIDE_ENVELOPE_WORK and (n > order_above or work > WIDE_ENVELOPE * n ** 3 / 6.0):
         order = reverse_cuthill_mckee(indptr, indices, n)
         A = _permuted(indptr, indices, data, order)
         _envelope_pattern(A, everything, everything, widths, np.int64(0))
