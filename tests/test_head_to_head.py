@@ -75,8 +75,8 @@ def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
     from friction_cases import pair_on_floor
 
     problem = pair_on_floor(mu=0.5)
-    assert head_to_head.set_of(problem, "staggered") == "frictional, staggered"
-    assert head_to_head.set_of(problem, "ccp") == "frictional, ccp"
+    assert head_to_head.set_of(problem, "staggered") == "frictional (staggered)"
+    assert head_to_head.set_of(problem, "ccp") == "frictional (ccp)"
 
 
 def test_a_dump_is_in_the_grid_dump_set_and_a_k3_in_none() -> None:

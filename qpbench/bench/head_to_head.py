@@ -52,15 +52,16 @@ FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
 # the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
 SETS = ("fork 5x5 grid dumps", "7x7 grid scene", "grid scene captures", "box packings",
-        "frictional, staggered", "frictional, ccp")
+        "frictional (staggered)", "frictional (ccp)")
 
 
 def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
     """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to; a
-    frictional problem's set is that of the pair's ``formulation`` (``frictional,
-    staggered`` or ``frictional, ccp``: each compares pairs of one formulation, one model)."""
+    frictional problem's set is that of the pair's ``formulation`` (``frictional
+    (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one
+    model)."""
     if isinstance(problem, FrictionalProblem):
-        return f"frictional, {formulation}"
+        return f"frictional ({formulation})"
     family = str(problem.family or "")
     if family == "dump":
         return "fork 5x5 grid dumps"
