@@ -267,6 +267,31 @@ def test_ccp_on_a_sliding_ball_separates_which_is_model_error(key: str) -> None:
     assert u_normal[0] > 0.1
 
 
+def test_pi_robust_ccp_in_one_compiled_call_gives_the_general_twins_answers() -> None:
+    """pi-robust's twin maps the warm start in, solves and maps the answer back in one
+    compiled call: the same r to the last bit as the general twin (pi-robust's own solve on
+    the relaxed problem, mapped in Python), cold and warm-started."""
+    from qpbench.problem.formulations import pose
+    from qpbench.solvers import friction_ccp, pi_robust
+
+    general = friction_ccp.make_solve(pi_robust.solve)
+    twin = registry.get("pi-robust/ccp", "frictional")
+    problems = [pair_on_floor(mu=0.6, seed=seed) for seed in range(3)] + _generated_frictional()
+    rng = np.random.default_rng(3)
+    for problem in problems:
+        pose(problem, "ccp")
+        n = problem.n_contacts
+        for warm_start in (None, rng.standard_normal(2 * n)):
+            fast, slow = twin.solve(problem, 1e-8, warm_start), general(problem, 1e-8, warm_start)
+            np.testing.assert_array_equal(fast.impulses, slow.impulses)
+            if problem.name == "wedge-1-s0":  # no solution: declined, the general path answers
+                assert fast.info["compiled"] == "declined or not confirmed; Python path"
+                continue
+            assert fast.info["compiled"] is True and fast.info["relaxed_contacts"] == 2 * n
+            assert (fast.claimed_success, fast.iterations) == (slow.claimed_success,
+                                                               slow.iterations)
+
+
 def test_ccp_on_a_sticking_ball_is_the_coulomb_answer() -> None:
     problem = ball_on_floor(u_normal=-2.0, u_tangential=0.6, mu=0.5)
     row, output = row_of("pi-robust/ccp", problem)

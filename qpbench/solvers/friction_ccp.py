@@ -11,9 +11,10 @@ Its claim is X's claim on the relaxed problem, whose residual is measured with o
 construction.
 
 A warm start r = (l_N, l_T) enters as ``z+- = (l_N +- l_T / mu) / 2`` (``l_N / 2`` each where
-mu = 0), clipped to z >= 0. This module must be imported after the frictionless families
-(``qpbench/solvers/__init__.py``): it twins what is registered when it runs, and an unusable
-X gives an unusable twin with X's reason.
+mu = 0), clipped to z >= 0. pi-robust's twin does all of it in one compiled call first
+(``pi_robust.solve_relaxed``: the same maps, the same answer). This module must be imported
+after the frictionless families (``qpbench/solvers/__init__.py``): it twins what is registered
+when it runs, and an unusable X gives an unusable twin with X's reason.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.solvers import registry
+from qpbench.solvers import pi_robust, registry
 from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
 
 FORMULATION = "ccp"
@@ -58,11 +59,18 @@ def relaxed_start(problem: FrictionalProblem, warm_start: np.ndarray | None
     return np.maximum(np.concatenate([normal + ratio, normal - ratio]) / 2.0, 0.0)
 
 
-def make_solve(inner: SolveFunction) -> Callable[..., SolverOutput]:
-    """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r."""
+def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None] | None = None
+               ) -> Callable[..., SolverOutput]:
+    """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r;
+    first ``compiled`` (the relaxation, solve and maps in one compiled call) where the solver
+    has one, unless it declines (None)."""
 
     def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
+        if compiled is not None:
+            answer = compiled(problem, eps, warm_start)
+            if answer is not None:
+                return answer
         output = inner(problem.relaxed(), eps, relaxed_start(problem, warm_start))
         z = output.impulses
         impulses = None
@@ -94,8 +102,14 @@ def derived(spec: SolverSpec, formulation: str,
 def twin(spec: SolverSpec) -> SolverSpec:
     """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is)."""
     return derived(spec, FORMULATION, lambda inner: (
-        make_solve(inner.solve), f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved "
-                                 f"by {inner.key}"), warm_start=spec.warm_start)
+        make_solve(inner.solve, COMPILED_TWINS.get(inner.name)),
+        f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved by {inner.key}"),
+        warm_start=spec.warm_start)
+
+
+# the solvers whose twin first runs as one compiled call: relaxation, solve and both maps
+COMPILED_TWINS: dict[str, Callable[..., SolverOutput | None]] = {
+    pi_robust.NAME: pi_robust.solve_relaxed}
 
 
 for _spec in frictionless_solvers():

@@ -59,6 +59,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from qpbench.problem import metrics
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
@@ -305,21 +306,35 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     when a rounding bound or qpbench's residual confirms it, else None (the caller then runs
     the Python path). One call into compiled code; in Python only what it needs."""
     envelope = _kernel_module()
-    csc = csc_arrays(problem.Q)
-    b = np.asarray(problem.b, dtype=float)
-    diag = np.asarray(problem.diag_Q, dtype=float)
     start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     try:
-        impulses, converged, path, solves, interior, factorizations, certified = \
-            envelope.envelope_pi_robust(*csc, b, diag, start, ORDERING_ABOVE,
-                                        settings.compiled_work_limit, settings.kernel)
+        answer = envelope.envelope_pi_robust(*_kernel_arguments(problem, settings, start))
     except np.linalg.LinAlgError:
         return None
+    return _confirmed(problem, settings, answer[0], answer)
+
+
+def _kernel_arguments(problem: ImpactProblem, settings: Settings, start: np.ndarray) -> tuple:
+    """The kernel's arguments before the start's: Q's CSC arrays, b, diag(Q); then the
+    start, and after it the ordering threshold, the work limit and the packed options."""
+    return (*csc_arrays(problem.Q), np.asarray(problem.b, dtype=float),
+            np.asarray(problem.diag_Q, dtype=float), start, ORDERING_ABOVE,
+            settings.compiled_work_limit, settings.kernel)
+
+
+def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
+               answer: tuple) -> SolverOutput | None:
+    """``impulses`` as the output of the kernel's ``answer`` to ``problem`` (its l, converged,
+    path, solves, interior iterations, factorizations, certified), when the answer converged
+    and the kernel's rounding bound or qpbench's residual of l on ``problem`` confirms it;
+    else None."""
+    envelope = _kernel_module()
+    kernel_impulses, converged, path, solves, interior, factorizations, certified = answer
     if not converged:
         return None
     # the kernel's residual is qpbench's formula in the same summation order; accepted when
     # even a worst-case rounding difference keeps it within tol, else qpbench's own metric
-    if not (certified or metrics.residual(problem, impulses) <= settings.python["tol"]):
+    if not (certified or metrics.residual(problem, kernel_impulses) <= settings.python["tol"]):
         return None
     info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
                   "factorizations": int(factorizations),
@@ -328,6 +343,29 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
         info["interior_iterations"] = int(interior)
     return SolverOutput(impulses=impulses, status="converged", claimed_success=True,
                         iterations=int(solves), info=info)
+
+
+def solve_relaxed(problem: FrictionalProblem, eps: float,
+                  warm_start: np.ndarray | None = None) -> SolverOutput | None:
+    """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``), its
+    warm start mapped in and its answer r mapped back inside the one compiled call
+    (``pi_robust_envelope.relaxed_pi_robust``); None when the compiled path declines, so that
+    the ccp twin's general path runs."""
+    relaxed = problem.relaxed()
+    settings = settings_for(eps)
+    if not 0 < relaxed.n_contacts <= settings.compiled_limit:
+        return None
+    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
+    arguments = _kernel_arguments(relaxed, settings, start)
+    try:
+        impulses, *answer = _kernel_module().relaxed_pi_robust(*arguments[:6], problem.mu,
+                                                                *arguments[6:])
+    except np.linalg.LinAlgError:
+        return None
+    output = _confirmed(relaxed, settings, impulses, tuple(answer))
+    if output is not None:
+        output.info["relaxed_contacts"] = relaxed.n_contacts
+    return output
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None

@@ -774,11 +774,39 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     return impulses, converged, path, solves, interior, factorizations, certified
 
 
+@njit(cache=True)
+def relaxed_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                      b: np.ndarray, diag: np.ndarray, warm_start: np.ndarray, mu: np.ndarray,
+                      order_above: int, max_envelope_work: float, packed_options: np.ndarray):
+    """(r, then :func:`envelope_pi_robust`'s outputs, z first) on Anitescu's relaxation of a
+    frictional problem with n contacts: the impact problem in z = (z+, z-) >= 0 (2n contacts,
+    columns ``n +- mu t``) whose Q, b and diag(Q) are given, its answer mapped back to ``r = (z+
+    + z-, mu (z+ - z-))``. A warm start r (2n finite entries, else none) enters as ``z+- =
+    max((l_N +- l_T / mu) / 2, 0)`` (``l_N / 2`` where mu = 0); both maps as
+    ``qpbench.solvers.friction_ccp`` writes them, so the answer is the same to the last bit."""
+    n = mu.size
+    start = np.empty(0)
+    if warm_start.size == 2 * n and np.all(np.isfinite(warm_start)):
+        start = np.empty(2 * n)
+        for k in range(n):
+            ratio = warm_start[n + k] / mu[k] if mu[k] > 0 else 0.0
+            start[k] = max((warm_start[k] + ratio) / 2.0, 0.0)
+            start[n + k] = max((warm_start[k] - ratio) / 2.0, 0.0)
+    z, converged, path, solves, interior, factorizations, certified = envelope_pi_robust(
+        indptr, indices, data, b, diag, start, order_above, max_envelope_work, packed_options)
+    impulses = np.empty(2 * n)
+    for k in range(n):
+        impulses[k] = z[k] + z[n + k]
+        impulses[n + k] = mu[k] * (z[k] - z[n + k])
+    return impulses, z, converged, path, solves, interior, factorizations, certified
+
+
 _warm = False
 
 
 def warm_up() -> None:
-    """Compiles (or loads from the cache) the kernel once in this process, on K3's LCP."""
+    """Compiles (or loads from the cache) the kernel once in this process, on K3's LCP (and
+    its relaxed entry on one frictional contact)."""
     global _warm
     if _warm:
         return
@@ -790,4 +818,8 @@ def warm_up() -> None:
     options = options_of(accuracy.options_for("pi-robust", 1e-8))
     for order_above in (64, 0):  # both branches' types
         envelope_pi_robust(*csc, b, diag, np.empty(0), order_above, 1e9, options)
+    relaxed = (np.array([0, 2, 4], dtype=np.int32), np.array([0, 1, 0, 1], dtype=np.int32),
+               np.array([2.0, 1.0, 1.0, 2.0]))  # one contact's two relaxed columns
+    relaxed_pi_robust(*relaxed, np.array([-1.0, -1.0]), np.array([2.0, 2.0]), np.empty(0),
+                      np.array([0.5]), 64, 1e9, options)
     _warm = True
