@@ -8,9 +8,10 @@ semi-definite, given by its CSR arrays), one sweep updates the coordinates in th
 
 with ``(P x)_i`` summed over row i in its stored order, and the residual is the box QP's
 natural map ``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
-(1 where it is 0). ``qpbench.solvers.friction_staggered.box_gauss_seidel`` hands over the
-coordinates colour by colour (no two coordinates of one colour are coupled), so a sweep here
-is the same sweep as one of its colour classes at a time. Compiled once per process and
+(1 where it is 0). :func:`box_gauss_seidel` sweeps the coordinates colour by colour (no two
+coordinates of one colour are coupled), so a sweep here is the same sweep as one of its
+colour classes at a time; ``qpbench.solvers.friction_staggered`` and
+``qpbench.solvers.staggered_compiled`` both call it. Compiled once per process and
 cached beside this file (``cache=True``); :func:`warm_up` loads it outside any clock.
 """
 
@@ -63,11 +64,42 @@ def box_sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, c: np.
     return sweeps, False
 
 
+@njit(cache=True)
+def box_gauss_seidel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, c: np.ndarray,
+                     lower: np.ndarray, upper: np.ndarray, diag: np.ndarray,
+                     colour_order: np.ndarray, start: np.ndarray, tolerance: float,
+                     max_sweeps: int, check_every: int) -> tuple[np.ndarray, int, bool]:
+    """(x, sweeps, converged) of projected Gauss-Seidel on the box QP from ``start`` clipped
+    into the box. A coordinate with ``lower == upper`` (an empty box) stays at its bound; one
+    with ``diag <= 0`` has a zero row (P is PSD) and a constant gradient c_i, so it goes to the
+    bound that gradient points to, once; the others are swept (:func:`box_sweeps`) in
+    ``colour_order`` (every coordinate, in a stable order of the greedy colours of P's graph),
+    unless :func:`box_residual` is at most ``tolerance`` already (0 sweeps)."""
+    x = np.minimum(np.maximum(start, lower), upper)
+    movable = np.zeros(x.size, dtype=np.bool_)
+    for i in range(x.size):
+        if upper[i] <= lower[i]:
+            continue
+        if diag[i] <= 0.0:
+            if c[i] > 0.0:
+                x[i] = lower[i]
+            elif c[i] < 0.0:
+                x[i] = upper[i]
+        else:
+            movable[i] = True
+    if box_residual(indptr, indices, data, c, lower, upper, x) <= tolerance:
+        return x, 0, True
+    sweeps, converged = box_sweeps(indptr, indices, data, c, lower, upper, diag,
+                                   colour_order[movable[colour_order]], x, tolerance,
+                                   max_sweeps, check_every)
+    return x, sweeps, converged
+
+
 _warm = False
 
 
 def warm_up() -> None:
-    """Compiles (or loads from the cache) both kernels once in this process."""
+    """Compiles (or loads from the cache) the kernels once in this process."""
     global _warm
     if _warm:
         return
@@ -75,6 +107,7 @@ def warm_up() -> None:
     indices = np.array([0, 1, 0, 1], dtype=np.int32)
     data = np.array([2.0, 1.0, 1.0, 2.0])
     ones = np.ones(2)
-    box_sweeps(indptr, indices, data, -ones, -ones, ones, 2.0 * ones,
-               np.arange(2, dtype=np.int64), np.zeros(2), 1e-12, 10, 5)
+    box_gauss_seidel(indptr, indices, data, -ones, -ones, ones, 2.0 * ones,
+                     np.arange(2, dtype=np.int64), np.zeros(2), 1e-12, 10, 5)
+    box_residual(indptr, indices, data, -ones, -ones, ones, np.zeros(2))
     _warm = True

@@ -116,18 +116,10 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
     from qpbench.solvers import box_sweeps
 
     P, arrays = _symmetric_arrays(box)
-    x = np.clip(start, box.lower, box.upper)
-    d = P.diagonal()
-    fixed = box.upper <= box.lower
-    flat = (d <= 0.0) & ~fixed
-    x[flat] = np.where(box.c[flat] > 0.0, box.lower[flat],
-                       np.where(box.c[flat] < 0.0, box.upper[flat], x[flat]))
-    movable = np.flatnonzero(~flat & ~fixed)
-    order = movable[np.argsort(greedy_colours(P)[movable], kind="stable")]  # class by class
-    if box_sweeps.box_residual(*arrays, x) <= tolerance:
-        return BoxAnswer(x, "converged", True, 0)
-    sweeps, converged = box_sweeps.box_sweeps(*arrays, d, order, x, tolerance, max_sweeps,
-                                              check_every)
+    colour_order = np.argsort(greedy_colours(P), kind="stable")  # class by class
+    x, sweeps, converged = box_sweeps.box_gauss_seidel(
+        *arrays, P.diagonal(), colour_order, np.ascontiguousarray(start, dtype=float),
+        tolerance, max_sweeps, check_every)
     if converged:
         return BoxAnswer(x, "converged", True, sweeps)
     return BoxAnswer(x, f"max_sweeps ({max_sweeps}) reached", False, sweeps)

@@ -8,10 +8,10 @@ Python. Each round, from (l_N, l_T):
 
 1. ``b_N = q_N + W_NT l_T``; l_N = pi-robust on LCP(W_NN, b_N) at the inner accuracy, started
    from the last l_N, then ``max(l_N, 0)``;
-2. the box QP ``(W_TT, q_T + W_TN l_N, -mu l_N, mu l_N)`` (every box empty: l_T = 0): l_T from
-   the last l_T clipped into the box, a coordinate with ``(W_TT)_ii = 0`` sent to the bound
-   its gradient points to, then colour-ordered sweeps until the box residual is at most
-   ``inner accuracy * scale`` (checked every ``box_check_every`` sweeps);
+2. the box QP ``(W_TT, q_T + W_TN l_N, -mu l_N, mu l_N)`` (every box empty: l_T = 0) by
+   ``box_sweeps.box_gauss_seidel`` from the last l_T, as the Python loop's box solver, until
+   the box residual is at most ``inner accuracy * scale`` (checked every ``box_check_every``
+   sweeps);
 3. qpbench's Coulomb residual (:func:`coulomb_residual`, the formula of
    ``qpbench.problem.friction_metrics``); the best iterate is kept; stop at ``<= eps`` or after
    ``max_outer`` rounds.
@@ -36,7 +36,7 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers import pi_robust_envelope as kernel
 from qpbench.solvers.base import SolverOutput
-from qpbench.solvers.box_sweeps import box_residual, box_sweeps
+from qpbench.solvers.box_sweeps import box_gauss_seidel
 from qpbench.solvers.pgs import greedy_colours
 
 # how a call ends
@@ -116,24 +116,9 @@ def _box_solve(W_TT: Csc, diag_T: np.ndarray, colour_order: np.ndarray, W_TN: Cs
     lower = -upper
     if not np.any(upper > lower):
         return np.zeros(n), 0, False
-    x = np.minimum(np.maximum(tangential, lower), upper)
-    movable = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        if upper[i] <= lower[i]:
-            continue
-        if diag_T[i] <= 0.0:  # a zero row: the gradient is c_i, constant; go to its bound
-            if linear[i] > 0.0:
-                x[i] = lower[i]
-            elif linear[i] < 0.0:
-                x[i] = upper[i]
-        else:
-            movable[i] = True
-    order = colour_order[movable[colour_order]]
-    indptr, indices, data = W_TT
-    sweeps = 0
-    if box_residual(indptr, indices, data, linear, lower, upper, x) > tolerance:
-        sweeps, _ = box_sweeps(indptr, indices, data, linear, lower, upper, diag_T, order, x,
-                               tolerance, max_sweeps, check_every)
+    x, sweeps, _ = box_gauss_seidel(W_TT[0], W_TT[1], W_TT[2], linear, lower, upper, diag_T,
+                                    colour_order, tangential, tolerance, max_sweeps,
+                                    check_every)
     return np.minimum(np.maximum(x, lower), upper), sweeps, True
 
 
