@@ -53,6 +53,18 @@ def k3_collinear() -> ImpactProblem:
     return ImpactProblem.build("k3", G, np.ones(6), [1.0, 0, 0, 0, -1.0, 0], 1.0)
 
 
+def separate_pairs(count: int) -> ImpactProblem:
+    """``count`` pairs of unit balls, each pair closing head-on and touching no other ball:
+    no two contacts share a ball, so Q is diagonal."""
+    G = np.zeros((4 * count, count))
+    v_minus = np.zeros(4 * count)
+    for pair in range(count):
+        left, right = 2 * pair, 2 * pair + 1
+        G[2 * left, pair], G[2 * right, pair] = -1.0, 1.0
+        v_minus[2 * left], v_minus[2 * right] = 1.0 + pair, -1.0
+    return ImpactProblem.build("separate-pairs", G, np.ones(4 * count), v_minus, 1.0)
+
+
 @pytest.mark.parametrize(("family", "size"), HARD_CASES)
 @pytest.mark.parametrize(("solver", "eps"), [("pi-robust", 1e-8), ("lemke", 1e-8),
                                              ("pgs", 1e-6)])
@@ -111,6 +123,15 @@ def test_warm_start_from_the_solution_takes_no_linear_solve() -> None:
     _, first = solve_and_judge(get("pi-robust"), problem, 1e-8)
     row, again = solve_and_judge(get("pi-robust"), problem, 1e-8, warm_start=first.impulses)
     assert row["success"] and again.iterations == 0
+
+
+def test_pi_robust_stops_after_its_start_sweeps_when_they_solve_the_problem() -> None:
+    """Contacts that share no ball: the Gauss-Seidel start sweeps solve the diagonal LCP, and
+    pi-robust answers without a factorization."""
+    row, output = solve_and_judge(get("pi-robust"), separate_pairs(5), 1e-8)
+    assert row["success"] and output.claimed_success
+    assert output.info["path"] == "start sweeps" and output.info["factorizations"] == 0
+    assert output.iterations == 0
 
 
 def test_lemke_declines_above_its_size_limit_and_says_so() -> None:

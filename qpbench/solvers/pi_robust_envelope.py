@@ -72,9 +72,11 @@ WIDE_ENVELOPE_WORK = 1e4
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
-PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED = 0, 1, 2, 3, 4
+PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED, PATH_SWEEPS = \
+    0, 1, 2, 3, 4, 5
 PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
-              "interior point did not converge", "declined: envelope too wide")
+              "interior point did not converge", "declined: envelope too wide",
+              "start sweeps")
 
 Csc = tuple[np.ndarray, np.ndarray, np.ndarray]  # (indptr, indices, data) of a CSC matrix
 
@@ -553,10 +555,12 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
+    start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
+    if _original_residual(original, scale, start) <= tol:  # the sweeps solved it (Q nearly
+        return start, True, PATH_SWEEPS, 0, 0, 0  # diagonal: contacts that hardly interact)
     everything = np.arange(n)
     cache = _factor_cache(n, 2, normal_first[n])
     counters = cache.counters
-    start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
     w = _matvec(A, start) + b
     first, converged, _, solves, _ = _prox_policy_iteration(
         lcp, start, w <= diag * start, tol, rho, prox, options.pi_budget, cache)
