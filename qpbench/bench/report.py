@@ -327,9 +327,10 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
     table = pd.DataFrame(rows).sort_values(["solver", "accuracy"], ascending=[True, False])
     sources = ", ".join(sorted(frame.loc[frame["mode"] == "warm", "warm_start_source"]
                                .dropna().astype(str).unique()))
-    return ("\n## Warm against cold starts\n\nWarm starts come from the problem's previous "
-            "impulses where it has them (`previous`), else from its reference impulses "
-            "perturbed by 1% (`perturbed-reference`); used here: " + (sources or "-") + ".\n\n"
+    return ("\n## Warm against cold starts\n\nWarm starts are the impulses the simulator "
+            "carried into the step from the previous one, where the captured scene caches "
+            "impulses (`previous`); a problem without them is solved cold (`none`). Never "
+            "anything derived from the reference. Used here: " + (sources or "-") + ".\n\n"
             + markdown_table(table, {"success cold": str, "success warm": str,
                                      "accuracy": level}))
 

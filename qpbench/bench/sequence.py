@@ -1,9 +1,10 @@
 """Sequence mode: every solver replays a captured scene, warm-started from its own answers.
 
-The ``warm`` mode of ``qpbench run`` starts from the verified reference perturbed by 1%, which
-no simulator has. Here a scene is simulated with ``--capture`` semantics (one problem file per
-impact step, named in order, each carrying ``data["contact_keys"]``: the identity of every
-contact, stable across steps), and then each solver solves the problems in order twice:
+The ``warm`` mode of ``qpbench run`` starts from the impulses a simulator carried into a
+captured step (only scenes that cache impulses have them), the same vector for every solver.
+Here a scene is simulated with ``--capture`` semantics (one problem file per impact step,
+named in order, each carrying ``data["contact_keys"]``: the identity of every contact, stable
+across steps), and then each solver solves the problems in order twice:
 
 * ``cold``: no warm start;
 * ``sequence``: from the solver's OWN answer of the previous captured step, restricted to the

@@ -28,10 +28,6 @@ DEFAULT_REPEATS = 1
 # the columns that identify one cell of the matrix (one row of the results)
 CELL_KEY = ("problem", "solver", "formulation", "accuracy", "mode")
 
-# relative size of the deterministic perturbation of the reference impulses used as a warm
-# start when a problem carries no previous impulses (see qpbench.bench.runner.warm_start_for)
-WARM_START_PERTURBATION = 1e-2
-
 
 @dataclass(frozen=True)
 class Cell:

@@ -26,7 +26,6 @@ import signal
 import statistics
 import sys
 import time
-import zlib
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
@@ -35,8 +34,9 @@ import numpy as np
 
 from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.bench.provenance import provenance
-from qpbench.bench.settings import OUT_OF_MEMORY, WARM_START_PERTURBATION, Cell, Limits
+from qpbench.bench.settings import OUT_OF_MEMORY, Cell, Limits
 from qpbench.problem import files
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec
 from qpbench.solvers.registry import all_solvers, resolve
@@ -80,25 +80,22 @@ def limit_memory(limit_mb: int) -> int:
     return applied
 
 
-def warm_start_for(problem: ImpactProblem) -> tuple[np.ndarray | None, str]:
+def warm_start_for(problem: ImpactProblem | FrictionalProblem) -> tuple[np.ndarray | None, str]:
     """The warm start of ``problem`` and where it came from.
 
-    * ``previous``: the impulses of the previous solve stored with the problem
-      (``problem.data["warm_start"]``, e.g. the last time step of a simulation);
-    * ``perturbed-reference``: otherwise the verified reference impulses, each multiplied
-      by ``1 + 1e-2 z`` (z standard normal, seeded by the problem name) and clipped at 0;
-    * ``none``: neither exists; the solve is then a cold start.
+    * ``previous``: the impulses the simulator carried into this step from the previous one
+      (``problem.data["warm_start"]``, stored by a capture of a scene that caches impulses,
+      as SCISim's ``cache_impulses``): what a simulator has;
+    * ``none``: the problem carries none; the solve is then a cold start.
+
+    Never anything derived from the reference: a solver must not see the answer it is judged
+    against (sequence mode, ``qpbench sequence``, warm-starts every solver from its own
+    answers instead).
     """
     previous = problem.data.get("warm_start")
-    if previous is not None and np.shape(previous) == (problem.n_contacts,):
+    size = problem.n_contacts * (2 if isinstance(problem, FrictionalProblem) else 1)
+    if previous is not None and np.shape(previous) == (size,):
         return np.asarray(previous, dtype=float), "previous"
-    reference = problem.reference
-    if reference is not None and reference.verified:
-        rng = np.random.default_rng(zlib.crc32(problem.name.encode()))
-        noise = rng.standard_normal(problem.n_contacts)
-        impulses = np.asarray(reference.impulses, dtype=float)
-        return np.maximum(impulses * (1.0 + WARM_START_PERTURBATION * noise), 0.0), \
-            "perturbed-reference"
     return None, "none"
 
 

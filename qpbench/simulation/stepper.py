@@ -468,13 +468,18 @@ class Simulator:
             else:
                 problem = self.impact_problem(found, v_minus, n_rel)
             keys = found.keys()
+            warm = self._warm_start(keys, frictional)
             if self.capture is not None and np.any(_normal(problem).b < 0):  # else l = 0
                 # each contact's identity, stored beside the numbers (never in G or any
-                # fingerprint), so a replay can match the contacts of consecutive steps
+                # fingerprint), so a replay can match the contacts of consecutive steps; and
+                # the impulses carried from the previous step where the scene caches them
+                # (``run --mode warm`` starts from these)
                 _normal(problem).data["contact_keys"] = keys.copy()
+                if warm is not None:
+                    _normal(problem).data["warm_start"] = warm.copy()
                 files.save(problem, self.capture / problem.name)
                 self.captured += 1
-            impulses = self._solve(problem, self._warm_start(keys, frictional))
+            impulses = self._solve(problem, warm)
             self._remember(keys, impulses, frictional)
             v_plus = problem.v_plus(impulses)
             if shift is not None:
