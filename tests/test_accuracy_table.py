@@ -41,3 +41,13 @@ def test_options_follow_the_level_as_the_table_says() -> None:
     osqp = accuracy.options_for("osqp", 1e-6, scale=3.0)
     assert osqp["eps_abs"] == pytest.approx(3e-6) and osqp["eps_rel"] == pytest.approx(1e-6)
     assert accuracy.options_for("quadprog", 1e-6) == {}
+
+
+def test_a_row_overridden_for_one_measurement_is_restored_after() -> None:
+    cap = accuracy.OPTIONS["staggered"]["max_outer"]
+    with accuracy.overridden("staggered", max_outer=cap + 1):
+        assert accuracy.options_for("staggered", 1e-8)["max_outer"] == cap + 1
+    assert accuracy.options_for("staggered", 1e-8)["max_outer"] == cap
+    with pytest.raises(KeyError, match="no option max_rounds"), \
+            accuracy.overridden("staggered", max_rounds=1):
+        pass

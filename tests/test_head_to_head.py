@@ -114,3 +114,23 @@ def test_a_missing_folder_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
                  "-o", str(tmp_path / "h.json")])
     assert code != 0 and "no such problem folder" in capsys.readouterr().err
     assert not (tmp_path / "h.json").exists()
+
+
+def test_staggered_pairs_run_to_the_head_to_heads_round_cap(tmp_path: Path) -> None:
+    """rough-box-30 needs about 1,700 staggered rounds at 1e-8, more than the accuracy table's
+    cap: in the head-to-head every staggered pair may run STAGGERED_MAX_OUTER rounds, and the
+    table is itself again afterwards."""
+    from qpbench.problem.friction_generate import generate as generate_frictional
+    from qpbench.solvers import accuracy
+
+    table_cap = accuracy.OPTIONS["staggered"]["max_outer"]
+    assert table_cap < 1_700 <= head_to_head.STAGGERED_MAX_OUTER
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    files.save(generate_frictional("rough-box", seed=0)[0], folder / "rough-box.npz")
+    bench = pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4]))  # no frictional pair
+    result = head_to_head.head_to_head(folder, bench, repeats=1)
+    [staggered] = [row for row in result["rows"] if row["solver"] == "pi-robust/staggered"]
+    assert staggered["success"] and staggered["outer_iterations"] > table_cap
+    assert accuracy.OPTIONS["staggered"]["max_outer"] == table_cap
+    assert f"up to {head_to_head.STAGGERED_MAX_OUTER} rounds" in result["markdown"]

@@ -17,7 +17,8 @@ regularization is a named ``*-reg`` variant with its delta here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Iterator
 from typing import Any
 
 LEVELS: tuple[float, ...] = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
@@ -225,6 +226,22 @@ def options_for(solver: str, accuracy: float, scale: float = 1.0) -> dict[str, A
     (KeyError for a solver without a row: registration refuses those)."""
     row = OPTIONS[solver]
     return {key: value(accuracy, scale) if callable(value) else value for key, value in row.items()}
+
+
+@contextlib.contextmanager
+def overridden(solver: str, **entries: OptionValue) -> Iterator[None]:
+    """The table with ``entries`` replacing those of ``solver``'s row while the block runs
+    (for a measurement that changes one setting for every pair alike), restored after."""
+    row = OPTIONS[solver]
+    unknown = set(entries) - set(row)
+    if unknown:
+        raise KeyError(f"{solver} has no option {', '.join(sorted(unknown))}")
+    saved = {key: row[key] for key in entries}
+    row.update(entries)
+    try:
+        yield
+    finally:
+        row.update(saved)
 
 
 def describe(value: OptionValue) -> str:
