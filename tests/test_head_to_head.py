@@ -58,8 +58,9 @@ def test_the_report_names_options_tuned_on_a_sets_own_problems() -> None:
     rows = [row("pi-robust/lcp", True, "a", 1e-4), row("daqp/dual", False, "a", 4e-4)]
     [entry] = head_to_head.summarize(rows)
     assert "chosen while looking" not in head_to_head.markdown([entry], 5)  # box packings
-    [entry] = head_to_head.summarize([{**one, "set": "frictional (ccp)"} for one in rows])
-    assert "pi_budget was raised from 20 to 25" in head_to_head.markdown([entry], 5)
+    [entry] = head_to_head.summarize([{**one, "set": "fork 5x5 grid dumps"} for one in rows])
+    assert "rho, start_sweeps, backup_steps and pi_budget were swept on these dumps" in \
+        head_to_head.markdown([entry], 5)
 
 
 def test_the_target_needs_every_problem_the_external_pair_solves() -> None:

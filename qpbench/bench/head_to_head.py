@@ -60,9 +60,6 @@ FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
 TUNED_ON = {
     "fork 5x5 grid dumps": "rho, start_sweeps, backup_steps and pi_budget were swept on "
                            "these dumps (every value within noise of the table's)",
-    "frictional (ccp)": "pi_budget was raised from 20 to 25 on rough-box-30-s0, whose "
-                        "relaxation's first prox sub-problem needed exactly 20 pivoting "
-                        "solves (the interior point ran instead of one more prox step)",
 }
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
 SETS = ("fork 5x5 grid dumps", "7x7 grid scene", "grid scene captures", "box packings",

@@ -348,7 +348,8 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
 def solve_relaxed(problem: FrictionalProblem, eps: float,
                   warm_start: np.ndarray | None = None) -> SolverOutput | None:
     """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``), its
-    warm start mapped in and its answer r mapped back inside the one compiled call
+    warm start mapped in, swept contact by contact (each contact's (z+, z-) as one block) and
+    its answer r mapped back inside the one compiled call
     (``pi_robust_envelope.relaxed_pi_robust``); None when the compiled path declines, so that
     the ccp twin's general path runs."""
     relaxed = problem.relaxed()

@@ -779,6 +779,74 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
 
 
 @njit(cache=True)
+def _pair_lcp(a: float, coupling: float, d: float, c_first: float, c_second: float):
+    """(x_1, x_2, solved): the LCP of one 2x2 block, ``x >= 0``, ``B x + c >= 0``,
+    ``x . (B x + c) = 0`` with ``B = [[a, coupling], [coupling, d]]`` (B positive
+    semi-definite), by its four active sets in turn (both zero, only x_1, only x_2, both
+    free); not solved when none fits (B singular and c inconsistent)."""
+    if c_first >= 0.0 and c_second >= 0.0:
+        return 0.0, 0.0, True
+    if a > 0.0:
+        first = -c_first / a
+        if first >= 0.0 and coupling * first + c_second >= 0.0:
+            return first, 0.0, True
+    if d > 0.0:
+        second = -c_second / d
+        if second >= 0.0 and coupling * second + c_first >= 0.0:
+            return 0.0, second, True
+    determinant = a * d - coupling * coupling
+    if determinant > 0.0:
+        first = (coupling * c_second - d * c_first) / determinant
+        second = (coupling * c_first - a * c_second) / determinant
+        if first >= 0.0 and second >= 0.0:
+            return first, second, True
+    return 0.0, 0.0, False
+
+
+@njit(cache=True)
+def contact_block_sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                         b: np.ndarray, start: np.ndarray, contacts: int,
+                         sweeps: int) -> np.ndarray:
+    """``sweeps`` block Gauss-Seidel sweeps on LCP(Q, b) whose blocks are the pairs
+    ``(k, contacts + k)`` (Anitescu's relaxation: a contact's ``z+`` and ``z-``): for
+    k = 1..contacts in turn, ``z_k`` and ``z_{contacts+k}`` become the solution of the 2x2
+    LCP of Q's block with ``c = (Q z + b)_block - Q_block z_block`` (the rest held fixed; a
+    block whose LCP has none is left alone). Each contact's two columns ``n +- mu t`` are
+    nearly parallel, which is what slows scalar sweeps down; a single sliding or sticking
+    contact is solved exactly in one sweep. ``w = Q z + b`` is kept up to date column by
+    column."""
+    size = 2 * contacts
+    impulses = start.copy()
+    w = b.copy()
+    block_diag, coupling = np.zeros(size), np.zeros(contacts)
+    for column in range(size):
+        value = impulses[column]
+        for k in range(indptr[column], indptr[column + 1]):
+            row = indices[k]
+            w[row] += data[k] * value
+            if row == column:
+                block_diag[column] = data[k]
+            elif column >= contacts and row == column - contacts:
+                coupling[row] = data[k]
+    for _ in range(sweeps):
+        for contact in range(contacts):
+            first, second = contact, contacts + contact
+            a, o, d = block_diag[first], coupling[contact], block_diag[second]
+            z_first, z_second, solved = _pair_lcp(
+                a, o, d, w[first] - a * impulses[first] - o * impulses[second],
+                w[second] - o * impulses[first] - d * impulses[second])
+            if not solved:
+                continue
+            for column, value in ((first, z_first), (second, z_second)):
+                change = value - impulses[column]
+                if change != 0.0:
+                    for k in range(indptr[column], indptr[column + 1]):
+                        w[indices[k]] += data[k] * change
+                    impulses[column] = value
+    return impulses
+
+
+@njit(cache=True)
 def relaxed_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
                       b: np.ndarray, diag: np.ndarray, warm_start: np.ndarray, mu: np.ndarray,
                       order_above: int, max_envelope_work: float, packed_options: np.ndarray):
@@ -786,18 +854,24 @@ def relaxed_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     frictional problem with n contacts: the impact problem in z = (z+, z-) >= 0 (2n contacts,
     columns ``n +- mu t``) whose Q, b and diag(Q) are given, its answer mapped back to ``r = (z+
     + z-, mu (z+ - z-))``. A warm start r (2n finite entries, else none) enters as ``z+- =
-    max((l_N +- l_T / mu) / 2, 0)`` (``l_N / 2`` where mu = 0); both maps as
-    ``qpbench.solvers.friction_ccp`` writes them, so the answer is the same to the last bit."""
+    max((l_N +- l_T / mu) / 2, 0)`` (``l_N / 2`` where mu = 0), both maps as
+    ``qpbench.solvers.friction_ccp`` writes them. The start (zero without a warm start) first
+    gets ``start_sweeps`` sweeps of :func:`contact_block_sweeps`, which solve each contact's
+    two variables together; a cold start that they solve is path ``PATH_SWEEPS``."""
     n = mu.size
-    start = np.empty(0)
-    if warm_start.size == 2 * n and np.all(np.isfinite(warm_start)):
-        start = np.empty(2 * n)
+    start = np.zeros(2 * n)
+    warm = warm_start.size == 2 * n and np.all(np.isfinite(warm_start))
+    if warm:
         for k in range(n):
             ratio = warm_start[n + k] / mu[k] if mu[k] > 0 else 0.0
             start[k] = max((warm_start[k] + ratio) / 2.0, 0.0)
             start[n + k] = max((warm_start[k] - ratio) / 2.0, 0.0)
+    start = contact_block_sweeps(indptr, indices, data, b, start, n,
+                                 unpacked(packed_options).start_sweeps)
     z, converged, path, solves, interior, factorizations, certified = envelope_pi_robust(
         indptr, indices, data, b, diag, start, order_above, max_envelope_work, packed_options)
+    if path == PATH_START and not warm:
+        path = PATH_SWEEPS
     impulses = np.empty(2 * n)
     for k in range(n):
         impulses[k] = z[k] + z[n + k]
