@@ -29,8 +29,9 @@ last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho
 steps on a settled policy cost two triangular solves, and a new factor copies the leading rows
 it shares with a kept one. A start that is not converged first gets ``start_sweeps`` projected
 Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the kernel's order), which cut the pivots that
-follow. A factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python
-path.
+follow, and which alone solve contacts that hardly interact (Q nearly diagonal: path
+``start sweeps``, no factorization). A factor that fails raises ``np.linalg.LinAlgError``;
+the caller then runs the Python path.
 
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
 caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
@@ -831,10 +832,10 @@ def contact_block_sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarr
     for _ in range(sweeps):
         for contact in range(contacts):
             first, second = contact, contacts + contact
-            a, o, d = block_diag[first], coupling[contact], block_diag[second]
+            plus, cross, minus = block_diag[first], coupling[contact], block_diag[second]
             z_first, z_second, solved = _pair_lcp(
-                a, o, d, w[first] - a * impulses[first] - o * impulses[second],
-                w[second] - o * impulses[first] - d * impulses[second])
+                plus, cross, minus, w[first] - plus * impulses[first] - cross * impulses[second],
+                w[second] - cross * impulses[first] - minus * impulses[second])
             if not solved:
                 continue
             for column, value in ((first, z_first), (second, z_second)):
