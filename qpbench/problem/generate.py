@@ -199,7 +199,11 @@ def near_duplicate(size: int, rng: np.random.Generator | None) -> tuple[Layout, 
     extra = []
     for a, b in ball_pairs(layout):
         delta = layout.positions[a] - layout.positions[b]
-        normal = _rotate((delta / np.linalg.norm(delta))[None, :], rng.uniform(0.5e-9, 2e-9))[0]
+        # |delta| from elementwise products and one addition, which round alike on every CPU
+        # (np.linalg.norm of a vector is a BLAS dot product, whose kernels, with or without
+        # fused multiply-adds, depend on the CPU); the same numbers as that dot product here
+        length = np.sqrt(np.sum(delta * delta))
+        normal = _rotate((delta / length)[None, :], rng.uniform(0.5e-9, 2e-9))[0]
         extra.append((int(a), int(b), normal))
     return layout, extra
 
