@@ -135,3 +135,11 @@ def test_staggered_pairs_run_to_the_head_to_heads_round_cap(tmp_path: Path) -> N
     assert staggered["success"] and staggered["outer_iterations"] > table_cap
     assert accuracy.OPTIONS["staggered"]["max_outer"] == table_cap
     assert f"up to {head_to_head.STAGGERED_MAX_OUTER} rounds" in result["markdown"]
+
+
+def test_the_target_sentence_names_what_holds_and_what_does_not() -> None:
+    sentence = head_to_head.target_sentence
+    assert sentence(3, ["a", "b"], [], "scene") == "The 3x target holds on every scene: a, b."
+    assert sentence(3, [], ["a"], "set") == "The 3x target holds on no set; it does not hold on: a."
+    assert sentence(3, ["a"], ["b"], "set") == \
+        "The 3x target holds on: a; it does not hold on: b."

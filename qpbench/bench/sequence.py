@@ -317,8 +317,9 @@ def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
                      f"{1e3 * figures['own_sgm_s']:.3f} | `{figures['fastest_external']}` | "
                      f"{1e3 * figures['external_sgm_s']:.3f} | {figures['speedup']:.2f}x | "
                      f"{'met' if entry['target_met'] else 'not met'} |")
-    lines.append(f"\nThe {TARGET_SPEEDUP:g}x target holds on: {', '.join(holds) or 'none'}; "
-                 f"it does not hold on: {', '.join(fails) or 'none'}. Where no contact "
+    from qpbench.bench.head_to_head import target_sentence
+
+    lines.append(f"\n{target_sentence(TARGET_SPEEDUP, holds, fails, 'scene')} Where no contact "
                  "persists, a sequence solve is a cold solve.")
     return lines
 
