@@ -4,6 +4,7 @@ contacts) and the breakdown of pi-robust's time. Correctness only: no wall-clock
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +73,24 @@ def test_capture_stores_contact_keys_without_changing_the_problems(
     assert steps == sorted(steps)
 
 
+def test_each_solve_is_the_fastest_of_its_repeats_from_one_warm_start(
+        captured: list[ImpactProblem], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Three repeats per solve (no repeat budget here, so no clock decides how many): every
+    step calls the solver three times cold and three times from the same warm start."""
+    from qpbench.bench import repeats
+
+    monkeypatch.setattr(repeats, "REPEAT_BUDGET_S", math.inf)
+    recorder = Recorder()
+    rows = sequence.replay(recorder.spec(), captured[:4], 1e-8, "box", repeats=3)
+    assert len(rows) == 4 and len(recorder.calls) == 4 * 6
+    for step in range(4):
+        calls = recorder.calls[6 * step:6 * step + 6]
+        assert all(warm is None for warm, _ in calls[:3])
+        warm_starts = [warm for warm, _ in calls[3:]]
+        assert all(warm is None for warm in warm_starts) or all(
+            np.array_equal(warm, warm_starts[0]) for warm in warm_starts)
+
+
 def test_carried_keeps_persisting_contacts_and_zeros_new_ones() -> None:
     warm, persisting = sequence.carried(np.array([7, 3, 5]), np.array([0.5, 1.5, 2.5]),
                                         np.array([5, 9, 7]))
@@ -82,7 +101,7 @@ def test_carried_keeps_persisting_contacts_and_zeros_new_ones() -> None:
 def test_sequence_warm_starts_each_step_from_the_solvers_own_previous_answer(
         captured: list[ImpactProblem]) -> None:
     recorder = Recorder()
-    rows = sequence.replay(recorder.spec(), captured, 1e-8, "box")
+    rows = sequence.replay(recorder.spec(), captured, 1e-8, "box", repeats=1)
     assert [(row["solver"], row["index"]) for row in rows] == \
         [("test-recorder/lcp", k) for k in range(len(captured))]
     assert len(recorder.calls) == 2 * len(captured)  # cold, then sequence, per step

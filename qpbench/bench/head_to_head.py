@@ -13,7 +13,8 @@ problems the fastest external ``staggered`` and ``ccp`` pairs there, so that the
 made by measurement, not by hand. pi-robust's own pairs are ``pi-robust/lcp`` (impact) and
 ``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
 
-Every solve goes through the one stopwatch (``call_solver``), the minimum of ``repeats``;
+Every solve goes through the one stopwatch (``call_solver``), the fastest of ``repeats``
+(``qpbench.bench.repeats``);
 every answer is judged by qpbench's residual at ``accuracy``; problems without a solution
 (``no-solution``) are left out of the sets' figures, as the report does. Per set and pair:
 the shifted geometric mean (``qpbench.bench.stats``: shift on the set's own time scale) of
@@ -38,18 +39,17 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench import stats
+from qpbench.bench.repeats import DEFAULT_REPEATS, REPEAT_BUDGET_S, fastest_solve
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers.base import SolverSpec
-from qpbench.solvers.run import NO_SOLUTION, call_solver, judge
+from qpbench.solvers.run import NO_SOLUTION, judge
 
 ACCURACY = 1e-8
-DEFAULT_REPEATS = 5
 DEFAULT_CANDIDATES = 6
 TARGET_SPEEDUP = 3.0
-REPEAT_BUDGET_S = 0.2
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
 OWN_IMPACT = ("pi-robust/lcp",)
 OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")
@@ -120,12 +120,9 @@ def ranked(frame: pd.DataFrame) -> list[str]:
 
 def measure(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, repeats: int,
             accuracy: float = ACCURACY) -> dict[str, Any]:
-    """One problem, one pair: the fastest of ``repeats`` solves (fewer once they have taken
-    REPEAT_BUDGET_S in all: a slow solve varies little), judged by qpbench."""
-    outputs = [call_solver(spec, problem, accuracy)]
-    while len(outputs) < repeats and sum(o.time_s for o in outputs) < REPEAT_BUDGET_S:
-        outputs.append(call_solver(spec, problem, accuracy))
-    fastest = min(outputs, key=lambda output: output.time_s)
+    """One problem, one pair: the fastest of ``repeats`` solves (``fastest_solve``), judged
+    by qpbench."""
+    fastest = fastest_solve(spec, problem, accuracy, repeats)
     row = judge(spec, problem, fastest, accuracy)
     return {"problem": problem.name, "set": set_of(problem, spec.formulation),
             "solver": spec.key,

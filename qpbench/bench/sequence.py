@@ -14,8 +14,10 @@ across steps), and then each solver solves the problems in order twice:
   captured problems are matched even when the simulator had steps without an impact between
   them (those solve l = 0 and change nothing the solver could carry).
 
-Every solve goes through the one stopwatch (``qpbench.solvers.run.call_solver``: ``time_s``)
-and is judged by qpbench (``judge``: residual at the requested accuracy). A solver that does
+Every solve goes through the one stopwatch (``qpbench.solvers.run.call_solver``: ``time_s``),
+the fastest of ``repeats`` (``qpbench.bench.repeats``: fewer once they have taken
+``REPEAT_BUDGET_S``), and is judged by qpbench (``judge``: residual at the requested
+accuracy). A solver that does
 not take warm starts (``SolverSpec.warm_start`` false) gets the same vector and ignores it, so
 its sequence times are cold times measured again.
 
@@ -38,11 +40,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from qpbench.bench.repeats import DEFAULT_REPEATS, REPEAT_BUDGET_S, fastest_solve
 from qpbench.errors import InputError
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverSpec
-from qpbench.solvers.run import call_solver, judge
+from qpbench.solvers.run import judge
 
 OWN = "pi-robust/lcp"
 ACCURACY = 1e-8
@@ -128,10 +131,11 @@ def _figures(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float = ACCURACY,
-           scene: str = "", budget_s: float = math.inf) -> list[dict[str, Any]]:
+           scene: str = "", budget_s: float = math.inf,
+           repeats: int = DEFAULT_REPEATS) -> list[dict[str, Any]]:
     """One row per step: the cold solve and the sequence solve of ``spec`` (module
-    docstring); it stops early, with fewer rows than problems, once its ``time_s`` on this
-    scene add up to more than ``budget_s``."""
+    docstring), each the fastest of ``repeats``; it stops early, with fewer rows than
+    problems, once those ``time_s`` on this scene add up to more than ``budget_s``."""
     rows = []
     previous: ImpactProblem | None = None
     previous_answer: np.ndarray | None = None
@@ -139,14 +143,14 @@ def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float 
     for index, problem in enumerate(problems):
         if spent > budget_s:
             break
-        cold_output = call_solver(spec, problem, accuracy)
+        cold_output = fastest_solve(spec, problem, accuracy, repeats)
         cold = judge(spec, problem, cold_output, accuracy)
         warm, persisting = None, 0
         if previous is not None and previous_answer is not None:
             warm, persisting = carried(previous.data[KEYS], previous_answer, problem.data[KEYS])
             if not persisting:
                 warm = None
-        output = call_solver(spec, problem, accuracy, warm)
+        output = fastest_solve(spec, problem, accuracy, repeats, warm)
         spent += cold_output.time_s + output.time_s
         sequence = judge(spec, problem, output, accuracy)
         answer = output.impulses
@@ -246,13 +250,14 @@ def _own_backend(solver: str, own_backend: str) -> bool:
 def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              scenes: Sequence[dict[str, Any]], accuracy: float,
              per_scene: Sequence[dict[str, Any]] = (), stopped: dict[str, str] | None = None,
-             budget_s: float = SCENE_BUDGET_S) -> str:
+             budget_s: float = SCENE_BUDGET_S, repeats: int = DEFAULT_REPEATS) -> str:
     lines = [
         "## Sequence mode: warm starts from each solver's own previous answer\n",
         "Each captured scene is replayed in order; every solver solves each step cold and "
         "warm-started from its own answer of the previous step on the contacts that persist "
         f"(zero on new contacts), at accuracy {accuracy:g}, judged by qpbench's residual. "
-        "Times are `time_s` of the one stopwatch; a failed solve is charged the largest time "
+        f"Times are `time_s` of the one stopwatch, the fastest of {repeats} repeats (fewer "
+        f"once they took {REPEAT_BUDGET_S:g} s); a failed solve is charged the largest time "
         "of the measurement; SGM as in the report.\n",
         "Scenes: " + "; ".join(f"`{scene['scene']}` ({scene['steps']} impact steps, "
                                f"{scene['contacts_min']}-{scene['contacts_max']} contacts, "
@@ -359,7 +364,8 @@ def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
 def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DEFAULT_STEPS,
              accuracy: float = ACCURACY,
              progress: Callable[[str], None] | None = None,
-             budget_s: float = SCENE_BUDGET_S) -> dict[str, Any]:
+             budget_s: float = SCENE_BUDGET_S,
+             repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench sequence``: per-step rows, per-solver summary, the
     comparison with the target and a ``markdown`` section. A scene argument that is a folder
     is read as an existing capture. A pair whose solves on one scene take more than
@@ -387,7 +393,7 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DE
                     continue
                 if progress is not None:
                     progress(f"{scene}: {spec.key}")
-                replayed = replay(spec, problems, accuracy, str(scene), budget_s)
+                replayed = replay(spec, problems, accuracy, str(scene), budget_s, repeats)
                 if len(replayed) < len(problems):
                     stopped[spec.key] = f"{scene}: {len(replayed)} of {len(problems)} steps"
                 rows.extend(replayed)
@@ -398,6 +404,6 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DE
     return {"title": "Sequence mode", "accuracy": accuracy, "steps": steps,
             "scenes": described, "summary": summary, "comparison": compared,
             "by_scene": per_scene, "target_met": compared["target_met"], "rows": rows,
-            "stopped": stopped, "budget_s": budget_s,
+            "stopped": stopped, "budget_s": budget_s, "repeats": repeats,
             "markdown": markdown(summary, compared, described, accuracy, per_scene, stopped,
-                                 budget_s)}
+                                 budget_s, repeats)}

@@ -1,4 +1,4 @@
-"""``qpbench sequence SCENE... [--solvers A,B] [--steps 30] [--accuracy 1e-8]
+"""``qpbench sequence SCENE... [--solvers A,B] [--steps 30] [--accuracy 1e-8] [--repeats 5]
 -o results/sequence.json``: every solver replays captured scene sequences, cold and
 warm-started from its own previous answer on the persisting contacts
 (``qpbench.bench.sequence``). Runs with single-threaded BLAS, in a child process unless this
@@ -28,13 +28,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "starts are shown beside (default: none of those)")
     parser.add_argument("--steps", type=int, default=30, help="impact steps per scene (30)")
     parser.add_argument("--accuracy", type=float, default=1e-8)
+    parser.add_argument("--repeats", type=int, default=5,
+                        help="timed repeats per solve, the fastest kept (5)")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.steps < 1:
-        raise QpbenchError("--steps must be at least 1")
+    if args.steps < 1 or args.repeats < 1:
+        raise QpbenchError("--steps and --repeats must be at least 1")
     if not args.accuracy > 0:
         raise QpbenchError("--accuracy must be positive")
     output = writable_output(args.output)
@@ -43,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(scene, "no such scene file or capture folder")
     child = single_threaded_rerun(
         ["sequence", *args.scenes, "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
-         "-o", str(args.output), *(["--solvers", args.solvers] if args.solvers else []),
+         "--repeats", str(args.repeats), "-o", str(args.output),
+         *(["--solvers", args.solvers] if args.solvers else []),
          *(["--results", args.results] if args.results else [])])
     if child is not None:
         return child
@@ -67,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         specs = sequence.default_solvers(cold)
     report = sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs,
                                args.steps, args.accuracy,
-                               progress=lambda text: print(text, file=sys.stderr))
+                               progress=lambda text: print(text, file=sys.stderr),
+                               repeats=args.repeats)
     write_json(output, report)
     print(report["markdown"], end="")
     return 0
