@@ -17,9 +17,8 @@ across steps), and then each solver solves the problems in order twice:
 Every solve goes through the one stopwatch (``qpbench.solvers.run.call_solver``: ``time_s``),
 the fastest of ``repeats`` (``qpbench.bench.repeats``: fewer once they have taken
 ``REPEAT_BUDGET_S``), and is judged by qpbench (``judge``: residual at the requested
-accuracy). A solver that does
-not take warm starts (``SolverSpec.warm_start`` false) gets the same vector and ignores it, so
-its sequence times are cold times measured again.
+accuracy). A solver that does not take warm starts (``SolverSpec.warm_start`` false) gets the
+same vector and ignores it, so its sequence times are cold times measured again.
 
 Summaries charge a failed solve with the largest time of any solve of the measurement (the
 report's rule: failing quickly never looks fast) and use the report's shifted geometric mean
