@@ -441,16 +441,16 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
 
 
 @njit(cache=True)
-def _prox_policy_iteration(lcp: OrderedLcp, centre: np.ndarray, policy: np.ndarray,
-                           tol: float, rho: float, prox: Prox, budget: int,
-                           cache: FactorCache):
+def _prox_policy_iteration(lcp: OrderedLcp, centre: np.ndarray, centre_residual: float,
+                           policy: np.ndarray, tol: float, rho: float, prox: Prox,
+                           budget: int, cache: FactorCache):
     """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from
-    ``centre``/``policy`` within ``budget`` solves:
-    (best l, converged, status code, solves, best residual)."""
+    ``centre`` (whose residual the caller has measured: ``centre_residual``) and ``policy``
+    within ``budget`` solves: (best l, converged, status code, solves, best residual)."""
     original, b, safe_diag, scale = lcp.original, lcp.b, lcp.safe_diag, lcp.scale
     tol_l = 0.1 * tol * scale / safe_diag
     tol_w = 0.1 * tol * scale
-    res = _original_residual(original, scale, centre)
+    res = centre_residual
     best, best_res = centre, res
     solves = 0
     stalls = 0
@@ -512,19 +512,20 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def _polish(lcp: OrderedLcp, impulses: np.ndarray, tol: float, rho: float,
+def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
             cache: FactorCache):
-    """(l, solves): a converged l whose residual is above tol / 10 gets one more prox step on
-    its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two triangular
+    """(l, solves): a converged l whose ``residual`` is above tol / 10 gets one more prox step
+    on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two triangular
     solves), kept if it lowers the residual. A prox step ends at residual
     ~ rho |D (l - z)|, about tol when rho = tol; the margin lets the caller certify the answer
     without a second residual pass."""
-    if _original_residual(lcp.original, lcp.scale, impulses) <= 0.1 * tol:
+    if residual <= 0.1 * tol:
         return impulses, 0
     w = _matvec(lcp.A, impulses) + lcp.b
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
     polished, _, _, used, _ = _prox_policy_iteration(
-        lcp, impulses, w < lcp.diag * impulses, 0.1 * tol, rho, one_step, np.int64(1), cache)
+        lcp, impulses, residual, w < lcp.diag * impulses, 0.1 * tol, rho, one_step,
+        np.int64(1), cache)
     return polished, used
 
 
@@ -533,10 +534,11 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
             prox: Prox, finish_budget: int, cache: FactorCache):
     """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
     policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
-    finished, done, _, used, _ = _prox_policy_iteration(
-        lcp, start, start_w < lcp.diag * start, tol, rho, prox, finish_budget, cache)
+    finished, done, _, used, finished_residual = _prox_policy_iteration(
+        lcp, start, _original_residual(lcp.original, lcp.scale, start),
+        start_w < lcp.diag * start, tol, rho, prox, finish_budget, cache)
     if done:
-        finished, polished = _polish(lcp, finished, tol, rho, cache)
+        finished, polished = _polish(lcp, finished, finished_residual, tol, rho, cache)
         used += polished
     return finished, done, used
 
@@ -557,16 +559,17 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
     start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
-    if _original_residual(original, scale, start) <= tol:  # the sweeps solved it (Q nearly
-        return start, True, PATH_SWEEPS, 0, 0, 0  # diagonal: contacts that hardly interact)
+    start_residual = _original_residual(original, scale, start)
+    if start_residual <= tol:  # the sweeps solved it (Q nearly diagonal: contacts that
+        return start, True, PATH_SWEEPS, 0, 0, 0  # hardly interact)
     everything = np.arange(n)
     cache = _factor_cache(n, 2, normal_first[n])
     counters = cache.counters
     w = _matvec(A, start) + b
-    first, converged, _, solves, _ = _prox_policy_iteration(
-        lcp, start, w <= diag * start, tol, rho, prox, options.pi_budget, cache)
+    first, converged, _, solves, first_res = _prox_policy_iteration(
+        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, cache)
     if converged:
-        first, used = _polish(lcp, first, tol, rho, cache)
+        first, used = _polish(lcp, first, first_res, tol, rho, cache)
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
@@ -636,7 +639,6 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
         iterations = iteration
         if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
             break
-    first_res = _original_residual(original, scale, first)
     if first_res < best_res:
         best, best_res = first, first_res
     return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0]
