@@ -54,13 +54,13 @@ STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered
 OWN_IMPACT = ("pi-robust/lcp",)
 OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")
 FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
-# the main benchmark's families whose fastest external pairs are the impact candidates
 # options of pi-robust chosen while looking at a set's own problems: the report names them,
 # since a speedup there is no claim about problems that were not looked at
 TUNED_ON = {
     "fork 5x5 grid dumps": "rho, start_sweeps, backup_steps and pi_budget were swept on "
                            "these dumps (every value within noise of the table's)",
 }
+# the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
 SETS = ("fork 5x5 grid dumps", "7x7 grid scene", "grid scene captures", "box packings",
         "frictional (staggered)", "frictional (ccp)")

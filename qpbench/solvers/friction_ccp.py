@@ -14,9 +14,9 @@ A warm start r = (l_N, l_T) enters as ``z+- = (l_N +- l_T / mu) / 2`` (``l_N / 2
 mu = 0), clipped to z >= 0. pi-robust's twin does all of it in one compiled call first
 (``pi_robust.solve_relaxed``: the same maps; its start is first swept contact by contact,
 each contact's (z+, z-) as one 2x2 block, and the general path runs only where it declines).
-This module must be imported
-after the frictionless families (``qpbench/solvers/__init__.py``): it twins what is registered
-when it runs, and an unusable X gives an unusable twin with X's reason.
+This module must be imported after the frictionless families (``qpbench/solvers/__init__.py``):
+it twins what is registered when it runs, and an unusable X gives an unusable twin with X's
+reason.
 """
 
 from __future__ import annotations
