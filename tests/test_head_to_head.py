@@ -88,6 +88,17 @@ def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
     assert head_to_head.set_of(problem, "ccp") == "frictional (ccp)"
 
 
+def test_a_capture_of_any_7x7_grid_scene_is_in_the_7x7_set() -> None:
+    from qpbench.problem.generate import generate
+
+    problem = generate("k3", None, seed=0)[0]
+    for scene in ("grid7_itr_0", "grid7_itr_31"):
+        problem.family = f"scene:{scene}"
+        assert head_to_head.set_of(problem) == "fork 7x7 grid scenes"
+    problem.family = "scene:grid5_itr_0"
+    assert head_to_head.set_of(problem) == "grid scene captures"
+
+
 def test_a_dump_is_in_the_grid_dump_set_and_a_k3_in_none() -> None:
     assert head_to_head.set_of(import_dump(ROOT / "problems/dumps/grid5_itr_0.out")) \
         == "fork 5x5 grid dumps"

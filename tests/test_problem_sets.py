@@ -38,6 +38,22 @@ def test_a_set_builds_its_families_dumps_and_captured_impacts_once(tmp_path: Pat
     assert problem_sets.build(set_file, tmp_path / "out") == []  # incremental: nothing new
 
 
+def test_a_scene_glob_captures_every_scene_it_matches(tmp_path: Path) -> None:
+    set_file = tmp_path / "grids.toml"
+    set_file.write_text(f'[[scenes]]\npath = "{PROBLEMS / "scenes" / "ura" / "grid[35]_itr_0.xml"}"'
+                        '\nsteps = 1\nsolver = "clarabel/dual"\n')
+    written = problem_sets.build(set_file, tmp_path / "out")
+    assert sorted(path.stem for path in written) == ["grid3_itr_0_step000000",
+                                                      "grid5_itr_0_step000000"]
+
+
+def test_a_scene_glob_that_matches_nothing_names_the_entry(tmp_path: Path) -> None:
+    set_file = tmp_path / "none.toml"
+    set_file.write_text(f'[[scenes]]\npath = "{tmp_path / "nowhere" / "*.xml"}"\n')
+    with pytest.raises(InputError, match=r"<scenes\[0\]> attribute 'path': matches no scene"):
+        problem_sets.build(set_file, tmp_path / "out")
+
+
 def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     set_file = tmp_path / "small.toml"
     set_file.write_text('[families]\nk4 = { count = 1 }\n')

@@ -1,9 +1,9 @@
 """Where pi-robust's time goes, against a floor of compiled linear algebra.
 
 Problems (all in the repository): the SCISim research fork's 5x5 grid dumps
-(``problems/dumps/grid5_itr_*.out``), the first impact of its 7x7 grid scene
-(``problems/breakdown/grid7_itr_0.xml``, copied verbatim) and a box packing of 1000 balls
-(``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, minimum over repeats:
+(``problems/dumps/grid5_itr_*.out``), the first impact of its first 7x7 grid scene
+(``problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml``, copied verbatim) and a box packing
+of 1000 balls (``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, minimum over repeats:
 
 * ``total_s``: pi-robust's ``time_s`` (the one stopwatch, ``call_solver``);
 * ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
@@ -48,7 +48,7 @@ FLOOR_SHIFT = 1e-8
 DEFAULT_REPEATS = 5
 ROOT = Path(__file__).resolve().parents[2]
 DUMPS = ("problems/dumps/grid5_itr_0.out", "problems/dumps/grid5_itr_1.out")
-GRID7_SCENE = "problems/breakdown/grid7_itr_0.xml"
+GRID7_SCENE = "problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml"
 TRIVIAL_DUMP = "problems/dumps/2_balls.json"
 BOX_BALLS = 1000
 

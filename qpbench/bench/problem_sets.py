@@ -9,7 +9,7 @@ incline = { count = 2 }          # frictional families (qpbench.problem.friction
 paths = ["dumps/*"]              # globs, relative to the set file
 
 [[scenes]]                       # simulate, capture every impact, keep at most max_problems
-path = "scenes/scisim/newtons_cradle.xml"
+path = "scenes/scisim/newtons_cradle.xml"   # or a glob: each scene it matches, alike
 steps = 2000                     # step cap (default: the scene's end time)
 solver = "clarabel"              # inner solver of the simulation (default: the scene's)
 max_problems = 5                 # evenly spread over the captured impacts
@@ -89,10 +89,23 @@ def _dump_problems(definition: dict[str, Any], root: Path, existing: set[str]
                 yield import_dump(path)
 
 
+def _scene_paths(root: Path, entry: dict[str, Any], index: int) -> list[Path]:
+    """The scene files of one ``[[scenes]]`` entry: its path, or every file its glob matches
+    (sorted); InputError for a glob that matches none."""
+    pattern = str(root / entry["path"])
+    if not any(character in pattern for character in "*?["):
+        return [Path(pattern)]
+    paths = sorted(glob.glob(pattern))
+    if not paths:
+        raise InputError(pattern, "matches no scene file", f"scenes[{index}]", "path")
+    return [Path(path) for path in paths]
+
+
 def _scene_problems(definition: dict[str, Any], root: Path, existing: set[str]
                     ) -> Iterator[ImpactProblem]:
-    for entry in definition.get("scenes", []):
-        scene_path = root / entry["path"]
+    scenes = [(entry, path) for index, entry in enumerate(definition.get("scenes", []))
+              for path in _scene_paths(root, entry, index)]
+    for entry, scene_path in scenes:
         with tempfile.TemporaryDirectory() as capture:
             scene = load_scene(scene_path)
             simulator = Simulator(scene, choose_by_name(entry.get("solver")), capture=capture)
