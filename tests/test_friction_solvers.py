@@ -114,6 +114,22 @@ def test_staggered_on_three_coupled_contacts_reports_its_rounds(key: str) -> Non
     assert row["outer_iterations"] == output.info["outer_iterations"] >= 1
 
 
+def test_the_box_gauss_seidel_colours_w_tt_once_per_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    from qpbench.solvers import friction_staggered
+
+    colourings = []
+
+    def counted(P: sp.csr_matrix) -> np.ndarray:
+        colourings.append(P.shape)
+        return greedy_colours(P)
+
+    greedy_colours = friction_staggered.greedy_colours
+    monkeypatch.setattr(friction_staggered, "greedy_colours", counted)
+    row, output = row_of("pgs/staggered", pair_on_floor(mu=0.6, seed=2), accuracy=1e-8)
+    assert row["status"] == "solved" and output.info["outer_iterations"] >= 2
+    assert colourings == [(3, 3)]  # the same W_TT in every round: coloured in the first
+
+
 def test_staggered_warm_started_from_an_answer_does_no_round() -> None:
     problem = pair_on_floor(mu=0.6, seed=2)
     _, answer = row_of("nsgs/nsgs", problem)
