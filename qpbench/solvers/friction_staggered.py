@@ -38,7 +38,7 @@ from __future__ import annotations
 import contextlib
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -50,7 +50,6 @@ from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy, registry
 from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
 from qpbench.solvers.friction_ccp import derived, frictionless_solvers
-from qpbench.solvers.pgs import greedy_colours
 from qpbench.solvers.quiet import c_stdout_silenced
 
 FORMULATION = "staggered"
@@ -60,15 +59,12 @@ ROW = "staggered"  # the accuracy row of the outer loop and of the box Gauss-Sei
 @dataclass
 class BoxQP:
     """``min 1/2 x^T P x + c^T x`` over ``lower <= x <= upper`` (P symmetric PSD); a coordinate
-    with ``lower == upper`` (an empty friction box: l_N = 0 or mu = 0) is fixed there.
-    ``derived`` keeps what a box solver derives from P alone (the colouring of its graph) for
-    the next box QP of the same run: P is the same W_TT in every round."""
+    with ``lower == upper`` (an empty friction box: l_N = 0 or mu = 0) is fixed there."""
 
     P: sp.csc_matrix
     c: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    derived: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -119,12 +115,9 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
     from qpbench.solvers import box_sweeps
 
     P, arrays = _symmetric_arrays(box)
-    if "colour_order" not in box.derived:  # class by class
-        box.derived["colour_order"] = np.argsort(greedy_colours(P), kind="stable")
-    colour_order = box.derived["colour_order"]
     x, sweeps, converged = box_sweeps.box_gauss_seidel(
-        *arrays, P.diagonal(), colour_order, np.ascontiguousarray(start, dtype=float),
-        tolerance, max_sweeps, check_every)
+        *arrays, P.diagonal(), box_sweeps.colour_order(P.indptr, P.indices),
+        np.ascontiguousarray(start, dtype=float), tolerance, max_sweeps, check_every)
     if converged:
         return BoxAnswer(x, "converged", True, sweeps)
     return BoxAnswer(x, f"max_sweeps ({max_sweeps}) reached", False, sweeps)
@@ -275,7 +268,6 @@ class Inner:
         self.iterations = 0
         self.known = False  # whether any inner solver reported an iteration count
         self.solves = 0
-        self.derived: dict[str, np.ndarray] = {}  # of W_TT, kept across rounds (BoxQP)
 
     def _count(self, iterations: int | None) -> None:
         self.solves += 1
@@ -300,7 +292,7 @@ class Inner:
         W_TT, linear, lower, upper = self.problem.friction_box(normal)
         if not np.any(upper > lower):
             return np.zeros(self.problem.n_contacts), "empty boxes"
-        box = BoxQP(P=W_TT, c=linear, lower=lower, upper=upper, derived=self.derived)
+        box = BoxQP(P=W_TT, c=linear, lower=lower, upper=upper)
         answer = self.box_solver(box, self.eps, self.problem.scale,
                                  np.clip(start, lower, upper))
         self._count(answer.iterations)

@@ -36,8 +36,7 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers import pi_robust_envelope as kernel
 from qpbench.solvers.base import SolverOutput
-from qpbench.solvers.box_sweeps import box_gauss_seidel
-from qpbench.solvers.pgs import greedy_colours
+from qpbench.solvers.box_sweeps import box_gauss_seidel, colour_order
 
 # how a call ends
 CONVERGED, MAX_OUTER, WARM_START, FALLBACK = 0, 1, 2, 3
@@ -221,12 +220,12 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None,
         return None
     W_TT = problem.W_TT
     W_TT.sort_indices()
-    colour_order = np.argsort(greedy_colours(W_TT), kind="stable")
+    sweep_order = colour_order(W_TT.indptr, W_TT.indices)
     start = np.empty(0) if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     impulses, residual, ending, rounds, iterations, solves, returned = staggered_pi_robust(
         pi_robust.csc_arrays(problem.W), pi_robust.csc_arrays(problem.normal.Q),
         _arrays(problem.W_NT), _arrays(problem.W_TN), _arrays(W_TT), problem.q,
-        problem.diag_N, W_TT.diagonal(), problem.mu, problem.scale, colour_order, start,
+        problem.diag_N, W_TT.diagonal(), problem.mu, problem.scale, sweep_order, start,
         eps, int(options["max_outer"]), settings.kernel, pi_robust.ORDERING_ABOVE,
         settings.compiled_work_limit, inner_eps * problem.scale,
         int(box_options["box_max_sweeps"]), int(box_options["box_check_every"]))
