@@ -7,8 +7,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from friction_cases import ball_on_floor, pair_on_floor
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from qpbench.problem import friction_metrics as fm
 from qpbench.problem import metrics
@@ -114,19 +112,6 @@ def test_staggered_on_three_coupled_contacts_reports_its_rounds(key: str) -> Non
     row, output = row_of(key, pair_on_floor(mu=0.6, seed=2), accuracy=1e-8)
     assert row["status"] == "solved" and row["residual"] <= 1e-8
     assert row["outer_iterations"] == output.info["outer_iterations"] >= 1
-
-
-@settings(max_examples=60, deadline=None)
-@given(size=st.integers(1, 40), density=st.floats(0.0, 0.5), seed=st.integers(0, 10_000))
-def test_the_compiled_colour_order_is_the_greedy_colouring_sorted_stably(
-        size: int, density: float, seed: int) -> None:
-    from qpbench.solvers import box_sweeps
-    from qpbench.solvers.pgs import greedy_colours
-
-    pattern = sp.random(size, size, density=density, random_state=seed, format="csr")
-    P = sp.csr_matrix(pattern + pattern.T + sp.identity(size))
-    expected = np.argsort(greedy_colours(P), kind="stable")
-    np.testing.assert_array_equal(box_sweeps.colour_order(P.indptr, P.indices), expected)
 
 
 def test_staggered_warm_started_from_an_answer_does_no_round() -> None:

@@ -12,14 +12,16 @@ natural map ``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c
 coordinates of one colour are coupled), so a sweep here is the same sweep as one of its
 colour classes at a time; ``qpbench.solvers.friction_staggered`` and
 ``qpbench.solvers.staggered_compiled`` both call it, with the order of
-:func:`colour_order`. Compiled once per process and cached beside this file (``cache=True``);
-:func:`warm_up` loads it outside any clock.
+``qpbench.solvers.colouring.colour_order``. Compiled once per process and cached beside this
+file (``cache=True``); :func:`warm_up` loads it (and the colouring) outside any clock.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from qpbench.solvers import colouring
 
 
 @njit(cache=True)
@@ -96,36 +98,6 @@ def box_gauss_seidel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, 
     return x, sweeps, converged
 
 
-@njit(cache=True)
-def colour_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """The coordinates class by class of their greedy colours on the graph of a symmetric
-    pattern (each coordinate in index order takes the smallest colour none of its neighbours
-    ``P_ij != 0`` holds), in index order within a class: ``np.argsort(colours, kind="stable")``
-    of ``qpbench.solvers.pgs.greedy_colours``."""
-    n = indptr.size - 1
-    colours = np.full(n, -1, dtype=np.int64)
-    taken_by = np.full(n + 1, -1, dtype=np.int64)  # taken_by[c] = i: a neighbour of i holds c
-    for i in range(n):
-        for k in range(indptr[i], indptr[i + 1]):
-            neighbour_colour = colours[indices[k]]
-            if neighbour_colour >= 0:
-                taken_by[neighbour_colour] = i
-        colour = 0
-        while taken_by[colour] == i:
-            colour += 1
-        colours[i] = colour
-    starts = np.zeros(n + 1, dtype=np.int64)  # a stable counting sort by colour
-    for i in range(n):
-        starts[colours[i] + 1] += 1
-    for colour in range(n):
-        starts[colour + 1] += starts[colour]
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[starts[colours[i]]] = i
-        starts[colours[i]] += 1
-    return order
-
-
 _warm = False
 
 
@@ -141,5 +113,5 @@ def warm_up() -> None:
     box_gauss_seidel(indptr, indices, data, -ones, -ones, ones, 2.0 * ones,
                      np.arange(2, dtype=np.int64), np.zeros(2), 1e-12, 10, 5)
     box_residual(indptr, indices, data, -ones, -ones, ones, np.zeros(2))
-    colour_order(indptr, indices)
+    colouring.warm_up()
     _warm = True

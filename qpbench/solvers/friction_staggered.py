@@ -112,11 +112,11 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
     sweeps run compiled (``qpbench.solvers.box_sweeps``). A coordinate with ``P_ii = 0`` has a
     zero row (P is PSD) and a constant gradient c_i: it goes to the bound that gradient points
     to, once."""
-    from qpbench.solvers import box_sweeps
+    from qpbench.solvers import box_sweeps, colouring
 
     P, arrays = _symmetric_arrays(box)
     x, sweeps, converged = box_sweeps.box_gauss_seidel(
-        *arrays, P.diagonal(), box_sweeps.colour_order(P.indptr, P.indices),
+        *arrays, P.diagonal(), colouring.colour_order(P.indptr, P.indices),
         np.ascontiguousarray(start, dtype=float), tolerance, max_sweeps, check_every)
     if converged:
         return BoxAnswer(x, "converged", True, sweeps)

@@ -37,9 +37,8 @@ import scipy.sparse as sp
 from qpbench import __version__
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.solvers import accuracy
+from qpbench.solvers import accuracy, colouring
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.pgs import greedy_colours
 from qpbench.solvers.registry import register
 
 NAME = "nsgs"
@@ -141,7 +140,7 @@ class ContactSweep:
         normal_tangent = np.asarray(W[np.arange(n), np.arange(n) + n]).ravel() if n else \
             np.zeros(0)
         movable = problem.diag_N > 0.0  # a contact that moves nothing keeps r = 0
-        self.colour = greedy_colours(contact_graph(problem)) if n else np.zeros(0, dtype=int)
+        self.colour = colouring.colours_of(contact_graph(problem))
         self.classes = []
         for c in range(int(self.colour.max(initial=-1)) + 1):
             index = np.flatnonzero((self.colour == c) & movable)
@@ -209,6 +208,7 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
                     version=VERSION, warm_start=True, own_stopping_rule=True,
+                    prepare=colouring.warm_up,
                     kinds=("frictional",),
                     description="nonsmooth Gauss-Seidel over contacts, exact 2x2 local solves "
                                 "(take-off, stick, slide), colour-ordered sweeps"))

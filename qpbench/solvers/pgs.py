@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import accuracy
+from qpbench.solvers import accuracy, colouring
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
@@ -27,27 +27,12 @@ from qpbench.solvers.registry import register
 NAME = "pgs"
 
 
-def greedy_colours(Q: sp.csr_matrix) -> np.ndarray:
-    """Colour of each contact: the smallest colour unused by its neighbours (Q_ij != 0),
-    contacts taken in index order."""
-    n = Q.shape[0]
-    colour = np.full(n, -1, dtype=np.int64)
-    indptr, indices = Q.indptr, Q.indices
-    for i in range(n):
-        taken = set(colour[indices[indptr[i]:indptr[i + 1]]].tolist())
-        c = 0
-        while c in taken:
-            c += 1
-        colour[i] = c
-    return colour
-
-
 class Sweep:
     """The colour classes of a problem and the rows of Q for each, ready for sweeping."""
 
     def __init__(self, lcp: Lcp) -> None:
         movable = lcp.diag > 0.0  # a contact with Q_ii = 0 moves nothing and stays at 0
-        self.colour = greedy_colours(lcp.Q)
+        self.colour = colouring.colours_of(lcp.Q)
         self.classes: list[tuple[np.ndarray, sp.csr_matrix, np.ndarray, np.ndarray]] = []
         for c in range(int(self.colour.max(initial=-1)) + 1):
             index = np.flatnonzero((self.colour == c) & movable)
@@ -93,5 +78,5 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
-                    version=VERSION, warm_start=True,
+                    version=VERSION, warm_start=True, prepare=colouring.warm_up,
                     description="projected Gauss-Seidel, colour-ordered sweeps"))

@@ -36,7 +36,8 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers import pi_robust_envelope as kernel
 from qpbench.solvers.base import SolverOutput
-from qpbench.solvers.box_sweeps import box_gauss_seidel, colour_order
+from qpbench.solvers.box_sweeps import box_gauss_seidel
+from qpbench.solvers.colouring import colour_order
 
 # how a call ends
 CONVERGED, MAX_OUTER, WARM_START, FALLBACK = 0, 1, 2, 3
