@@ -132,7 +132,8 @@ def unpacked(values: np.ndarray) -> Options:
 
 class Posed(NamedTuple):
     """The problem as posed, on which every residual is measured: ``csc`` its Q,
-    ``l[order] = impulses`` for impulses in the kernel's order."""
+    ``l[order] = impulses`` for impulses in the kernel's order (``order`` empty: the kernel
+    keeps the posed order)."""
 
     csc: Csc
     b: np.ndarray
@@ -182,14 +183,48 @@ def _factor_cache(n: int, slots: int, capacity: int) -> FactorCache:
                        np.full(n, -1, dtype=np.int64))
 
 
+class Work(NamedTuple):
+    """What one solve works in, allocated once so that no step of policy iteration allocates:
+    ``cache`` the kept factors; n entries each: ``x`` block pivoting's iterate, ``rhs`` a
+    block system's right side and then its solution, ``q`` a prox step's q, ``centre`` the prox
+    centre, ``product`` a product ``Q x``, ``unpermuted`` an l in the posed order, ``free`` the
+    policy's free contacts, ``infeasible`` the contacts to exchange."""
+
+    cache: FactorCache
+    x: np.ndarray
+    rhs: np.ndarray
+    q: np.ndarray
+    centre: np.ndarray
+    product: np.ndarray
+    unpermuted: np.ndarray
+    free: np.ndarray
+    infeasible: np.ndarray
+
+
+@njit(cache=True)
+def _work(n: int, capacity: int) -> Work:
+    """The work arrays of a solve of n contacts whose whole envelope has ``capacity``
+    entries (two kept factors)."""
+    return Work(_factor_cache(n, 2, capacity), np.zeros(n), np.empty(n), np.empty(n),
+                np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int64),
+                np.zeros(n, dtype=np.bool_))
+
+
 @njit(cache=True)
 def natural_residual(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
                      impulses: np.ndarray) -> float:
     """||min(D l, Q l + b)||_inf / scale with Q l summed column by column over Q's CSC arrays
     ``(indptr, indices, data)`` in the order of scipy's CSC product, so that the value is
     qpbench's ``metrics.residual`` (even where rounding dominates, on extreme mass ratios)."""
+    return _natural_residual_into(csc, b, diag, scale, impulses, np.empty(impulses.size))
+
+
+@njit(cache=True)
+def _natural_residual_into(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
+                           impulses: np.ndarray, product: np.ndarray) -> float:
+    """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten)."""
     indptr, indices, data = csc
-    product = np.zeros(impulses.size)
+    product[:] = 0.0
     for column in range(impulses.size):
         value = impulses[column]
         for k in range(indptr[column], indptr[column + 1]):
@@ -224,25 +259,37 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
 
 
 @njit(cache=True)
-def _original_residual(original: Posed, scale: float, impulses: np.ndarray) -> float:
+def _original_residual(original: Posed, scale: float, impulses: np.ndarray, work: Work
+                       ) -> float:
     """qpbench's residual of ``impulses`` given in the kernel's order, on the problem as posed
-    (``l[original.order] = impulses``)."""
-    unpermuted = np.empty(impulses.size)
-    unpermuted[original.order] = impulses
-    return natural_residual(original.csc, original.b, original.diag, scale, unpermuted)
+    (``l[original.order] = impulses``; formed in ``work.unpermuted``)."""
+    unpermuted, order = impulses, original.order
+    if order.size:
+        unpermuted = work.unpermuted
+        for i in range(impulses.size):
+            unpermuted[order[i]] = impulses[i]
+    return _natural_residual_into(original.csc, original.b, original.diag, scale, unpermuted,
+                                  work.product)
 
 
 @njit(cache=True)
 def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
     """Q x over Q's CSC arrays."""
+    product = np.empty(x.size)
+    _matvec_into(csc, x, product)
+    return product
+
+
+@njit(cache=True)
+def _matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
+    """``product = Q x`` over Q's CSC arrays (the columns of zero entries of x skipped)."""
     indptr, indices, data = csc
-    product = np.zeros(x.size)
+    product[:] = 0.0
     for column in range(x.size):
         value = x[column]
         if value != 0.0:
             for k in range(indptr[column], indptr[column + 1]):
                 product[indices[k]] += data[k] * value
-    return product
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
@@ -282,6 +329,14 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
                     rhs: np.ndarray) -> np.ndarray:
     """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky``."""
     x = rhs.copy()
+    _envelope_solve_in_place(values, offsets, size, x)
+    return x
+
+
+@njit(cache=True, fastmath=REDUCTIONS)
+def _envelope_solve_in_place(values: np.ndarray, offsets: np.ndarray, size: int,
+                             x: np.ndarray) -> None:
+    """:func:`_envelope_solve` overwriting its right side ``x`` with the solution."""
     for i in range(size):
         base = offsets[i]
         end = offsets[i + 1]
@@ -300,7 +355,6 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
         row, leading = np.uint64(base), np.uint64(first)
         for k in range(np.uint64(i - first)):
             x[leading + k] -= values[row + k] * value
-    return x
 
 
 @njit(cache=True)
@@ -325,10 +379,11 @@ def _envelope_pattern(A: Csc, index: np.ndarray,
 def _fill(A: Csc, index: np.ndarray,
           position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
           offsets: np.ndarray, first_row: int) -> None:
-    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale)) into ``values``, rows
-    ``first_row`` on; entries (r, c) scale as (Q_rc s_r) s_c."""
+    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale); S = I when row_scale is
+    empty) into ``values``, rows ``first_row`` on; entries (r, c) scale as (Q_rc s_r) s_c."""
     indptr, indices, data = A
     size = index.size
+    scaled = row_scale.size > 0
     values[offsets[first_row]:offsets[size]] = 0.0
     for a in range(first_row, size):
         column = index[a]
@@ -338,14 +393,15 @@ def _fill(A: Csc, index: np.ndarray,
             row = indices[k]
             p = position[row]
             if 0 <= p <= a:
-                values[base + p - first] = (data[k] * row_scale[row]) * row_scale[column]
+                values[base + p - first] = (data[k] * row_scale[row]) * row_scale[column] \
+                    if scaled else data[k]
 
 
 @njit(cache=True)
 def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
-                 rho: float, rhs: np.ndarray, cache: FactorCache) -> np.ndarray:
-    """x_F with (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's free contacts), from
-    the cache's factor of (policy, rho) when it holds one, else by factoring
+                 rho: float, rhs: np.ndarray, cache: FactorCache) -> None:
+    """Overwrites ``rhs`` with x_F, (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's
+    free contacts), from the cache's factor of (policy, rho) when it holds one, else by factoring
     ``L L^T = Q_FF + rho D_F`` into the least recently used slot.
 
     A new factor starts from the kept factor (same rho) whose policy agrees with this one on
@@ -365,7 +421,8 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
             k += 1
         if k == n:
             ages[slot] = counters[1]
-            return _envelope_solve(factors[slot], offsets[slot], size, rhs)
+            _envelope_solve_in_place(factors[slot], offsets[slot], size, rhs)
+            return
         if k > agreeing:
             source, agreeing = slot, k
     slot = int(np.argmin(ages))
@@ -381,7 +438,7 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
         position[index[a]] = a
     values, slot_offsets = factors[slot], offsets[slot]
     _envelope_pattern(A, index, position, slot_offsets, kept)
-    _fill(A, index, position, np.ones(n), values, slot_offsets, kept)
+    _fill(A, index, position, np.empty(0), values, slot_offsets, kept)
     for a in range(size):
         position[index[a]] = -1
     for a in range(kept, size):
@@ -391,82 +448,99 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
     policies[slot] = policy
     rhos[slot] = rho
     ages[slot] = counters[1]
-    return _envelope_solve(values, slot_offsets, size, rhs)
+    _envelope_solve_in_place(values, slot_offsets, size, rhs)
 
 
 @njit(cache=True)
 def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
-               tol_l: np.ndarray, tol_w: float, prox: Prox, budget: int, cache: FactorCache):
+               tol_l: np.ndarray, tol_w: float, prox: Prox, budget: int, work: Work):
     """Block principal pivoting on LCP(Q + rho D, q), within ``budget`` linear solves:
-    (x, policy, linear solves, solved). Contact i is infeasible when it is free with
-    ``x_i < -tol_l[i]`` or fixed with ``y_i = (Q x + rho D x + q)_i < -tol_w``."""
+    (linear solves, solved), with x in ``work.x`` and the final policy in ``policy`` (changed
+    in place). Contact i is infeasible when it is free with ``x_i < -tol_l[i]`` or fixed with
+    ``y_i = (Q x + rho D x + q)_i < -tol_w``."""
     A, safe_diag = lcp.A, lcp.safe_diag
     backup_steps, single_exchanges = prox.backup_steps, prox.single_exchanges
+    x, rhs, y, free, infeasible = work.x, work.rhs, work.product, work.free, work.infeasible
     n = q.size
-    shift = rho * safe_diag
     best = n + 1
     backup = backup_steps
     solves = 0
-    x = np.zeros(n)
-    infeasible = np.zeros(n, dtype=np.bool_)
+    x[:] = 0.0
     while solves < budget:
-        index = np.flatnonzero(policy)
-        x = np.zeros(n)
-        if index.size:
-            x[index] = _block_solve(A, safe_diag, policy, index, rho, -q[index], cache)
+        size = 0
+        for i in range(n):
+            x[i] = 0.0
+            if policy[i]:
+                free[size] = i
+                rhs[size] = -q[i]
+                size += 1
+        if size:
+            _block_solve(A, safe_diag, policy, free[:size], rho, rhs[:size], work.cache)
+            for a in range(size):
+                x[free[a]] = rhs[a]
         solves += 1
-        y = _matvec(A, x)
+        _matvec_into(A, x, y)
         count = 0
+        last = -1
         for i in range(n):  # y = Q x + rho D x + q, compared in place
             if policy[i]:
                 infeasible[i] = x[i] < -tol_l[i]
             else:
-                infeasible[i] = y[i] + shift[i] * x[i] + q[i] < -tol_w
-            count += infeasible[i]
+                infeasible[i] = y[i] + rho * safe_diag[i] * x[i] + q[i] < -tol_w
+            if infeasible[i]:
+                count += 1
+                last = i
         if count == 0:
-            return x, policy, solves, True
-        policy = policy.copy()
-        if count < best:
-            best, backup = count, backup_steps
-            policy ^= infeasible
-        elif backup > 0:
-            backup -= 1
-            policy ^= infeasible
+            return solves, True
+        if count < best or backup > 0:
+            if count < best:
+                best, backup = count, backup_steps
+            else:
+                backup -= 1
+            for i in range(n):
+                policy[i] ^= infeasible[i]
         elif single_exchanges:
-            last = np.flatnonzero(infeasible)[-1]
             policy[last] = not policy[last]
         else:
             break
-    return x, policy, solves, False
+    return solves, False
 
 
 @njit(cache=True)
-def _prox_policy_iteration(lcp: OrderedLcp, centre: np.ndarray, centre_residual: float,
+def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
                            policy: np.ndarray, tol: float, rho: float, prox: Prox,
-                           budget: int, cache: FactorCache):
-    """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from
-    ``centre`` (whose residual the caller has measured: ``centre_residual``) and ``policy``
-    within ``budget`` solves: (best l, converged, status code, solves, best residual)."""
+                           budget: int, work: Work):
+    """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from the centre
+    ``start`` (whose residual the caller has measured: ``start_residual``) and ``policy``
+    (changed in place) within ``budget`` solves: (best l, converged, status code, solves, best
+    residual)."""
     original, b, safe_diag, scale = lcp.original, lcp.b, lcp.safe_diag, lcp.scale
+    centre, q, x = work.centre, work.q, work.x
+    n = b.size
     tol_l = 0.1 * tol * scale / safe_diag
     tol_w = 0.1 * tol * scale
-    res = centre_residual
-    best, best_res = centre, res
+    centre[:] = start
+    res = start_residual
+    best, best_res = start.copy(), res
     solves = 0
     stalls = 0
     status = PROX_BUDGET
     while solves < budget:
-        q = b - rho * safe_diag * centre
-        x, policy, used, solved = _inner_lcp(lcp, policy, rho, q, tol_l, tol_w, prox,
-                                             budget - solves, cache)
+        for i in range(n):
+            q[i] = b[i] - rho * safe_diag[i] * centre[i]
+        used, solved = _inner_lcp(lcp, policy, rho, q, tol_l, tol_w, prox, budget - solves,
+                                  work)
         solves += used
-        centre = np.maximum(x, 0.0)
+        for i in range(n):
+            centre[i] = np.maximum(x[i], 0.0)
         previous = res
-        res = _original_residual(original, scale, centre)
+        res = _original_residual(original, scale, centre, work)
         if res < best_res:
-            best, best_res = centre, res
+            best[:] = centre
+            best_res = res
         if res <= tol:
-            return centre, True, PROX_CONVERGED, solves, res
+            best[:] = centre
+            return best, True, PROX_CONVERGED, solves, res
         if not solved:
             break
         stalls = stalls + 1 if res > prox.stall_ratio * previous else 0
@@ -513,7 +587,7 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 @njit(cache=True)
 def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
-            cache: FactorCache):
+            work: Work):
     """(l, solves): a converged l whose ``residual`` is above tol / 10 gets one more prox step
     on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two triangular
     solves), kept if it lowers the residual. A prox step ends at residual
@@ -525,20 +599,20 @@ def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, 
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
     polished, _, _, used, _ = _prox_policy_iteration(
         lcp, impulses, residual, w < lcp.diag * impulses, 0.1 * tol, rho, one_step,
-        np.int64(1), cache)
+        np.int64(1), work)
     return polished, used
 
 
 @njit(cache=True)
 def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float, rho: float,
-            prox: Prox, finish_budget: int, cache: FactorCache):
+            prox: Prox, finish_budget: int, work: Work):
     """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
     policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
     finished, done, _, used, finished_residual = _prox_policy_iteration(
-        lcp, start, _original_residual(lcp.original, lcp.scale, start),
-        start_w < lcp.diag * start, tol, rho, prox, finish_budget, cache)
+        lcp, start, _original_residual(lcp.original, lcp.scale, start, work),
+        start_w < lcp.diag * start, tol, rho, prox, finish_budget, work)
     if done:
-        finished, polished = _polish(lcp, finished, finished_residual, tol, rho, cache)
+        finished, polished = _polish(lcp, finished, finished_residual, tol, rho, work)
         used += polished
     return finished, done, used
 
@@ -558,18 +632,18 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
+    work = _work(n, normal_first[n])
+    counters = work.cache.counters
     start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
-    start_residual = _original_residual(original, scale, start)
+    start_residual = _original_residual(original, scale, start, work)
     if start_residual <= tol:  # the sweeps solved it (Q nearly diagonal: contacts that
         return start, True, PATH_SWEEPS, 0, 0, 0  # hardly interact)
     everything = np.arange(n)
-    cache = _factor_cache(n, 2, normal_first[n])
-    counters = cache.counters
     w = _matvec(A, start) + b
     first, converged, _, solves, first_res = _prox_policy_iteration(
-        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, cache)
+        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, work)
     if converged:
-        first, used = _polish(lcp, first, first_res, tol, rho, cache)
+        first, used = _polish(lcp, first, first_res, tol, rho, work)
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0]
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
@@ -600,11 +674,11 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
             progress, stalled = res, 0
         else:
             stalled += 1
-        if res <= tol and _original_residual(original, scale, original_l) <= tol:
+        if res <= tol and _original_residual(original, scale, original_l, work) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
             finished, done, used = _finish(lcp, original_l, original_w, tol, rho, prox,
-                                           finish_budget, cache)
+                                           finish_budget, work)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
@@ -613,7 +687,7 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
         if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
             stalled = 0
             finished, done, used = _finish(  # from its best iterate
-                lcp, best, best_w, tol, rho, prox, finish_budget, cache)
+                lcp, best, best_w, tol, rho, prox, finish_budget, work)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
@@ -757,7 +831,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         return start, True, PATH_START, 0, 0, 0, _certified(
             A_posed, b, scale, start, start_residual, options.tol)
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
-    order = np.arange(n)
+    order = np.empty(0, dtype=np.int64)  # the posed order
     A = A_posed
     everything = np.arange(n)
     widths = np.zeros(n + 1, dtype=np.int64)
@@ -770,12 +844,18 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
-    lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b[order], diag[order],
-                     safe_diag[order], scale)
+    if order.size:
+        lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b[order], diag[order],
+                         safe_diag[order], scale)
+        start = start[order]
+    else:
+        lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b, diag, safe_diag, scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
-        lcp, start[order], options, widths)
-    impulses = np.empty(n)
-    impulses[order] = answer
+        lcp, start, options, widths)
+    impulses = answer
+    if order.size:
+        impulses = np.empty(n)
+        impulses[order] = answer
     certified = converged and _certified(A_posed, b, scale, impulses, natural_residual(
         A_posed, b, diag, scale, impulses), options.tol)
     return impulses, converged, path, solves, interior, factorizations, certified
