@@ -4,11 +4,15 @@ qpbench's own metrics on the hard families and on known answers."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from qpbench.problem import metrics
+from qpbench.problem.dumps import import_dump
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
@@ -29,6 +33,10 @@ def pi_robust_row(monkeypatch: pytest.MonkeyPatch) -> Iterator[Callable[[str, ob
 
     yield set_entry
     settings_for.cache_clear()
+
+# a dump of the research fork's 5x5 grid on which block pivoting cycles (problems/head_to_head)
+CYCLING_DUMP = (Path(__file__).resolve().parents[1]
+                / "problems/head_to_head/fork_5x5_grid/itr_15.xml.out")
 
 HARD_CASES = [("k3", 3), ("k4", 4), ("k4-middle", 5), ("grid", 3), ("grid", 5), ("grid", 7),
               ("grid", 10), ("cradle", 50), ("mass-ratio", 5), ("near-duplicate", 4)]
@@ -272,3 +280,46 @@ def test_pi_robusts_row_does_not_depend_on_the_problems_scale() -> None:
     for eps in (1e-2, 1e-8):
         assert accuracy.options_for("pi-robust", eps, 1.0) \
             == accuracy.options_for("pi-robust", eps, 1e6)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_pi_robust_ends_a_cycling_prox_step_by_its_active_set_method(
+        compiled: bool, pi_robust_row: Callable[[str, object], None]) -> None:
+    """On this fork dump block pivoting cycles on the first prox step (``Q + 1e-5 D`` is nearly
+    singular); the primal active-set method ends that step, so policy iteration converges
+    without the interior point, compiled or not. Without it the interior point has to run."""
+    problem = attach_reference(import_dump(CYCLING_DUMP))
+    if not compiled:
+        pi_robust_row("compiled_limit", 0)
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert row["success"] and output.info["path"] == "policy iteration", output.info
+    pi_robust_row("active_set", False)
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert row["success"] and output.info["path"] == "interior point + policy iteration"
+
+
+@settings(max_examples=30, deadline=None)
+@given(family=st.sampled_from(["grid", "k4", "mass-ratio", "near-duplicate", "cradle"]),
+       size=st.integers(3, 7), seed=st.integers(0, 10_000),
+       rho=st.sampled_from([1e-6, 1e-3, 1.0]))
+def test_primal_active_set_solves_the_prox_lcp_from_zero(family: str, size: int, seed: int,
+                                                         rho: float) -> None:
+    """From l = 0 (every contact fixed) the active-set method solves LCP(Q + rho D, b):
+    x >= 0, ``w = (Q + rho D) x + b >= 0`` and ``x_i w_i = 0`` within its tolerances, and its
+    objective ``x^T (Q + rho D) x / 2 + b^T x`` is at most the start's, 0."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.pi_robust import BlockSolver, _primal_active_set
+
+    problem = generate(family, size, seed=seed)[0]
+    lcp = Lcp.of(problem, dense_limit=300)
+    n = lcp.n
+    tol_w = 1e-10 * lcp.scale
+    tol_l = tol_w / lcp.safe_diag
+    x, free, _, solved = _primal_active_set(lcp, BlockSolver(lcp), rho, lcp.b, np.zeros(n),
+                                            tol_l, tol_w, budget=10 * n + 10)
+    assert solved
+    w = lcp.op @ x + rho * lcp.safe_diag * x + lcp.b
+    assert np.all(x >= 0.0) and np.all(x[~free] == 0.0)
+    assert np.all(w >= -tol_w)
+    assert np.all(np.abs(w[free]) <= 1e-6 * lcp.scale)
+    assert 0.5 * x @ (w + lcp.b) <= 0.0

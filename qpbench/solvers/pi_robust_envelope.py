@@ -8,7 +8,8 @@ Q stays sparse throughout.
 
 What it computes: l >= 0 with ``min(D l, Q l + b) = 0`` (D = diag Q), to qpbench's residual
 ``||min(D l, Q l + b)||_inf / scale <= tol``. Each prox step around a centre z solves
-LCP(Q + rho D, b - rho D z) by block pivoting; each pivot solves, for the policy's free set F,
+LCP(Q + rho D, b - rho D z) by block pivoting, or when that stops improving by a primal
+active-set method; each step of either solves, for the policy's free set F,
 
     (Q_FF + rho D_F) x_F = -q_F
 
@@ -86,14 +87,15 @@ class Prox(NamedTuple):
     """Safeguards of one prox policy iteration: rho falls by ``rho_decrease`` (not below
     ``rho_min``) after ``stall_steps`` steps that do not cut the residual by ``stall_ratio``;
     block pivoting takes ``backup_steps`` non-improving full exchanges, then (when
-    ``single_exchanges``) Murty's single exchanges."""
+    ``active_set``) the primal active-set method :func:`_primal_active_set` finishes the prox
+    step."""
 
     rho_min: float
     rho_decrease: float
     stall_ratio: float
     stall_steps: int
     backup_steps: int
-    single_exchanges: bool
+    active_set: bool
 
 
 class Options(NamedTuple):
@@ -188,7 +190,8 @@ class Work(NamedTuple):
     ``cache`` the kept factors; n entries each: ``x`` block pivoting's iterate, ``rhs`` a
     block system's right side and then its solution, ``q`` a prox step's q, ``centre`` the prox
     centre, ``product`` a product ``Q x``, ``unpermuted`` an l in the posed order, ``free`` the
-    policy's free contacts, ``infeasible`` the contacts to exchange."""
+    policy's free contacts, ``infeasible`` the contacts to exchange, ``best_x`` the exchange
+    with the fewest infeasible contacts, ``feasible`` the active-set method's point."""
 
     cache: FactorCache
     x: np.ndarray
@@ -199,6 +202,8 @@ class Work(NamedTuple):
     unpermuted: np.ndarray
     free: np.ndarray
     infeasible: np.ndarray
+    best_x: np.ndarray
+    feasible: np.ndarray
 
 
 @njit(cache=True)
@@ -207,7 +212,7 @@ def _work(n: int, capacity: int) -> Work:
     entries (two kept factors)."""
     return Work(_factor_cache(n, 2, capacity), np.zeros(n), np.empty(n), np.empty(n),
                 np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int64),
-                np.zeros(n, dtype=np.bool_))
+                np.zeros(n, dtype=np.bool_), np.empty(n), np.empty(n))
 
 
 @njit(cache=True)
@@ -457,9 +462,11 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     """Block principal pivoting on LCP(Q + rho D, q), within ``budget`` linear solves:
     (linear solves, solved), with x in ``work.x`` and the final policy in ``policy`` (changed
     in place). Contact i is infeasible when it is free with ``x_i < -tol_l[i]`` or fixed with
-    ``y_i = (Q x + rho D x + q)_i < -tol_w``."""
+    ``y_i = (Q x + rho D x + q)_i < -tol_w``. Once ``prox.backup_steps`` exchanges in a row have
+    not cut their number, :func:`_primal_active_set` goes on from the best exchange's x
+    (``prox.active_set``), or it stops unsolved."""
     A, safe_diag = lcp.A, lcp.safe_diag
-    backup_steps, single_exchanges = prox.backup_steps, prox.single_exchanges
+    backup_steps, active_set = prox.backup_steps, prox.active_set
     x, rhs, y, free, infeasible = work.x, work.rhs, work.product, work.free, work.infeasible
     n = q.size
     best = n + 1
@@ -481,29 +488,95 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
         solves += 1
         _matvec_into(A, x, y)
         count = 0
-        last = -1
         for i in range(n):  # y = Q x + rho D x + q, compared in place
             if policy[i]:
                 infeasible[i] = x[i] < -tol_l[i]
             else:
                 infeasible[i] = y[i] + rho * safe_diag[i] * x[i] + q[i] < -tol_w
-            if infeasible[i]:
-                count += 1
-                last = i
+            count += infeasible[i]
         if count == 0:
             return solves, True
         if count < best or backup > 0:
             if count < best:
                 best, backup = count, backup_steps
+                work.best_x[:] = x
             else:
                 backup -= 1
             for i in range(n):
                 policy[i] ^= infeasible[i]
-        elif single_exchanges:
-            policy[last] = not policy[last]
+        elif active_set:
+            feasible = work.feasible
+            for i in range(n):
+                feasible[i] = max(work.best_x[i], 0.0)
+                policy[i] = feasible[i] > 0.0
+            used, solved = _primal_active_set(lcp, policy, rho, q, tol_l, tol_w,
+                                              budget - solves, work)
+            return solves + used, solved
         else:
             break
     return solves, False
+
+
+@njit(cache=True)
+def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
+                       tol_l: np.ndarray, tol_w: float, budget: int, work: Work):
+    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min x^T H x / 2 + q^T x``,
+    ``x >= 0``, by a primal active-set method (Lawson and Hanson, "Solving Least Squares
+    Problems", 1974, chapter 23; Nocedal and Wright, "Numerical Optimization", 2006, section
+    16.5) within ``budget`` linear solves: (linear solves, solved), x in ``work.x``. From the
+    feasible point ``work.feasible`` with free set ``policy`` (both changed in place): solve
+    ``H_FF s_F = -q_F``; if some free ``s_i < -tol_l[i]``, move towards s until the first of them
+    reaches zero and fix it; else take x = max(s, 0) and free the fixed contact with the most
+    negative ``(H x + q)_i / sqrt(D_i) < -tol_w``, or stop. The objective never rises, so
+    unlike block pivoting it cannot cycle."""
+    A, safe_diag = lcp.A, lcp.safe_diag
+    solution, rhs, y, free, feasible = work.x, work.rhs, work.product, work.free, work.feasible
+    n = q.size
+    solves = 0
+    solved = False
+    while solves < budget:
+        size = 0
+        for i in range(n):
+            solution[i] = 0.0
+            if policy[i]:
+                free[size] = i
+                rhs[size] = -q[i]
+                size += 1
+        if size:
+            _block_solve(A, safe_diag, policy, free[:size], rho, rhs[:size], work.cache)
+            for a in range(size):
+                solution[free[a]] = rhs[a]
+        solves += 1
+        step, blocking = 1.0, -1
+        for i in range(n):
+            if policy[i] and solution[i] < -tol_l[i]:
+                reach = feasible[i] / (feasible[i] - solution[i])
+                if reach < step:
+                    step, blocking = reach, i
+        if blocking >= 0:
+            for i in range(n):
+                if policy[i]:
+                    feasible[i] = max(feasible[i] + step * (solution[i] - feasible[i]), 0.0)
+                    if solution[i] < 0.0 and feasible[i] == 0.0:
+                        policy[i] = False
+            feasible[blocking] = 0.0
+            policy[blocking] = False
+            continue
+        for i in range(n):
+            feasible[i] = max(solution[i], 0.0)
+        _matvec_into(A, feasible, y)
+        entering, worst = -1, 0.0
+        for i in range(n):
+            if not policy[i]:
+                value = y[i] + q[i]
+                if value < -tol_w and value / np.sqrt(safe_diag[i]) < worst:
+                    entering, worst = i, value / np.sqrt(safe_diag[i])
+        if entering < 0:
+            solved = True
+            break
+        policy[entering] = True
+    solution[:] = feasible
+    return solves, solved
 
 
 @njit(cache=True)
