@@ -21,7 +21,7 @@ and adds published safeguards:
    reduce it. Then (``active_set``) a primal active-set method on the same prox
    step, as the QP ``min x^T H x / 2 + q^T x, x >= 0`` (Lawson and Hanson 1974;
    Nocedal and Wright 2006, section 16.5), from the feasible part of the best
-   exchange's x: one contact fixed or freed per solve, the objective never
+   exchange's x: contacts fixed or freed per solve, the objective never
    rising, so it cannot cycle. Block pivoting cycles on nearly singular H (the
    fork's grids, rho = 1e-5): the active-set method ends those prox steps in
    tens of solves where single exchanges (Murty 1974) did not end them in
@@ -163,17 +163,32 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
 def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
                        feasible: np.ndarray, tol_l: np.ndarray, tol_w: float, budget: int
                        ) -> tuple[np.ndarray, np.ndarray, int, bool]:
-    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min x^T H x / 2 + q^T x``,
+    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min f(x) = x^T H x / 2 + q^T x``,
     ``x >= 0``, by a primal active-set method (Lawson and Hanson, "Solving Least Squares
     Problems", 1974, chapter 23; Nocedal and Wright, "Numerical Optimization", 2006, section
     16.5) from the point ``feasible`` (>= 0) with free set ``{feasible > 0}``, within ``budget``
-    linear solves: (x, free set, solves, solved). Each step solves ``H_FF s_F = -q_F``; when
-    some free ``s_i < -tol_l[i]`` it moves towards s until the first of them reaches zero and
-    fixes that one; else x = max(s, 0), and the fixed contact with the most negative
-    ``(H x + q)_i / sqrt(D_i) < -tol_w`` is freed, or x is the solution. The objective never
-    rises, so it cannot cycle as block pivoting can."""
+    linear solves: (x, free set, solves, solved). Each step solves ``H_FF s_F = -q_F``, then:
+
+    - some free ``s_i < -tol_l[i]``: x becomes ``max(s, 0)`` with those contacts fixed when
+      that lowers f (several at once); else x moves towards s until the first of them
+      reaches zero, and the free contacts at zero with ``s_i < 0`` are fixed;
+    - else x = max(s, 0), and the fixed contacts with ``(H x + q)_i < -tol_w`` are freed: all
+      of them when f has fallen since the last time contacts were freed, else the one with
+      the most negative ``(H x + q)_i / sqrt(D_i)``; none: x is the solution.
+
+    f never rises and every step that frees contacts starts lower than the one before, or
+    frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle (as
+    ``pi_robust_envelope._primal_active_set``)."""
     shift = rho * lcp.safe_diag
+
+    def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
+        """(f(x), H x + q)."""
+        gradient = lcp.op @ x + shift * x + q
+        return float(x @ (0.5 * (gradient - q) + q)), gradient
+
     free = feasible > 0.0
+    value_now, _ = objective(feasible)
+    value_at_last_freeing = np.inf
     solves = 0
     while solves < budget:
         index = np.flatnonzero(free)
@@ -183,22 +198,31 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
         solves += 1
         blocked = free & (solution < -tol_l)
         if blocked.any():
+            projected = np.maximum(solution, 0.0)
+            value, _ = objective(projected)
+            if value < value_now:
+                feasible, value_now, free = projected, value, free & (solution > 0.0)
+                continue
             reach = np.full(lcp.n, np.inf)
             reach[blocked] = feasible[blocked] / (feasible[blocked] - solution[blocked])
             blocking = int(np.argmin(reach))
-            step = reach[blocking]
-            feasible = np.where(free, np.maximum(feasible + step * (solution - feasible), 0.0),
-                                0.0)
+            feasible = np.where(free, np.maximum(
+                feasible + reach[blocking] * (solution - feasible), 0.0), 0.0)
             free = free & ~((solution < 0.0) & (feasible == 0.0))
             feasible[blocking], free[blocking] = 0.0, False
+            value_now, _ = objective(feasible)
             continue
         feasible = np.maximum(solution, 0.0)
-        gradient = lcp.op @ feasible + shift * feasible + q
+        value_now, gradient = objective(feasible)
         violated = ~free & (gradient < -tol_w)
         if not violated.any():
             return feasible, free, solves, True
-        scaled = np.where(violated, gradient / np.sqrt(lcp.safe_diag), np.inf)
-        free[int(np.argmin(scaled))] = True
+        if value_now < value_at_last_freeing:
+            free = free | violated
+        else:
+            scaled = np.where(violated, gradient / np.sqrt(lcp.safe_diag), np.inf)
+            free[int(np.argmin(scaled))] = True
+        value_at_last_freeing = value_now
     return feasible, free, solves, False
 
 

@@ -518,20 +518,41 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
 
 
 @njit(cache=True)
+def _objective(A: Csc, rho: float, safe_diag: np.ndarray, q: np.ndarray, x: np.ndarray,
+               product: np.ndarray) -> float:
+    """``x^T (Q + rho D) x / 2 + q^T x``, with Q x formed in ``product``."""
+    _matvec_into(A, x, product)
+    total = 0.0
+    for i in range(x.size):
+        total += x[i] * (0.5 * (product[i] + rho * safe_diag[i] * x[i]) + q[i])
+    return total
+
+
+@njit(cache=True)
 def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                        tol_l: np.ndarray, tol_w: float, budget: int, work: Work):
-    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min x^T H x / 2 + q^T x``,
+    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min f(x) = x^T H x / 2 + q^T x``,
     ``x >= 0``, by a primal active-set method (Lawson and Hanson, "Solving Least Squares
     Problems", 1974, chapter 23; Nocedal and Wright, "Numerical Optimization", 2006, section
     16.5) within ``budget`` linear solves: (linear solves, solved), x in ``work.x``. From the
-    feasible point ``work.feasible`` with free set ``policy`` (both changed in place): solve
-    ``H_FF s_F = -q_F``; if some free ``s_i < -tol_l[i]``, move towards s until the first of them
-    reaches zero and fix it; else take x = max(s, 0) and free the fixed contact with the most
-    negative ``(H x + q)_i / sqrt(D_i) < -tol_w``, or stop. The objective never rises, so
-    unlike block pivoting it cannot cycle."""
+    feasible point ``work.feasible`` with free set ``policy`` (both changed in place), each
+    step solves ``H_FF s_F = -q_F``, then:
+
+    - some free ``s_i < -tol_l[i]``: x becomes ``max(s, 0)`` with those contacts fixed when
+      that lowers f (several at once); else x moves towards s until the first of them
+      reaches zero, and the free contacts at zero with ``s_i < 0`` are fixed;
+    - else x = max(s, 0), and the fixed contacts with ``(H x + q)_i < -tol_w`` are freed: all
+      of them when f has fallen since the last time contacts were freed, else the one with
+      the most negative ``(H x + q)_i / sqrt(D_i)``; none: x is the solution.
+
+    f never rises and every step that frees contacts starts lower than the one before, or
+    frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle."""
     A, safe_diag = lcp.A, lcp.safe_diag
     solution, rhs, y, free, feasible = work.x, work.rhs, work.product, work.free, work.feasible
+    projected = work.best_x  # the best exchange's x is read before the first step
     n = q.size
+    value_now = _objective(A, rho, safe_diag, q, feasible, y)
+    value_at_last_freeing = np.inf
     solves = 0
     solved = False
     while solves < budget:
@@ -555,22 +576,38 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
                     step, blocking = reach, i
         if blocking >= 0:
             for i in range(n):
+                projected[i] = max(solution[i], 0.0)
+            value = _objective(A, rho, safe_diag, q, projected, y)
+            if value < value_now:
+                value_now = value
+                for i in range(n):
+                    feasible[i] = projected[i]
+                    policy[i] = policy[i] and solution[i] > 0.0
+                continue
+            for i in range(n):
                 if policy[i]:
                     feasible[i] = max(feasible[i] + step * (solution[i] - feasible[i]), 0.0)
                     if solution[i] < 0.0 and feasible[i] == 0.0:
                         policy[i] = False
             feasible[blocking] = 0.0
             policy[blocking] = False
+            value_now = _objective(A, rho, safe_diag, q, feasible, y)
             continue
         for i in range(n):
             feasible[i] = max(solution[i], 0.0)
-        _matvec_into(A, feasible, y)
+        value_now = _objective(A, rho, safe_diag, q, feasible, y)  # y = Q x
+        all_of_them = value_now < value_at_last_freeing
+        value_at_last_freeing = value_now
         entering, worst = -1, 0.0
         for i in range(n):
             if not policy[i]:
                 value = y[i] + q[i]
-                if value < -tol_w and value / np.sqrt(safe_diag[i]) < worst:
-                    entering, worst = i, value / np.sqrt(safe_diag[i])
+                if value < -tol_w:
+                    if all_of_them:
+                        policy[i] = True
+                        entering = i
+                    elif value / np.sqrt(safe_diag[i]) < worst:
+                        entering, worst = i, value / np.sqrt(safe_diag[i])
         if entering < 0:
             solved = True
             break
