@@ -27,7 +27,7 @@ and adds published safeguards:
    tens of solves where single exchanges (Murty 1974) did not end them in
    hundreds.
 3. A safe path when that is slow: policy iteration gets ``pi_budget`` linear
-   solves (enough on every impact measured here: boxes, cradles, K3/K4, grids). Then a
+   solves (enough on the impacts measured here: boxes, cradles, K3/K4, grids). Then a
    Mehrotra interior point (``qpbench.solvers.lcp_interior``, Jacobi-scaled,
    ``ipm_iters`` at most) runs, and every iterate whose residual is below
    ``finish_below`` (then ten times lower than the last try) is handed back to
@@ -156,7 +156,7 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
                 lcp, blocks, rho, q, np.maximum(best_x, 0.0), tol_l, tol_w, budget - solves)
             return x, policy, solves + used, solved
         else:
-            break  # the caller has a safer path than single exchanges
+            break  # the caller has a safer path than the active-set method
     return x, policy, solves, False
 
 
