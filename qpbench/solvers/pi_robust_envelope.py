@@ -207,11 +207,11 @@ class Work(NamedTuple):
 
 
 @njit(cache=True)
-def _work(n: int, capacity: int) -> Work:
+def _work(n: int, capacity: int, product: np.ndarray, unpermuted: np.ndarray) -> Work:
     """The work arrays of a solve of n contacts whose whole envelope has ``capacity``
-    entries (two kept factors)."""
+    entries (two kept factors), with the residual's ``product`` and ``unpermuted``."""
     return Work(_factor_cache(n, 2, capacity), np.zeros(n), np.empty(n), np.empty(n),
-                np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int64),
+                np.empty(n), product, unpermuted, np.empty(n, dtype=np.int64),
                 np.zeros(n, dtype=np.bool_), np.empty(n), np.empty(n))
 
 
@@ -264,17 +264,17 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
 
 
 @njit(cache=True)
-def _original_residual(original: Posed, scale: float, impulses: np.ndarray, work: Work
-                       ) -> float:
+def _original_residual(original: Posed, scale: float, impulses: np.ndarray,
+                       product: np.ndarray, unpermuted: np.ndarray) -> float:
     """qpbench's residual of ``impulses`` given in the kernel's order, on the problem as posed
-    (``l[original.order] = impulses``; formed in ``work.unpermuted``)."""
-    unpermuted, order = impulses, original.order
+    (``l[original.order] = impulses``, formed in ``unpermuted``; Q l in ``product``)."""
+    posed, order = impulses, original.order
     if order.size:
-        unpermuted = work.unpermuted
+        posed = unpermuted
         for i in range(impulses.size):
-            unpermuted[order[i]] = impulses[i]
-    return _natural_residual_into(original.csc, original.b, original.diag, scale, unpermuted,
-                                  work.product)
+            posed[order[i]] = impulses[i]
+    return _natural_residual_into(original.csc, original.b, original.diag, scale, posed,
+                                  product)
 
 
 @njit(cache=True)
@@ -644,7 +644,7 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
         for i in range(n):
             centre[i] = np.maximum(x[i], 0.0)
         previous = res
-        res = _original_residual(original, scale, centre, work)
+        res = _original_residual(original, scale, centre, work.product, work.unpermuted)
         if res < best_res:
             best[:] = centre
             best_res = res
@@ -719,7 +719,8 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
     """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
     policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
     finished, done, _, used, finished_residual = _prox_policy_iteration(
-        lcp, start, _original_residual(lcp.original, lcp.scale, start, work),
+        lcp, start, _original_residual(lcp.original, lcp.scale, start, work.product,
+                                       work.unpermuted),
         start_w < lcp.diag * start, tol, rho, prox, finish_budget, work)
     if done:
         finished, polished = _polish(lcp, finished, finished_residual, tol, rho, work)
@@ -742,12 +743,13 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
-    work = _work(n, normal_first[n])
-    counters = work.cache.counters
+    product, unpermuted = np.empty(n), np.empty(n)
     start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
-    start_residual = _original_residual(original, scale, start, work)
+    start_residual = _original_residual(original, scale, start, product, unpermuted)
     if start_residual <= tol:  # the sweeps solved it (Q nearly diagonal: contacts that
         return start, True, PATH_SWEEPS, 0, 0, 0  # hardly interact)
+    work = _work(n, normal_first[n], product, unpermuted)
+    counters = work.cache.counters
     everything = np.arange(n)
     w = _matvec(A, start) + b
     first, converged, _, solves, first_res = _prox_policy_iteration(
@@ -784,7 +786,8 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
             progress, stalled = res, 0
         else:
             stalled += 1
-        if res <= tol and _original_residual(original, scale, original_l, work) <= tol:
+        if res <= tol and _original_residual(original, scale, original_l, product,
+                                             unpermuted) <= tol:
             return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
         if res <= finish_below:
             finished, done, used = _finish(lcp, original_l, original_w, tol, rho, prox,
