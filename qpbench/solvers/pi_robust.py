@@ -123,6 +123,17 @@ class BlockSolver:
             raise np.linalg.LinAlgError(str(error)) from error
 
 
+def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray
+                  ) -> np.ndarray:
+    """x_F with ``(Q_FF + rho D_F) x_F = -q_F`` on the policy's free contacts F, zero
+    elsewhere."""
+    index = np.flatnonzero(policy)
+    x = np.zeros(policy.size)
+    if index.size:
+        x[index] = blocks.solve(policy, index, rho, -q[index])
+    return x
+
+
 def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray,
                tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int,
                active_set: bool = True) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -134,10 +145,7 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
     solves = 0
     x = best_x = np.zeros(lcp.n)
     while solves < budget:
-        index = np.flatnonzero(policy)
-        x = np.zeros(lcp.n)
-        if index.size:
-            x[index] = blocks.solve(policy, index, rho, -q[index])
+        x = _policy_solve(blocks, policy, rho, q)
         solves += 1
         y = lcp.op @ x + shift * x + q
         infeasible = (policy & (x < -tol_l)) | (~policy & (y < -tol_w))
@@ -163,22 +171,9 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
 def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
                        feasible: np.ndarray, tol_l: np.ndarray, tol_w: float, budget: int
                        ) -> tuple[np.ndarray, np.ndarray, int, bool]:
-    """LCP(H, q), H = Q + rho D positive definite, as the QP ``min f(x) = x^T H x / 2 + q^T x``,
-    ``x >= 0``, by a primal active-set method (Lawson and Hanson, "Solving Least Squares
-    Problems", 1974, chapter 23; Nocedal and Wright, "Numerical Optimization", 2006, section
-    16.5) from the point ``feasible`` (>= 0) with free set ``{feasible > 0}``, within ``budget``
-    linear solves: (x, free set, solves, solved). Each step solves ``H_FF s_F = -q_F``, then:
-
-    - some free ``s_i < -tol_l[i]``: x becomes ``max(s, 0)`` with those contacts fixed when
-      that lowers f (several at once); else x moves towards s until the first of them
-      reaches zero, and the free contacts at zero with ``s_i < 0`` are fixed;
-    - else x = max(s, 0), and the fixed contacts with ``(H x + q)_i < -tol_w`` are freed: all
-      of them when f has fallen since the last time contacts were freed, else the one with
-      the most negative ``(H x + q)_i / sqrt(D_i)``; none: x is the solution.
-
-    f never rises and every step that frees contacts starts lower than the one before, or
-    frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle (as
-    ``pi_robust_envelope._primal_active_set``)."""
+    """The primal active-set method of ``pi_robust_envelope._primal_active_set`` (its rules
+    there) on LCP(Q + rho D, q), from the point ``feasible`` (>= 0) with free set
+    ``{feasible > 0}``, within ``budget`` linear solves: (x, free set, solves, solved)."""
     shift = rho * lcp.safe_diag
 
     def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -191,10 +186,7 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
     value_at_last_freeing = np.inf
     solves = 0
     while solves < budget:
-        index = np.flatnonzero(free)
-        solution = np.zeros(lcp.n)
-        if index.size:
-            solution[index] = blocks.solve(free, index, rho, -q[index])
+        solution = _policy_solve(blocks, free, rho, q)
         solves += 1
         blocked = free & (solution < -tol_l)
         if blocked.any():

@@ -457,6 +457,25 @@ def _block_solve(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.nd
 
 
 @njit(cache=True)
+def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
+                  work: Work) -> None:
+    """``work.x``: x_F with ``(Q_FF + rho D_F) x_F = -q_F`` on the policy's free contacts F,
+    zero elsewhere (by :func:`_block_solve`)."""
+    x, rhs, free = work.x, work.rhs, work.free
+    size = 0
+    for i in range(q.size):
+        x[i] = 0.0
+        if policy[i]:
+            free[size] = i
+            rhs[size] = -q[i]
+            size += 1
+    if size:
+        _block_solve(lcp.A, lcp.safe_diag, policy, free[:size], rho, rhs[:size], work.cache)
+        for a in range(size):
+            x[free[a]] = rhs[a]
+
+
+@njit(cache=True)
 def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                tol_l: np.ndarray, tol_w: float, prox: Prox, budget: int, work: Work):
     """Block principal pivoting on LCP(Q + rho D, q), within ``budget`` linear solves:
@@ -467,24 +486,14 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     (``prox.active_set``), or it stops unsolved."""
     A, safe_diag = lcp.A, lcp.safe_diag
     backup_steps, active_set = prox.backup_steps, prox.active_set
-    x, rhs, y, free, infeasible = work.x, work.rhs, work.product, work.free, work.infeasible
+    x, y, infeasible = work.x, work.product, work.infeasible
     n = q.size
     best = n + 1
     backup = backup_steps
     solves = 0
     x[:] = 0.0
     while solves < budget:
-        size = 0
-        for i in range(n):
-            x[i] = 0.0
-            if policy[i]:
-                free[size] = i
-                rhs[size] = -q[i]
-                size += 1
-        if size:
-            _block_solve(A, safe_diag, policy, free[:size], rho, rhs[:size], work.cache)
-            for a in range(size):
-                x[free[a]] = rhs[a]
+        _policy_solve(lcp, policy, rho, q, work)
         solves += 1
         _matvec_into(A, x, y)
         count = 0
@@ -548,7 +557,7 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
     f never rises and every step that frees contacts starts lower than the one before, or
     frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle."""
     A, safe_diag = lcp.A, lcp.safe_diag
-    solution, rhs, y, free, feasible = work.x, work.rhs, work.product, work.free, work.feasible
+    solution, y, feasible = work.x, work.product, work.feasible
     projected = work.best_x  # the best exchange's x is read before the first step
     n = q.size
     value_now = _objective(A, rho, safe_diag, q, feasible, y)
@@ -556,17 +565,7 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
     solves = 0
     solved = False
     while solves < budget:
-        size = 0
-        for i in range(n):
-            solution[i] = 0.0
-            if policy[i]:
-                free[size] = i
-                rhs[size] = -q[i]
-                size += 1
-        if size:
-            _block_solve(A, safe_diag, policy, free[:size], rho, rhs[:size], work.cache)
-            for a in range(size):
-                solution[free[a]] = rhs[a]
+        _policy_solve(lcp, policy, rho, q, work)
         solves += 1
         step, blocking = 1.0, -1
         for i in range(n):
