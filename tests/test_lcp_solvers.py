@@ -239,6 +239,18 @@ def test_pi_robust_compiled_path_declines_a_too_wide_envelope(
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
 
+def test_pi_robust_start_sweeps_run_before_the_envelope_is_measured(
+        pi_robust_row: Callable[[str, object], None]) -> None:
+    """The start sweeps come first, in the posed order: a problem they solve is answered by
+    the compiled path even when no envelope work is allowed, with no ordering and no factor
+    (here 100 contacts, above the ordering threshold of 64)."""
+    pi_robust_row("compiled_work_limit", 0.0)
+    row, output = solve_and_judge(get("pi-robust"), separate_pairs(100), 1e-8)
+    assert row["success"] and output.claimed_success
+    assert output.info["compiled"] is True and output.info["path"] == "start sweeps"
+    assert output.info["factorizations"] == 0 and output.iterations == 0
+
+
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     from qpbench.solvers.pi_robust_envelope import (
         _envelope_pattern,

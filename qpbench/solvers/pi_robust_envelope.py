@@ -29,10 +29,10 @@ block; the factor has the same envelope (no fill outside it), so one factorizati
 last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho), so prox
 steps on a settled policy cost two triangular solves, and a new factor copies the leading rows
 it shares with a kept one. A start that is not converged first gets ``start_sweeps`` projected
-Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the kernel's order), which cut the pivots that
-follow, and which alone solve contacts that hardly interact (Q nearly diagonal: path
-``start sweeps``, no factorization). A factor that fails raises ``np.linalg.LinAlgError``;
-the caller then runs the Python path.
+Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the posed order, before any set-up), which cut
+the pivots that follow, and which alone solve contacts that hardly interact (Q nearly
+diagonal: path ``start sweeps``, no ordering and no factorization). A factor that fails
+raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
 
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
 caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
@@ -728,11 +728,11 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
 
 
 @njit(cache=True)
-def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
-                   normal_first: np.ndarray):
+def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
+                   options: Options, normal_first: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0, not
-    converged: the caller has checked it).
+    converged: the caller has measured its residual, ``start_residual``).
 
     ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
     on ``lcp.original``; ``normal_first`` are the row offsets of the whole matrix's lower
@@ -743,10 +743,6 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, options: Options,
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
     product, unpermuted = np.empty(n), np.empty(n)
-    start = _gauss_seidel(A, b, diag, start, options.start_sweeps)
-    start_residual = _original_residual(original, scale, start, product, unpermuted)
-    if start_residual <= tol:  # the sweeps solved it (Q nearly diagonal: contacts that
-        return start, True, PATH_SWEEPS, 0, 0, 0  # hardly interact)
     work = _work(n, normal_first[n], product, unpermuted)
     counters = work.cache.counters
     everything = np.arange(n)
@@ -923,7 +919,8 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, certified) of pi-robust on LCP(Q, b), Q given by its CSC arrays,
     from ``clean_start(warm_start)`` (an empty array: from zero), with the options
-    :func:`options_of` packs. A start that is already converged is returned before any set-up.
+    :func:`options_of` packs. A start that is already converged, or that the start sweeps solve
+    (in the posed order), is returned before any set-up.
     Above ``order_above`` contacts, or when the envelope in the posed order is wide
     (``WIDE_ENVELOPE``), and unless it is cheap already (``WIDE_ENVELOPE_WORK``), the contacts
     are first put in reverse Cuthill-McKee order (inside the timed call), which keeps
@@ -942,6 +939,14 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     if start_residual <= options.tol:  # converged already: returned before any set-up
         return start, True, PATH_START, 0, 0, 0, _certified(
             A_posed, b, scale, start, start_residual, options.tol)
+    # the start sweeps, in the posed order: contacts that hardly interact (Q nearly diagonal)
+    # are solved by the sweeps alone, before any set-up
+    if options.start_sweeps > 0:
+        start = _gauss_seidel(A_posed, b, diag, start, options.start_sweeps)
+        start_residual = natural_residual(A_posed, b, diag, scale, start)
+        if start_residual <= options.tol:
+            return start, True, PATH_SWEEPS, 0, 0, 0, _certified(
+                A_posed, b, scale, start, start_residual, options.tol)
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.empty(0, dtype=np.int64)  # the posed order
     A = A_posed
@@ -963,7 +968,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     else:
         lcp = OrderedLcp(A, Posed(A_posed, b, diag, order), b, diag, safe_diag, scale)
     answer, converged, path, solves, interior, factorizations = _solve_ordered(
-        lcp, start, options, widths)
+        lcp, start, start_residual, options, widths)
     impulses = answer
     if order.size:
         impulses = np.empty(n)
