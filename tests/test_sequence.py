@@ -38,19 +38,20 @@ class Recorder:
     """A warm-startable solver that records every warm start it gets and every answer it
     gives (pi-robust's answer, nudged by the call count so answers are its own)."""
 
-    def __init__(self) -> None:
+    def __init__(self, name: str = "test-recorder", nudge: float = 1e-12) -> None:
         self.calls: list[tuple[np.ndarray | None, np.ndarray]] = []
         self.inner = get("pi-robust")
+        self.name, self.nudge = name, nudge
 
     def solve(self, problem: ImpactProblem, accuracy: float,
               warm_start: np.ndarray | None = None) -> SolverOutput:
         output = self.inner.solve(problem, accuracy, None)
-        answer = np.asarray(output.impulses, dtype=float) * (1.0 + 1e-12 * len(self.calls))
+        answer = np.asarray(output.impulses, dtype=float) * (1.0 + self.nudge * len(self.calls))
         self.calls.append((None if warm_start is None else warm_start.copy(), answer.copy()))
         return SolverOutput(impulses=answer, status="recorded", claimed_success=True)
 
     def spec(self) -> SolverSpec:
-        return SolverSpec(name="test-recorder", formulation="lcp", backend="qpbench-tests",
+        return SolverSpec(name=self.name, formulation="lcp", backend="qpbench-tests",
                           solve=self.solve, version="0", warm_start=True)
 
 
@@ -129,6 +130,32 @@ def test_sequence_warm_starts_each_step_from_the_solvers_own_previous_answer(
         assert row["sequence_residual"] == metrics.residual(problem, answer)
         assert row["sequence_success"] == (row["sequence_residual"] <= 1e-8)
         assert row["sequence_time_s"] >= 0 and row["cold_time_s"] >= 0
+
+
+def test_pairs_take_turns_step_by_step_each_from_its_own_answers(
+        captured: list[ImpactProblem]) -> None:
+    """Side by side: every pair solves a step before the next step, and each carries its own
+    previous answer, never the other pair's."""
+    first, second = Recorder("test-first", 1e-12), Recorder("test-second", 3e-12)
+    steps = captured
+    rows = sequence.replay_side_by_side([first.spec(), second.spec()], steps, 1e-8, "box",
+                                        repeats=1)
+    assert [(row["solver"], row["index"]) for row in rows] == \
+        [(name, k) for k in range(len(steps)) for name in ("test-first/lcp", "test-second/lcp")]
+    carried_any = False
+    for recorder, other in ((first, second), (second, first)):
+        for k in range(1, len(steps)):
+            warm = recorder.calls[2 * k + 1][0]
+            if warm is None:
+                continue
+            carried_any = True
+            own, _ = sequence.carried(steps[k - 1].data["contact_keys"],
+                                      recorder.calls[2 * k - 1][1], steps[k].data["contact_keys"])
+            others, _ = sequence.carried(steps[k - 1].data["contact_keys"],
+                                         other.calls[2 * k - 1][1], steps[k].data["contact_keys"])
+            np.testing.assert_array_equal(warm, own)
+            assert not np.array_equal(warm, others) or not np.any(warm)
+    assert carried_any  # consecutive box steps share contacts
 
 
 def test_sequence_summary_and_markdown_judge_the_target(captured: list[ImpactProblem]) -> None:

@@ -4,7 +4,9 @@ The ``warm`` mode of ``qpbench run`` starts from the impulses a simulator carrie
 captured step (only scenes that cache impulses have them), the same vector for every solver.
 Here a scene is simulated with ``--capture`` semantics (one problem file per impact step,
 named in order, each carrying ``data["contact_keys"]``: the identity of every contact, stable
-across steps), and then each solver solves the problems in order twice:
+across steps), and then each solver solves the problems in order twice (the pairs take turns
+step by step: every pair solves a step before any pair solves the next one, so that a drift in
+the machine's speed during a scene falls on all pairs alike):
 
 * ``cold``: no warm start;
 * ``sequence``: from the solver's OWN answer of the previous captured step, restricted to the
@@ -135,36 +137,62 @@ def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float 
     """One row per step: the cold solve and the sequence solve of ``spec`` (module
     docstring), each the fastest of ``repeats``; it stops early, with fewer rows than
     problems, once those ``time_s`` on this scene add up to more than ``budget_s``."""
+    return replay_side_by_side([spec], problems, accuracy, scene, budget_s, repeats)
+
+
+def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactProblem],
+                        accuracy: float = ACCURACY, scene: str = "",
+                        budget_s: float = math.inf, repeats: int = DEFAULT_REPEATS,
+                        progress: Callable[[str], None] | None = None
+                        ) -> list[dict[str, Any]]:
+    """:func:`replay` of every pair of ``specs`` at once, step by step: each step is solved by
+    every pair before the next step is, so that a change in the machine's speed during a scene
+    falls on all pairs alike rather than on the pairs replayed at that moment. Each pair keeps
+    its own previous answer and its own budget (a pair past ``budget_s`` stops there)."""
     rows = []
-    previous: ImpactProblem | None = None
-    previous_answer: np.ndarray | None = None
-    spent = 0.0
+    previous: dict[str, tuple[ImpactProblem, np.ndarray | None]] = {}
+    spent = dict.fromkeys((spec.key for spec in specs), 0.0)
     for index, problem in enumerate(problems):
-        if spent > budget_s:
-            break
-        cold_output = fastest_solve(spec, problem, accuracy, repeats)
-        cold = judge(spec, problem, cold_output, accuracy)
-        warm, persisting = None, 0
-        if previous is not None and previous_answer is not None:
-            warm, persisting = carried(previous.data[KEYS], previous_answer, problem.data[KEYS])
-            if not persisting:
-                warm = None
-        output = fastest_solve(spec, problem, accuracy, repeats, warm)
-        spent += cold_output.time_s + output.time_s
-        sequence = judge(spec, problem, output, accuracy)
-        answer = output.impulses
-        finite = answer is not None and answer.shape == (problem.n_contacts,) \
-            and bool(np.all(np.isfinite(answer)))
-        rows.append({
-            "scene": scene, "problem": problem.name, "index": index, "step": step_of(problem),
-            "contacts": problem.n_contacts, "persisting": persisting,
-            "solver": f"{spec.name}/{spec.formulation}", "warm_startable": spec.warm_start,
-            "warm_start_given": warm is not None,
-            **{f"cold_{name}": value for name, value in _figures(cold).items()},
-            **{f"sequence_{name}": value for name, value in _figures(sequence).items()},
-        })
-        previous, previous_answer = problem, (answer.copy() if finite else None)
+        if progress is not None:
+            progress(f"{scene}: step {index + 1} of {len(problems)}")
+        for spec in specs:
+            if spent[spec.key] > budget_s:
+                continue
+            row, answer, seconds = _replayed_step(spec, problem, index, previous.get(spec.key),
+                                                  accuracy, scene, repeats)
+            rows.append(row)
+            spent[spec.key] += seconds
+            previous[spec.key] = (problem, answer)
     return rows
+
+
+def _replayed_step(spec: SolverSpec, problem: ImpactProblem, index: int,
+                   previous: tuple[ImpactProblem, np.ndarray | None] | None, accuracy: float,
+                   scene: str, repeats: int
+                   ) -> tuple[dict[str, Any], np.ndarray | None, float]:
+    """(row, the answer to carry, time_s spent) of one step of one pair: its cold solve and its
+    sequence solve from its own ``previous`` (problem, finite answer or None)."""
+    cold_output = fastest_solve(spec, problem, accuracy, repeats)
+    cold = judge(spec, problem, cold_output, accuracy)
+    warm, persisting = None, 0
+    if previous is not None and previous[1] is not None:
+        warm, persisting = carried(previous[0].data[KEYS], previous[1], problem.data[KEYS])
+        if not persisting:
+            warm = None
+    output = fastest_solve(spec, problem, accuracy, repeats, warm)
+    sequence = judge(spec, problem, output, accuracy)
+    answer = output.impulses
+    finite = answer is not None and answer.shape == (problem.n_contacts,) \
+        and bool(np.all(np.isfinite(answer)))
+    row = {
+        "scene": scene, "problem": problem.name, "index": index, "step": step_of(problem),
+        "contacts": problem.n_contacts, "persisting": persisting,
+        "solver": f"{spec.name}/{spec.formulation}", "warm_startable": spec.warm_start,
+        "warm_start_given": warm is not None,
+        **{f"cold_{name}": value for name, value in _figures(cold).items()},
+        **{f"sequence_{name}": value for name, value in _figures(sequence).items()},
+    }
+    return row, (answer.copy() if finite else None), cold_output.time_s + output.time_s
 
 
 # --- summaries ------------------------------------------------------------------------------
@@ -252,7 +280,9 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              budget_s: float = SCENE_BUDGET_S, repeats: int = DEFAULT_REPEATS) -> str:
     lines = [
         "## Sequence mode: warm starts from each solver's own previous answer\n",
-        "Each captured scene is replayed in order; every solver solves each step cold and "
+        "Each captured scene is replayed in order, every pair solving a step before the next "
+        "step (so that a drift in the machine's speed falls on all pairs alike); every solver "
+        "solves each step cold and "
         "warm-started from its own answer of the previous step on the contacts that persist "
         f"(zero on new contacts), at accuracy {accuracy:g}, judged by qpbench's residual. "
         f"Times are `time_s` of the one stopwatch, the fastest of {repeats} repeats (fewer "
@@ -387,15 +417,14 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DE
             described.append({"scene": str(scene), "steps": len(problems),
                               "contacts_min": min(counts), "contacts_max": max(counts),
                               "persisting_share": float(np.mean(shared)) if shared else 0.0})
-            for spec in specs:
-                if spec.key in stopped:
-                    continue
-                if progress is not None:
-                    progress(f"{scene}: {spec.key}")
-                replayed = replay(spec, problems, accuracy, str(scene), budget_s, repeats)
-                if len(replayed) < len(problems):
-                    stopped[spec.key] = f"{scene}: {len(replayed)} of {len(problems)} steps"
-                rows.extend(replayed)
+            running = [spec for spec in specs if spec.key not in stopped]
+            replayed = replay_side_by_side(running, problems, accuracy, str(scene), budget_s,
+                                           repeats, progress)
+            for spec in running:
+                steps_done = sum(row["solver"] == spec.key for row in replayed)
+                if steps_done < len(problems):
+                    stopped[spec.key] = f"{scene}: {steps_done} of {len(problems)} steps"
+            rows.extend(replayed)
     rows = [row for row in rows if row["solver"] not in stopped]  # like with like
     summary = summarize(rows)
     compared = comparison(summary)
