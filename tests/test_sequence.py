@@ -137,22 +137,20 @@ def test_pairs_take_turns_step_by_step_each_from_its_own_answers(
     """Side by side: every pair solves a step before the next step, and each carries its own
     previous answer, never the other pair's."""
     first, second = Recorder("test-first", 1e-12), Recorder("test-second", 3e-12)
-    steps = captured
-    rows = sequence.replay_side_by_side([first.spec(), second.spec()], steps, 1e-8, "box",
+    rows = sequence.replay_side_by_side([first.spec(), second.spec()], captured, 1e-8, "box",
                                         repeats=1)
     assert [(row["solver"], row["index"]) for row in rows] == \
-        [(name, k) for k in range(len(steps)) for name in ("test-first/lcp", "test-second/lcp")]
+        [(name, k) for k in range(len(captured)) for name in ("test-first/lcp", "test-second/lcp")]
     carried_any = False
     for recorder, other in ((first, second), (second, first)):
-        for k in range(1, len(steps)):
+        for k in range(1, len(captured)):
             warm = recorder.calls[2 * k + 1][0]
             if warm is None:
                 continue
             carried_any = True
-            own, _ = sequence.carried(steps[k - 1].data["contact_keys"],
-                                      recorder.calls[2 * k - 1][1], steps[k].data["contact_keys"])
-            others, _ = sequence.carried(steps[k - 1].data["contact_keys"],
-                                         other.calls[2 * k - 1][1], steps[k].data["contact_keys"])
+            before, now = captured[k - 1].data["contact_keys"], captured[k].data["contact_keys"]
+            own, _ = sequence.carried(before, recorder.calls[2 * k - 1][1], now)
+            others, _ = sequence.carried(before, other.calls[2 * k - 1][1], now)
             np.testing.assert_array_equal(warm, own)
             assert not np.array_equal(warm, others) or not np.any(warm)
     assert carried_any  # consecutive box steps share contacts
