@@ -23,16 +23,16 @@ envelope in the posed order is cheap to factor already (``WIDE_ENVELOPE_WORK``),
 dense factorization, the contacts are put in reverse Cuthill-McKee order (Q's graph is the
 line graph of the contact graph, so this order keeps every block's envelope narrow: a few tens
 of columns on grids and packings). Row i of a factor is stored contiguously, its columns
-``first(i) .. i`` (the diagonal last), with ``first(i)`` the leftmost nonzero of row i of the
-block; the factor has the same envelope (no fill outside it), so one factorization costs
-``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a solve ``2 sum_i w_i``. The
-last two block factors are kept in a :class:`FactorCache`, keyed by (policy, rho), so prox
-steps on a settled policy cost two triangular solves, and a new factor copies the leading rows
-it shares with a kept one. A start that is not converged first gets ``start_sweeps`` projected
-Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the posed order, before any set-up), which cut
-the pivots that follow, and which alone solve contacts that hardly interact (Q nearly
-diagonal: path ``start sweeps``, no ordering and no factorization). A factor that fails
-raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
+``first(i) .. i`` (the diagonal last, as its reciprocal), with ``first(i)`` the leftmost
+nonzero of row i of the block; the factor has the same envelope (no fill outside it), so one
+factorization costs ``sum_i w_i^2 / 2`` multiply-adds (w_i = i - first(i) + 1) and a solve
+``2 sum_i w_i``. The last two block factors are kept in a :class:`FactorCache`, keyed by
+(policy, rho), so prox steps on a settled policy cost two triangular solves, and a new factor
+copies the leading rows it shares with a kept one. A start that is not converged first gets
+``start_sweeps`` projected Gauss-Seidel sweeps (:func:`_gauss_seidel`, in the posed order,
+before any set-up), which cut the pivots that follow, and which alone solve contacts that
+hardly interact (Q nearly diagonal: path ``start sweeps``, no ordering and no factorization).
+A factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
 
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
 caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
@@ -303,9 +303,11 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
     """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
     has the same envelope (Jennings, "A compact storage scheme for the solution of symmetric
     linear simultaneous equations", Comput. J. 9(3), 1966). Row i is stored in
-    ``values[offsets[i]:offsets[i + 1]]``, its columns first(i) .. i (the diagonal last).
-    Rows before ``first_row`` are already L's (row i of L depends on the rows up to i of the
-    matrix only). Raises LinAlgError when a pivot is not positive."""
+    ``values[offsets[i]:offsets[i + 1]]``, its columns first(i) .. i (the diagonal last, kept
+    as its reciprocal 1 / L_ii: each entry ``L_ij = (A_ij - sum_k L_ik L_jk) / L_jj`` is then a
+    multiplication, whose latency is a third of a division's). Rows before ``first_row`` are
+    already L's (row i of L depends on the rows up to i of the matrix only). Raises LinAlgError
+    when a pivot is not positive."""
     for i in range(first_row, size):
         base_i = offsets[i]
         end_i = offsets[i + 1]
@@ -320,19 +322,20 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
             total = values[base_i + j - first_i]
             for k in range(np.uint64(j - lo)):
                 total -= values[left + k] * values[right + k]
-            values[base_i + j - first_i] = total / values[end_j - 1]
+            values[base_i + j - first_i] = total * values[end_j - 1]
         total = values[end_i - 1]
         for k in range(np.uint64(base_i), np.uint64(end_i - 1)):
             total -= values[k] * values[k]
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
-        values[end_i - 1] = np.sqrt(total)
+        values[end_i - 1] = 1.0 / np.sqrt(total)
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
 def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
                     rhs: np.ndarray) -> np.ndarray:
-    """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky``."""
+    """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky`` (its
+    diagonal as reciprocals)."""
     x = rhs.copy()
     _envelope_solve_in_place(values, offsets, size, x)
     return x
@@ -350,12 +353,12 @@ def _envelope_solve_in_place(values: np.ndarray, offsets: np.ndarray, size: int,
         total = x[i]
         for k in range(np.uint64(i - first)):
             total -= values[row + k] * x[leading + k]
-        x[i] = total / values[end - 1]
+        x[i] = total * values[end - 1]
     for i in range(size - 1, -1, -1):
         base = offsets[i]
         end = offsets[i + 1]
         first = i + 1 - (end - base)
-        x[i] /= values[end - 1]
+        x[i] *= values[end - 1]
         value = x[i]
         row, leading = np.uint64(base), np.uint64(first)
         for k in range(np.uint64(i - first)):
