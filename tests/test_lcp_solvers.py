@@ -253,7 +253,7 @@ def test_pi_robust_start_sweeps_run_before_the_envelope_is_measured(
 
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     from qpbench.solvers.pi_robust_envelope import (
-        _envelope_pattern,
+        _envelope_widths,
         _permuted,
         reverse_cuthill_mckee,
     )
@@ -262,12 +262,11 @@ def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     indptr, indices = Q.indptr.astype(np.int64), Q.indices.astype(np.int64)
     order = reverse_cuthill_mckee(indptr, indices, Q.shape[0])
     assert sorted(order) == list(range(Q.shape[0]))
-    everything = np.arange(Q.shape[0])
     widths = {}
     for name, arrays in (("natural", (indptr, indices, Q.data)),
                          ("rcm", _permuted(indptr, indices, Q.data, order))):
         offsets = np.zeros(Q.shape[0] + 1, dtype=np.int64)
-        _envelope_pattern(arrays, everything, everything, offsets, 0)
+        _envelope_widths(arrays, offsets)
         widths[name] = int(offsets[-1])
     assert widths["rcm"] < widths["natural"]
 
