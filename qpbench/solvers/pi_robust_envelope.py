@@ -229,13 +229,16 @@ def natural_residual(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
 @njit(cache=True)
 def _natural_residual_into(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
                            impulses: np.ndarray, product: np.ndarray) -> float:
-    """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten)."""
+    """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten). The columns
+    of zero entries of l are skipped: their terms are zeros, and adding a zero to a sum that
+    starts at +0 never changes it, so the value is the same to the bit."""
     indptr, indices, data = csc
     product[:] = 0.0
     for column in range(impulses.size):
         value = impulses[column]
-        for k in range(indptr[column], indptr[column + 1]):
-            product[indices[k]] += data[k] * value
+        if value != 0.0:
+            for k in range(indptr[column], indptr[column + 1]):
+                product[indices[k]] += data[k] * value
     worst = 0.0
     for i in range(impulses.size):
         value = abs(min(diag[i] * impulses[i], product[i] + b[i]))
@@ -718,13 +721,15 @@ def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
     fewer factorizations."""
     indptr, indices, data = A
     impulses = start.copy()
+    inverse = np.empty(impulses.size)  # 1 / D_i (0: left alone): multiplied, not divided
+    for i in range(impulses.size):
+        inverse[i] = 1.0 / diag[i] if diag[i] > 0.0 else 0.0
     for _ in range(sweeps):
         for i in range(impulses.size):
-            if diag[i] > 0.0:
-                w = b[i]
-                for k in range(indptr[i], indptr[i + 1]):
-                    w += data[k] * impulses[indices[k]]
-                impulses[i] = max(0.0, impulses[i] - w / diag[i])
+            w = b[i]
+            for k in range(indptr[i], indptr[i + 1]):
+                w += data[k] * impulses[indices[k]]
+            impulses[i] = max(0.0, impulses[i] - w * inverse[i])
     return impulses
 
 
@@ -743,46 +748,50 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 @njit(cache=True)
 def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
             work: Work):
-    """(l, solves): a converged l whose ``residual`` is above tol / 10 gets one more prox step
-    on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two triangular
-    solves), kept if it lowers the residual. A prox step ends at residual
+    """(l, its residual, solves): a converged l whose ``residual`` is above tol / 10 gets one
+    more prox step
+    on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two
+    triangular solves), kept if it lowers the residual. A prox step ends at residual
     ~ rho |D (l - z)|, about tol when rho = tol; the margin lets the caller certify the answer
     without a second residual pass."""
     if residual <= 0.1 * tol:
-        return impulses, 0
+        return impulses, residual, 0
     w = _matvec(lcp.A, impulses) + lcp.b
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
-    polished, _, _, used, _ = _prox_policy_iteration(
+    polished, _, _, used, polished_residual = _prox_policy_iteration(
         lcp, impulses, residual, w < lcp.diag * impulses, 0.1 * tol, rho, one_step,
         np.int64(1), work)
-    return polished, used
+    return polished, polished_residual, used
 
 
 @njit(cache=True)
 def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float, rho: float,
             prox: Prox, finish_budget: int, work: Work):
-    """(l, done, solves): proximal policy iteration from an interior-point iterate, with the
-    policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its answer."""
+    """(l, done, solves, l's residual): proximal policy iteration from an interior-point
+    iterate, with the policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its
+    answer."""
     finished, done, _, used, finished_residual = _prox_policy_iteration(
         lcp, start, _original_residual(lcp.original, lcp.scale, start, work.product,
                                        work.unpermuted),
         start_w < lcp.diag * start, tol, rho, prox, finish_budget, work)
     if done:
-        finished, polished = _polish(lcp, finished, finished_residual, tol, rho, work)
+        finished, finished_residual, polished = _polish(lcp, finished, finished_residual, tol,
+                                                        rho, work)
         used += polished
-    return finished, done, used
+    return finished, done, used, finished_residual
 
 
 @njit(cache=True)
 def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
                    options: Options, normal_first: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
-    iterations, factorizations) of pi-robust on the LCP (Q, b) from ``start`` (l >= 0, not
-    converged: the caller has measured its residual, ``start_residual``).
+    iterations, factorizations, l's residual) of pi-robust on the LCP (Q, b) from ``start``
+    (l >= 0, not converged: the caller has measured its residual, ``start_residual``).
 
     ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
-    on ``lcp.original``; ``normal_first`` are the row offsets of the whole matrix's lower
-    envelope (``_envelope_pattern``)."""
+    on ``lcp.original`` (a converged l's is qpbench's, summed as the caller would sum it);
+    ``normal_first`` are the row offsets of the whole matrix's lower envelope
+    (``_envelope_widths``)."""
     A, upper, original, b, diag, safe_diag, scale = lcp
     tol, rho = options.tol, options.rho
     prox = options.prox
@@ -796,8 +805,8 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     first, converged, _, solves, first_res = _prox_policy_iteration(
         lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, work)
     if converged:
-        first, used = _polish(lcp, first, first_res, tol, rho, work)
-        return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0]
+        first, first_res, used = _polish(lcp, first, first_res, tol, rho, work)
+        return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0], first_res
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
     normal = np.empty(normal_first[n])
@@ -827,25 +836,27 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
             progress, stalled = res, 0
         else:
             stalled += 1
-        if res <= tol and _original_residual(original, scale, original_l, product,
-                                             unpermuted) <= tol:
-            return original_l, True, PATH_INTERIOR, solves + iterations, iterations, counters[0]
+        if res <= tol:
+            exact = _original_residual(original, scale, original_l, product, unpermuted)
+            if exact <= tol:
+                return original_l, True, PATH_INTERIOR, solves + iterations, iterations, \
+                    counters[0], exact
         if res <= finish_below:
-            finished, done, used = _finish(lcp, original_l, original_w, tol, rho, prox,
-                                           finish_budget, work)
+            finished, done, used, finished_res = _finish(lcp, original_l, original_w, tol, rho,
+                                                         prox, finish_budget, work)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
-                    counters[0]
+                    counters[0], finished_res
             finish_below = 0.1 * res
         if stalled >= 5:  # the interior point stalls (rounding, extreme mass ratios): finish
             stalled = 0
-            finished, done, used = _finish(  # from its best iterate
+            finished, done, used, finished_res = _finish(  # from its best iterate
                 lcp, best, best_w, tol, rho, prox, finish_budget, work)
             solves += used
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
-                    counters[0]
+                    counters[0], finished_res
         _fill(upper, everything, everything, root, normal, normal_first, np.int64(0))
         ratio = slack / impulses
         for i in range(n):
@@ -869,7 +880,9 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
             break
     if first_res < best_res:
         best, best_res = first, first_res
-    return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0]
+    best_res = _original_residual(original, scale, best, product, unpermuted)  # qpbench's
+    return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0], \
+        best_res
 
 
 @njit(cache=True)
@@ -1013,14 +1026,13 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         start = start[order]
     else:
         lcp = OrderedLcp(A, upper, Posed(A_posed, b, diag, order), b, diag, safe_diag, scale)
-    answer, converged, path, solves, interior, factorizations = _solve_ordered(
+    answer, converged, path, solves, interior, factorizations, residual = _solve_ordered(
         lcp, start, start_residual, options, widths)
     impulses = answer
     if order.size:
         impulses = np.empty(n)
         impulses[order] = answer
-    certified = converged and _certified(A_posed, b, scale, impulses, natural_residual(
-        A_posed, b, diag, scale, impulses), options.tol)
+    certified = converged and _certified(A_posed, b, scale, impulses, residual, options.tol)
     return impulses, converged, path, solves, interior, factorizations, certified
 
 
