@@ -749,9 +749,8 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
             work: Work):
     """(l, its residual, solves): a converged l whose ``residual`` is above tol / 10 gets one
-    more prox step
-    on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor: two
-    triangular solves), kept if it lowers the residual. A prox step ends at residual
+    more prox step on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor:
+    two triangular solves), kept if it lowers the residual. A prox step ends at residual
     ~ rho |D (l - z)|, about tol when rho = tol; the margin lets the caller certify the answer
     without a second residual pass."""
     if residual <= 0.1 * tol:
