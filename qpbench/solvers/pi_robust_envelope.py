@@ -34,9 +34,10 @@ before any set-up), which cut the pivots that follow, and which alone solve cont
 hardly interact (Q nearly diagonal: path ``start sweeps``, no ordering and no factorization).
 A factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the Python path.
 
-Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order; the
-caller certifies a claimed convergence with a rounding bound, or qpbench's own metric, before
-reporting it. One addition to the Python path: when the interior point stalls (its residual
+Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order. A
+claimed convergence is certified by the residual the solve measured on its answer plus a
+rounding bound (no second pass), or else by the caller with qpbench's own metric, before it is
+reported. One addition to the Python path: when the interior point stalls (its residual
 not cut by 10% in five iterations, as rounding makes it on extreme mass ratios) its best
 iterate is handed to the finishing policy iteration too; and a converged answer whose residual
 is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it is
