@@ -253,6 +253,30 @@ def test_pi_robust_start_sweeps_run_before_the_envelope_is_measured(
     assert output.info["factorizations"] == 0 and output.iterations == 0
 
 
+def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None:
+    """For a free set I, the rows of Q_II's lower envelope start at each row's first nonzero,
+    and the fill writes exactly Q_II's entries there (zeros inside the envelope), read from Q's
+    upper triangle alone."""
+    from qpbench.solvers.pi_robust_envelope import _envelope_pattern, _fill, _upper
+
+    Q = generate("grid", 10, seed=0)[0].Q
+    arrays = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        free = np.flatnonzero(rng.uniform(size=Q.shape[0]) < 0.6)
+        position = np.full(Q.shape[0], -1, dtype=np.int64)
+        position[free] = np.arange(free.size)
+        offsets = np.zeros(free.size + 1, dtype=np.int64)
+        _envelope_pattern(_upper(arrays), free, position, offsets, 0)
+        values = np.empty(offsets[-1])
+        _fill(_upper(arrays), free, position, np.empty(0), values, offsets, 0)
+        block = np.tril(Q[free][:, free].toarray())
+        for a in range(free.size):
+            first = a + 1 - (offsets[a + 1] - offsets[a])
+            assert first == np.flatnonzero(block[a])[0]
+            assert np.array_equal(values[offsets[a]:offsets[a + 1]], block[a, first:a + 1])
+
+
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     from qpbench.solvers.pi_robust_envelope import (
         _envelope_widths,
