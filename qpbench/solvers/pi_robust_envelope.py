@@ -233,13 +233,7 @@ def _natural_residual_into(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: flo
     """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten). The columns
     of zero entries of l are skipped: their terms are zeros, and adding a zero to a sum that
     starts at +0 never changes it, so the value is the same to the bit."""
-    indptr, indices, data = csc
-    product[:] = 0.0
-    for column in range(impulses.size):
-        value = impulses[column]
-        if value != 0.0:
-            for k in range(indptr[column], indptr[column + 1]):
-                product[indices[k]] += data[k] * value
+    _matvec_into(csc, impulses, product)
     worst = 0.0
     for i in range(impulses.size):
         value = abs(min(diag[i] * impulses[i], product[i] + b[i]))
@@ -878,9 +872,10 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
         iterations = iteration
         if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):
             break
-    if first_res < best_res:
+    if first_res < best_res:  # policy iteration's best, whose residual is qpbench's already
         best, best_res = first, first_res
-    best_res = _original_residual(original, scale, best, product, unpermuted)  # qpbench's
+    else:  # the interior point's estimate, measured as qpbench measures it
+        best_res = _original_residual(original, scale, best, product, unpermuted)
     return best, best_res <= tol, PATH_NONE, solves + iterations, iterations, counters[0], \
         best_res
 
