@@ -260,16 +260,16 @@ def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None
     from qpbench.solvers.pi_robust_envelope import _envelope_pattern, _fill, _upper
 
     Q = generate("grid", 10, seed=0)[0].Q
-    arrays = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    upper = _upper((Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data))
     rng = np.random.default_rng(3)
     for _ in range(5):
         free = np.flatnonzero(rng.uniform(size=Q.shape[0]) < 0.6)
         position = np.full(Q.shape[0], -1, dtype=np.int64)
         position[free] = np.arange(free.size)
         offsets = np.zeros(free.size + 1, dtype=np.int64)
-        _envelope_pattern(_upper(arrays), free, position, offsets, 0)
+        _envelope_pattern(upper, free, position, offsets, 0)
         values = np.empty(offsets[-1])
-        _fill(_upper(arrays), free, position, np.empty(0), values, offsets, 0)
+        _fill(upper, free, position, np.empty(0), values, offsets, 0)
         block = np.tril(Q[free][:, free].toarray())
         for a in range(free.size):
             first = a + 1 - (offsets[a + 1] - offsets[a])
