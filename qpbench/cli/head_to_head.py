@@ -1,4 +1,4 @@
-"""``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 5]
+"""``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 5] [--passes 3]
 [--candidates 6] -o results/head_to_head.json``: pi-robust against the fastest external pairs
 of the main benchmark, cold, per set of ``problems/head_to_head.toml`` (built into FOLDER by
 ``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with single-threaded BLAS, in a
@@ -21,6 +21,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--results", required=True,
                         help="the main benchmark's table, which names the fastest pairs")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("--passes", type=int, default=3,
+                        help="whole-set passes, one after another; the table keeps each "
+                             "problem's fastest, and the spread of the passes' speedups is "
+                             "shown (3)")
     parser.add_argument("--candidates", type=int, default=6,
                         help="fastest external impact pairs compared (6)")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
@@ -28,14 +32,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.repeats < 1 or args.candidates < 1:
-        raise QpbenchError("--repeats and --candidates must be at least 1")
+    if args.repeats < 1 or args.passes < 1 or args.candidates < 1:
+        raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
     if not Path(args.folder).is_dir():
         raise InputError(args.folder, "no such problem folder")
     output = writable_output(args.output)
     child = single_threaded_rerun(
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
-         "--candidates", str(args.candidates), "-o", str(args.output)])
+         "--passes", str(args.passes), "--candidates", str(args.candidates),
+         "-o", str(args.output)])
     if child is not None:
         return child
     from qpbench.bench.head_to_head import head_to_head
@@ -45,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     if bench.empty:
         raise InputError(args.results, "no results to choose the external pairs from")
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
-                          progress=lambda text: print(text, file=sys.stderr))
+                          progress=lambda text: print(text, file=sys.stderr),
+                          passes=args.passes)
     if not report["rows"]:
         raise InputError(args.folder, "no problem of a head-to-head set")
     write_json(output, report)
