@@ -177,3 +177,6 @@ def test_the_table_keeps_each_problems_fastest_pass_and_every_pass_must_meet_the
     assert "in each of 2 passes" in text and "| 4.00x | 2.50-4.00x |" in text
     [first_pass] = head_to_head.summarize([one for one in rows if one["pass"] == 0])
     assert "pass_speedups" not in first_pass and first_pass["target_met"]
+    # a pass without the external pair gives no speedup (NaN), and the target fails with it
+    [entry] = head_to_head.summarize([one for one in rows if one["pass"] == 0 or one["own"]])
+    assert entry["speedup"] == pytest.approx(4.0) and not entry["target_met"]
