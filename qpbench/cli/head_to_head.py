@@ -1,4 +1,4 @@
-"""``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 5] [--passes 3]
+"""``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 20] [--passes 3]
 [--candidates 6] -o results/head_to_head.json``: pi-robust against the fastest external pairs
 of the main benchmark, cold, per set of ``problems/head_to_head.toml`` (built into FOLDER by
 ``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with single-threaded BLAS, in a
@@ -20,7 +20,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("folder", help="problem folder built from problems/head_to_head.toml")
     parser.add_argument("--results", required=True,
                         help="the main benchmark's table, which names the fastest pairs")
-    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("--repeats", type=int, default=20,
+                        help="timed repeats, minimum kept (20)")
     parser.add_argument("--passes", type=int, default=3,
                         help="whole-set passes, one after another; the table keeps each "
                              "problem's fastest, and the spread of the passes' speedups is "
