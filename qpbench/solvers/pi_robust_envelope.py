@@ -582,6 +582,24 @@ def _objective(A: Csc, rho: float, safe_diag: np.ndarray, q: np.ndarray, x: np.n
 
 
 @njit(cache=True)
+def _clipped_curvature(A: Csc, rho: float, safe_diag: np.ndarray, solution: np.ndarray) -> float:
+    """``d^T (Q + rho D) d / 2`` for ``d = max(-solution, 0)``, summed over the columns where
+    d > 0 only (a few: the free contacts a policy solve sends below zero)."""
+    indptr, indices, data = A
+    total = 0.0
+    for column in range(solution.size):
+        clipped = -solution[column]
+        if clipped > 0.0:
+            inner = rho * safe_diag[column] * clipped
+            for k in range(indptr[column], indptr[column + 1]):
+                row_clipped = -solution[indices[k]]
+                if row_clipped > 0.0:
+                    inner += data[k] * row_clipped
+            total += clipped * inner
+    return 0.5 * total
+
+
+@njit(cache=True)
 def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                        tol_l: np.ndarray, tol_w: float, budget: int, work: Work):
     """LCP(H, q), H = Q + rho D positive definite, as the QP ``min f(x) = x^T H x / 2 + q^T x``,
@@ -599,7 +617,13 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
       the most negative ``(H x + q)_i / sqrt(D_i)``; none: x is the solution.
 
     f never rises and every step that frees contacts starts lower than the one before, or
-    frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle."""
+    frees one contact as Lawson and Hanson do, so unlike block pivoting it cannot cycle.
+
+    f needs no product with Q where a step fixes contacts: s minimizes f on the free set F and
+    every point here is zero off F, so ``f(x) = f(s) + (x - s)^T H (x - s) / 2`` with
+    ``f(s) = q^T s / 2``; hence ``f(max(s, 0)) = f(s) + d^T H d / 2`` (d = max(-s, 0), a few
+    entries: :func:`_clipped_curvature`) and, on the segment towards s,
+    ``f(x + t (s - x)) = f(s) + (1 - t)^2 (f(x) - f(s))``."""
     A, safe_diag = lcp.A, lcp.safe_diag
     solution, y, feasible = work.x, work.product, work.feasible
     projected = work.best_x  # the best exchange's x is read before the first step
@@ -618,9 +642,12 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
                 if reach < step:
                     step, blocking = reach, i
         if blocking >= 0:
+            at_minimum = 0.0
             for i in range(n):
                 projected[i] = max(solution[i], 0.0)
-            value = _objective(A, rho, safe_diag, q, projected, y)
+                at_minimum += q[i] * solution[i]
+            at_minimum *= 0.5
+            value = at_minimum + _clipped_curvature(A, rho, safe_diag, solution)
             if value < value_now:
                 value_now = value
                 for i in range(n):
@@ -634,7 +661,7 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
                         policy[i] = False
             feasible[blocking] = 0.0
             policy[blocking] = False
-            value_now = _objective(A, rho, safe_diag, q, feasible, y)
+            value_now = at_minimum + (1.0 - step) ** 2 * (value_now - at_minimum)
             continue
         for i in range(n):
             feasible[i] = max(solution[i], 0.0)
