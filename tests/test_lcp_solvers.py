@@ -277,6 +277,42 @@ def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None
             assert np.array_equal(values[offsets[a]:offsets[a + 1]], block[a, first:a + 1])
 
 
+def test_the_active_set_methods_objective_without_products_is_the_objective() -> None:
+    """At s minimizing f(x) = x^T H x / 2 + q^T x (H = Q + rho D) on a free set F, zero off F:
+    f(s) = q^T s / 2, f(max(s, 0)) = f(s) + d^T H d / 2 with d = max(-s, 0), and for x zero
+    off F, f(x + t (s - x)) = f(s) + (1 - t)^2 (f(x) - f(s)): the values the active-set
+    method uses instead of products with Q."""
+    from qpbench.solvers.pi_robust_envelope import _clipped_curvature, _objective
+
+    problem = generate("grid", 7, seed=0)[0]
+    Q = problem.Q.tocsc()
+    csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    diag, rho = Q.diagonal(), 1e-3
+    H = Q.toarray() + rho * np.diag(diag)
+    rng = np.random.default_rng(5)
+    product = np.empty(problem.n_contacts)
+    for _ in range(5):
+        free = np.flatnonzero(rng.uniform(size=problem.n_contacts) < 0.5)
+        q = rng.normal(size=problem.n_contacts) * diag
+        s = np.zeros(problem.n_contacts)
+        s[free] = np.linalg.solve(H[np.ix_(free, free)], -q[free])
+        at_minimum = 0.5 * q @ s
+        assert (s < 0).any() and (s > 0).any()
+
+        def f(x: np.ndarray, q: np.ndarray = q) -> float:
+            return _objective(csc, rho, diag, q, x, product)
+
+        scale = abs(f(np.maximum(s, 0.0))) + abs(at_minimum)
+        assert abs(at_minimum - f(s)) <= 1e-9 * scale
+        assert abs(at_minimum + _clipped_curvature(csc, rho, diag, s) - f(np.maximum(s, 0.0))) \
+            <= 1e-9 * scale
+        x = np.zeros(problem.n_contacts)
+        x[free] = rng.uniform(size=free.size)
+        for t in (0.25, 0.8):
+            assert abs(at_minimum + (1 - t) ** 2 * (f(x) - at_minimum) - f(x + t * (s - x))) \
+                <= 1e-9 * (abs(f(x)) + scale)
+
+
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
     from qpbench.solvers.pi_robust_envelope import (
         _envelope_widths,
