@@ -291,16 +291,18 @@ def test_the_active_set_methods_objective_without_products_is_the_objective() ->
     H = Q.toarray() + rho * np.diag(diag)
     rng = np.random.default_rng(5)
     product = np.empty(problem.n_contacts)
+    q = np.empty(problem.n_contacts)
+
+    def f(x: np.ndarray) -> float:
+        return _objective(csc, rho, diag, q, x, product)
+
     for _ in range(5):
         free = np.flatnonzero(rng.uniform(size=problem.n_contacts) < 0.5)
-        q = rng.normal(size=problem.n_contacts) * diag
+        q[:] = rng.normal(size=problem.n_contacts) * diag
         s = np.zeros(problem.n_contacts)
         s[free] = np.linalg.solve(H[np.ix_(free, free)], -q[free])
         at_minimum = 0.5 * q @ s
         assert (s < 0).any() and (s > 0).any()
-
-        def f(x: np.ndarray, q: np.ndarray = q) -> float:
-            return _objective(csc, rho, diag, q, x, product)
 
         scale = abs(f(np.maximum(s, 0.0))) + abs(at_minimum)
         assert abs(at_minimum - f(s)) <= 1e-9 * scale
