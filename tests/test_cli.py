@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import importlib
+import inspect
 import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from qpbench.cli import build_parser
 
 DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 
@@ -66,3 +70,23 @@ def test_unknown_solver_is_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert "unknown solver 'nope'" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("command", "required", "measurement", "options"),
+    [
+        ("head-to-head", ["folder", "--results", "bench.parquet"], "head_to_head",
+         ("repeats", "passes", "candidates")),
+        ("sequence", [], "sequence", ("steps", "accuracy", "repeats")),
+        ("speed", [], "speed", ("sizes", "repeats")),
+        ("breakdown", [], "breakdown", ("repeats",)),
+    ],
+)
+def test_a_measurement_command_defaults_to_what_its_measurement_defaults_to(
+        command: str, required: list[str], measurement: str, options: tuple[str, ...]) -> None:
+    arguments = build_parser(only=command.replace("-", "_")).parse_args(
+        [command, *required, "-o", "out.json"])
+    module = importlib.import_module(f"qpbench.bench.{measurement}")
+    defaults = inspect.signature(getattr(module, measurement)).parameters
+    for option in options:
+        assert getattr(arguments, option) == defaults[option].default, option

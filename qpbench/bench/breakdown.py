@@ -36,6 +36,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from qpbench.bench.defaults import REPEATS
 from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput, SolverSpec
@@ -45,7 +46,6 @@ from qpbench.solvers.run import call_solver
 SOLVER = "pi-robust"
 ACCURACY = 1e-8
 FLOOR_SHIFT = 1e-8
-DEFAULT_REPEATS = 5
 ROOT = Path(__file__).resolve().parents[2]
 DUMPS = ("problems/dumps/grid5_itr_0.out", "problems/dumps/grid5_itr_1.out")
 GRID7_SCENE = "problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml"
@@ -160,7 +160,7 @@ def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[st
             "floor_s": times[kind], "floor_kind": kind, "floor_s_by_kind": times}
 
 
-def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = DEFAULT_REPEATS
+def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = REPEATS
             ) -> dict[str, Any]:
     """The breakdown of one problem (module docstring)."""
     from qpbench.solvers import pi_robust, pi_robust_envelope
@@ -233,7 +233,7 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
 
 
 def breakdown(problems: list[ImpactProblem] | None = None,
-              repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
+              repeats: int = REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown``
     section."""
     from qpbench.problem.dumps import import_dump

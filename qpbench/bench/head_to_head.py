@@ -44,6 +44,11 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench import stats
+from qpbench.bench.defaults import (
+    HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_PASSES,
+    HEAD_TO_HEAD_REPEATS,
+)
 from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
@@ -53,12 +58,6 @@ from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.run import NO_SOLUTION, judge
 
 ACCURACY = 1e-8
-DEFAULT_CANDIDATES = 6
-DEFAULT_PASSES = 3
-# timed repeats per solve: the solves here take tens of microseconds to milliseconds, and the
-# fastest of 5 still moved a set's speedup by a fifth between passes (shared-host bursts last
-# longer than 5 such solves); 20 narrowed it, and the repeat budget caps the slow solves
-DEFAULT_REPEATS = 20
 TARGET_SPEEDUP = 3.0
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
 OWN_IMPACT = ("pi-robust/lcp",)
@@ -303,10 +302,10 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
            f"{', '.join(missed)}."
 
 
-def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = DEFAULT_REPEATS,
-                 candidates: int = DEFAULT_CANDIDATES,
+def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO_HEAD_REPEATS,
+                 candidates: int = HEAD_TO_HEAD_CANDIDATES,
                  progress: Callable[[str], None] | None = None,
-                 passes: int = DEFAULT_PASSES) -> dict[str, Any]:
+                 passes: int = HEAD_TO_HEAD_PASSES) -> dict[str, Any]:
     """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary,
     ``markdown``."""
     from qpbench.solvers.registry import get

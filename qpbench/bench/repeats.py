@@ -10,17 +10,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from qpbench.bench.defaults import REPEATS
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.run import call_solver
 
-DEFAULT_REPEATS = 5
 REPEAT_BUDGET_S = 0.2
 
 
 def fastest_solve(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
-                  accuracy: float, repeats: int = DEFAULT_REPEATS,
+                  accuracy: float, repeats: int = REPEATS,
                   warm_start: np.ndarray | None = None) -> SolverOutput:
     """The output of the fastest of up to ``repeats`` solves of ``problem`` by ``spec``
     through the one stopwatch (``call_solver``), each from the same warm start; fewer once

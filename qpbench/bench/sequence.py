@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from qpbench.bench.repeats import DEFAULT_REPEATS, REPEAT_BUDGET_S, fastest_solve
+from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_STEPS
+from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
 from qpbench.errors import InputError
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
@@ -49,8 +50,6 @@ from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.run import judge
 
 OWN = "pi-robust/lcp"
-ACCURACY = 1e-8
-DEFAULT_STEPS = 30
 TARGET_SPEEDUP = 3.0
 # the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
 # three-ball chain), whose elastic impacts rarely repeat a contact, and a pile of 30 balls
@@ -131,9 +130,9 @@ def _figures(row: dict[str, Any]) -> dict[str, Any]:
                                          "time_s", "solver_status")}
 
 
-def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float = ACCURACY,
-           scene: str = "", budget_s: float = math.inf,
-           repeats: int = DEFAULT_REPEATS) -> list[dict[str, Any]]:
+def replay(spec: SolverSpec, problems: Sequence[ImpactProblem],
+           accuracy: float = SEQUENCE_ACCURACY, scene: str = "", budget_s: float = math.inf,
+           repeats: int = REPEATS) -> list[dict[str, Any]]:
     """One row per step: the cold solve and the sequence solve of ``spec`` (module
     docstring), each the fastest of ``repeats``; it stops early, with fewer rows than
     problems, once those ``time_s`` on this scene add up to more than ``budget_s``."""
@@ -141,8 +140,8 @@ def replay(spec: SolverSpec, problems: Sequence[ImpactProblem], accuracy: float 
 
 
 def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactProblem],
-                        accuracy: float = ACCURACY, scene: str = "",
-                        budget_s: float = math.inf, repeats: int = DEFAULT_REPEATS,
+                        accuracy: float = SEQUENCE_ACCURACY, scene: str = "",
+                        budget_s: float = math.inf, repeats: int = REPEATS,
                         progress: Callable[[str], None] | None = None
                         ) -> list[dict[str, Any]]:
     """:func:`replay` of every pair of ``specs`` at once, step by step: each step is solved by
@@ -277,7 +276,7 @@ def _own_backend(solver: str, own_backend: str) -> bool:
 def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              scenes: Sequence[dict[str, Any]], accuracy: float,
              per_scene: Sequence[dict[str, Any]] = (), stopped: dict[str, str] | None = None,
-             budget_s: float = SCENE_BUDGET_S, repeats: int = DEFAULT_REPEATS) -> str:
+             budget_s: float = SCENE_BUDGET_S, repeats: int = REPEATS) -> str:
     lines = [
         "## Sequence mode: warm starts from each solver's own previous answer\n",
         "Each captured scene is replayed in order, every pair solving a step before the next "
@@ -359,7 +358,7 @@ def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
 
 
 def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
-                 accuracy: float = ACCURACY) -> list[str]:
+                 accuracy: float = SEQUENCE_ACCURACY) -> list[str]:
     """The ``count`` fastest external impact pairs that take no warm start on the captured
     scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM of charged times)."""
     from qpbench.bench.head_to_head import ranked
@@ -390,11 +389,11 @@ def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
     return chosen
 
 
-def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = DEFAULT_STEPS,
-             accuracy: float = ACCURACY,
+def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SEQUENCE_STEPS,
+             accuracy: float = SEQUENCE_ACCURACY,
              progress: Callable[[str], None] | None = None,
              budget_s: float = SCENE_BUDGET_S,
-             repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
+             repeats: int = REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench sequence``: per-step rows, per-solver summary, the
     comparison with the target and a ``markdown`` section. A scene argument that is a folder
     is read as an existing capture. A pair whose solves on one scene take more than

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from qpbench import SINGLE_THREAD_ENV
+from qpbench.bench.defaults import REPEATS, SPEED_SIZES
 from qpbench.problem import metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
@@ -40,8 +41,6 @@ SOLVER = "pi-robust"
 ACCURACY = 1e-8
 TARGET_RATIO = 5.0
 FACTOR_SHIFT = 1e-8
-DEFAULT_SIZES = (1000, 4000)
-DEFAULT_REPEATS = 5
 ORDERINGS = {
     "MMD_AT_PLUS_A": {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0,
                       "options": {"SymmetricMode": True}},
@@ -132,8 +131,8 @@ def single_threaded() -> bool:
     return all(os.environ.get(name) == "1" for name in SINGLE_THREAD_ENV)
 
 
-def speed(sizes: Sequence[int] = DEFAULT_SIZES, seed: int = 0,
-          repeats: int = DEFAULT_REPEATS) -> dict[str, Any]:
+def speed(sizes: Sequence[int] = SPEED_SIZES, seed: int = 0,
+          repeats: int = REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench speed``: per-size figures (largest first), whether the
     target is met on every size, and a ready ``markdown`` section."""
     rows = [measure(size, seed, repeats) for size in sorted(set(sizes), reverse=True)]

@@ -7,13 +7,15 @@ from __future__ import annotations
 
 import argparse
 
+from qpbench.bench.defaults import REPEATS
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import QpbenchError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes")
-    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("--repeats", type=int, default=REPEATS,
+                        help=f"timed repeats, minimum kept ({REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 

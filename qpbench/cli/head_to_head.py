@@ -10,6 +10,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from qpbench.bench.defaults import (
+    HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_PASSES,
+    HEAD_TO_HEAD_REPEATS,
+)
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
@@ -20,14 +25,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("folder", help="problem folder built from problems/head_to_head.toml")
     parser.add_argument("--results", required=True,
                         help="the main benchmark's table, which names the fastest pairs")
-    parser.add_argument("--repeats", type=int, default=20,
-                        help="timed repeats, minimum kept (20)")
-    parser.add_argument("--passes", type=int, default=3,
+    parser.add_argument("--repeats", type=int, default=HEAD_TO_HEAD_REPEATS,
+                        help=f"timed repeats, minimum kept ({HEAD_TO_HEAD_REPEATS})")
+    parser.add_argument("--passes", type=int, default=HEAD_TO_HEAD_PASSES,
                         help="whole-set passes, one after another; the table keeps each "
                              "problem's fastest, and the spread of the passes' speedups is "
-                             "shown (3)")
-    parser.add_argument("--candidates", type=int, default=6,
-                        help="fastest external impact pairs compared (6)")
+                             f"shown ({HEAD_TO_HEAD_PASSES})")
+    parser.add_argument("--candidates", type=int, default=HEAD_TO_HEAD_CANDIDATES,
+                        help=f"fastest external impact pairs compared ({HEAD_TO_HEAD_CANDIDATES})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 

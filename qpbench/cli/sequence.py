@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_STEPS
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
@@ -26,10 +27,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--results", default=None,
                         help="the main benchmark's table: its fastest pairs without warm "
                              "starts are shown beside (default: none of those)")
-    parser.add_argument("--steps", type=int, default=30, help="impact steps per scene (30)")
-    parser.add_argument("--accuracy", type=float, default=1e-8)
-    parser.add_argument("--repeats", type=int, default=5,
-                        help="timed repeats per solve, the fastest kept (5)")
+    parser.add_argument("--steps", type=int, default=SEQUENCE_STEPS,
+                        help=f"impact steps per scene ({SEQUENCE_STEPS})")
+    parser.add_argument("--accuracy", type=float, default=SEQUENCE_ACCURACY,
+                        help=f"residual bound ({SEQUENCE_ACCURACY:g})")
+    parser.add_argument("--repeats", type=int, default=REPEATS,
+                        help=f"timed repeats per solve, the fastest kept ({REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 
+from qpbench.bench.defaults import REPEATS, SPEED_SIZES
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import QpbenchError
 
@@ -24,10 +25,12 @@ def _sizes(text: str) -> tuple[int, ...]:
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "speed", help="pi-robust against one sparse factorization on box packings")
-    parser.add_argument("--sizes", type=_sizes, default=(1000, 4000),
-                        help="comma-separated ball counts (1000,4000)")
+    parser.add_argument("--sizes", type=_sizes, default=SPEED_SIZES,
+                        help="comma-separated ball counts "
+                             f"({','.join(str(size) for size in SPEED_SIZES)})")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--repeats", type=int, default=5, help="timed repeats, minimum kept (5)")
+    parser.add_argument("--repeats", type=int, default=REPEATS,
+                        help=f"timed repeats, minimum kept ({REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 

@@ -1,0 +1,19 @@
+"""The defaults of the measurement commands (breakdown, head-to-head, sequence, speed), each
+written once: the measurements and the command line both read them here. This module imports
+nothing, so the command line can read it without loading the measurements."""
+
+# timed repeats of one solve, the fastest kept (breakdown, sequence, speed)
+REPEATS = 5
+
+# head-to-head: timed repeats per solve. The solves here take tens of microseconds to
+# milliseconds. With the fastest of 5, a set's speedup still moved by a fifth between passes,
+# because bursts on a shared host last longer than 5 such solves. 20 repeats narrowed it, and
+# the repeat budget caps the slow solves.
+HEAD_TO_HEAD_REPEATS = 20
+HEAD_TO_HEAD_PASSES = 3  # whole-set passes, one after another
+HEAD_TO_HEAD_CANDIDATES = 6  # the fastest external impact pairs compared
+
+SEQUENCE_STEPS = 30  # impact steps replayed per scene
+SEQUENCE_ACCURACY = 1e-8
+
+SPEED_SIZES = (1000, 4000)  # balls of the box packings
