@@ -1,4 +1,5 @@
-"""The command line as a user meets it: generate, import-dump, solve; one-line errors."""
+"""The command line as a user meets it: generate, import-dump, solve; one-line errors; the
+measurement commands' defaults."""
 
 from __future__ import annotations
 

@@ -48,9 +48,10 @@ dumps, hot, against this kernel): keeping the factor L of the active-set method'
 and fixing contacts D by a Schur complement (U = L^-1 E_D, (U^T U) mu = U^T y,
 x = L^-T (y - U mu)) cut the 7x7 factorizations from 1,725 to 719 with the same solves, yet
 the 7x7 kernel was only about 5% faster and the 5x5 kernel 4% slower. Each fixed contact costs
-a forward substitution from its place, and on envelopes about 15 wide that costs about as much
-as refactoring from the first changed row, which the kept leading rows already make cheap.
-Handling freed contacts the same way (a quasi-definite Schur matrix) made the 7x7 kernel 9% slower.
+a forward substitution from its place and each step a backward one; on envelopes about 15 wide
+these cost nearly what refactoring from the first changed row costs, since the kept leading
+rows already make that cheap. Handling freed contacts the same way (a quasi-definite Schur
+matrix) made the 7x7 kernel 9% slower.
 
 Arguments travel in tuples (zero-cost in nopython mode): a CSC matrix as ``(indptr, indices,
 data)``, the ordered problem as :class:`OrderedLcp`, the problem as posed as :class:`Posed`,
