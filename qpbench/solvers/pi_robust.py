@@ -56,6 +56,7 @@ otherwise it reports failure and returns its best l.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from types import ModuleType
 from typing import NamedTuple
 
@@ -370,21 +371,28 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     """The compiled path (``pi_robust_envelope``) straight from the posed problem: its answer
     when a rounding bound or qpbench's residual confirms it, else None (the caller then runs
     the Python path). One call into compiled code; in Python only what it needs."""
-    envelope = _kernel_module()
-    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     try:
-        answer = envelope.envelope_pi_robust(*_kernel_arguments(problem, settings, start))
+        answer = _kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
+                              warm_start)
     except np.linalg.LinAlgError:
         return None
     return _confirmed(problem, settings, answer[0], answer)
 
 
-def _kernel_arguments(problem: ImpactProblem, settings: Settings, start: np.ndarray) -> tuple:
-    """The kernel's arguments before the start's: Q's CSC arrays, b, diag(Q); then the
-    start, and after it the ordering threshold, the work limit and the packed options."""
-    return (*csc_arrays(problem.Q), np.asarray(problem.b, dtype=float),
-            np.asarray(problem.diag_Q, dtype=float), start, ORDERING_ABOVE,
-            settings.compiled_work_limit, settings.kernel)
+def _kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
+                 warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
+    """``kernel``'s answer from Q's CSC arrays, b, diag(Q), the start (empty: from zero),
+    ``after_start``, the ordering threshold, the work limit and the packed options.
+
+    Every solve runs this inside the stopwatch, straight after the posing has emptied the
+    caches, so it touches as little Python as it can: Q is CSC by construction
+    (``ImpactProblem.Q``), b and diag(Q) float arrays, and only the index arrays are cast
+    (to the kernel's 32-bit integers; SciPy's own, so no copy)."""
+    Q = problem.Q
+    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
+    return kernel(Q.indptr.astype(np.int32, copy=False), Q.indices.astype(np.int32, copy=False),
+                  Q.data, problem.b, problem.diag_Q, start, *after_start, ORDERING_ABOVE,
+                  settings.compiled_work_limit, settings.kernel)
 
 
 def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
@@ -402,12 +410,12 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
     if not (certified or metrics.residual(problem, kernel_impulses) <= settings.python["tol"]):
         return None
     info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
-                  "factorizations": int(factorizations),
+                  "factorizations": factorizations,
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
     if path == envelope.PATH_INTERIOR:
-        info["interior_iterations"] = int(interior)
+        info["interior_iterations"] = interior
     return SolverOutput(impulses=impulses, status="converged", claimed_success=True,
-                        iterations=int(solves), info=info)
+                        iterations=solves, info=info)
 
 
 def solve_relaxed(problem: FrictionalProblem, eps: float,
@@ -419,18 +427,17 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
     the ccp twin's general path runs."""
     relaxed = problem.relaxed()
     settings = settings_for(eps)
-    if not 0 < relaxed.n_contacts <= settings.compiled_limit:
+    contacts = relaxed.n_contacts
+    if not 0 < contacts <= settings.compiled_limit:
         return None
-    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
-    arguments = _kernel_arguments(relaxed, settings, start)
     try:
-        impulses, *answer = _kernel_module().relaxed_pi_robust(*arguments[:6], problem.mu,
-                                                                *arguments[6:])
+        answer = _kernel_call(_kernel_module().relaxed_pi_robust, relaxed, settings,
+                              warm_start, problem.mu)
     except np.linalg.LinAlgError:
         return None
-    output = _confirmed(relaxed, settings, impulses, tuple(answer))
+    output = _confirmed(relaxed, settings, answer[0], answer[1:])
     if output is not None:
-        output.info["relaxed_contacts"] = relaxed.n_contacts
+        output.info["relaxed_contacts"] = contacts
     return output
 
 
