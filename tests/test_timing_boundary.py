@@ -4,13 +4,14 @@ split and cvxpy's compile time are extra columns that fit inside it."""
 
 from __future__ import annotations
 
+import gc
 import math
 
 from bench_problems import collinear_balls
 
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.base import SolverOutput, SolverSpec, Stopwatch
 from qpbench.solvers.registry import get, resolve
 from qpbench.solvers.run import call_solver, solve_and_judge
 
@@ -58,3 +59,25 @@ def test_a_solver_that_raises_is_an_error_status_with_its_time() -> None:
     assert output.impulses is None and output.claimed_success is False
     assert output.status.startswith("error: ArithmeticError: pivot is zero at ")
     assert math.isfinite(output.time_s) and output.time_s >= 0.0
+
+
+def test_the_stopwatch_pauses_the_garbage_collector_inside_and_restores_it() -> None:
+    """A solve runs with the cyclic collector off (as under timeit), whatever state it was in."""
+    seen: list[bool] = []
+
+    def watching(problem: ImpactProblem, accuracy: float, warm_start: object = None
+                 ) -> SolverOutput:
+        seen.append(gc.isenabled())
+        return SolverOutput(impulses=None, status="watched", claimed_success=False)
+
+    spec = SolverSpec(name="watches", formulation="lcp", backend="tests", solve=watching)
+    assert gc.isenabled()
+    call_solver(spec, collinear_balls("row", 3), 1e-8)
+    assert seen == [False] and gc.isenabled()
+    gc.disable()
+    try:
+        with Stopwatch() as clock:
+            assert not gc.isenabled()
+        assert not gc.isenabled() and clock.elapsed >= 0.0
+    finally:
+        gc.enable()

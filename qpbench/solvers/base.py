@@ -9,6 +9,7 @@ status honesty.
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable
@@ -98,13 +99,24 @@ class SolverSpec:
 
 
 class Stopwatch:
-    """Measures wall time of a block with ``time.perf_counter``: ``with Stopwatch() as t: ...``."""
+    """Measures wall time of a block with ``time.perf_counter``: ``with Stopwatch() as t: ...``.
+
+    Python's cyclic garbage collector is paused inside the block (as ``timeit`` does) and
+    restored after it: a collection there would be triggered by garbage the harness left
+    behind (posing, judging, result tables), not by the timed solve. With it running, the
+    fastest of 20 repeats of one 15 us solve came out up to 2.5x slower in some passes than in
+    others; paused, within 1.3x. Reference counting still frees every object outside a cycle
+    inside the block."""
 
     def __enter__(self) -> Stopwatch:
+        self.collecting = gc.isenabled()
+        gc.disable()
         self.start = time.perf_counter()
         self.elapsed = 0.0
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.elapsed = time.perf_counter() - self.start
+        if self.collecting:
+            gc.enable()
 
