@@ -103,10 +103,10 @@ class Stopwatch:
 
     Python's cyclic garbage collector is paused inside the block (as ``timeit`` does) and
     restored after it: a collection there would be triggered by garbage the harness left
-    behind (posing, judging, result tables), not by the timed solve. With it running, the
-    fastest of 20 repeats of one 15 us solve came out up to 2.5x slower in some passes than in
-    others; paused, within 1.3x. Reference counting still frees every object outside a cycle
-    inside the block."""
+    behind (posing, judging, result tables), not by the timed solve. Measured with objects
+    allocated between solves, as the harness does: with it running, the fastest of 20 repeats
+    of a 10-60 us solve varied by up to 2.5x from one round to the next; paused, mostly within
+    1.6x. Reference counting still frees every object outside a cycle inside the block."""
 
     def __enter__(self) -> Stopwatch:
         self.collecting = gc.isenabled()
