@@ -216,6 +216,7 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
     from qpbench.solvers import pi_robust_envelope
 
     problem = hard_problem("grid", 5, seed=0)
+    pi_robust_envelope.warm_up()  # its own call of the kernel comes before the patch
     kernel = pi_robust_envelope.envelope_pi_robust
 
     def refusing(*args: object, **kwargs: object) -> None:
@@ -228,6 +229,48 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
         pi_robust_envelope.envelope_pi_robust = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
+
+
+def test_pi_robust_ends_on_lemkes_ray_without_the_python_path_when_there_is_no_solution(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A jammed wedge's relaxed LCP has no solution: the kernel's policy iteration and
+    interior point fail in full, Lemke's method then ends on a ray, and the Python path (the
+    same methods again) is skipped. The failure is claimed as such."""
+    from qpbench.problem.friction_generate import generate as generate_frictional
+    from qpbench.solvers import pi_robust
+
+    problem = generate_frictional("wedge", 1)[0].relaxed()
+
+    def python_path(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the Python path ran after Lemke's method had ended on a ray")
+
+    monkeypatch.setattr(pi_robust, "pi_robust", python_path)
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert output.info["compiled"] is True and output.info["interior_iterations"] > 0
+    assert output.info["path"] == "lemke fallback: ray termination"
+    assert not output.claimed_success and not row["success"] and row["status_honest"]
+
+
+def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decide(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Masses over 1e-6 .. 1e6 (this seed): the kernel fails in full and Lemke's method ends
+    above tolerance, so the Python path runs, and its own arithmetic converges; Lemke's answer
+    stands in for the Python path's last step (it runs once)."""
+    from qpbench.solvers import lemke
+
+    calls = []
+    original = lemke.lemke
+
+    def counted(*args: object, **kwargs: object) -> tuple:
+        calls.append(args)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(lemke, "lemke", counted)
+    problem = generate("mass-ratio", 10, seed=102)[0]
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert output.info["compiled"] == "failed in full; Lemke's method, then the Python path"
+    assert len(calls) == 1
+    assert row["success"] and output.claimed_success and row["residual"] <= 1e-8
 
 
 def test_pi_robust_compiled_path_declines_a_too_wide_envelope(

@@ -73,17 +73,23 @@ def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None
             answer = compiled(problem, eps, warm_start)
             if answer is not None:
                 return answer
-        output = inner(problem.relaxed(), eps, relaxed_start(problem, warm_start))
-        z = output.impulses
-        impulses = None
-        if z is not None and np.shape(z) == (2 * problem.n_contacts,):
-            impulses = problem.from_relaxed(np.asarray(z, dtype=float))
-        return SolverOutput(impulses=impulses, status=output.status,
-                            claimed_success=output.claimed_success,
-                            iterations=output.iterations, backend_times=output.backend_times,
-                            info={**output.info, "relaxed_contacts": 2 * problem.n_contacts})
+        return mapped_back(problem, inner(problem.relaxed(), eps,
+                                          relaxed_start(problem, warm_start)))
 
     return solve
+
+
+def mapped_back(problem: FrictionalProblem, output: SolverOutput) -> SolverOutput:
+    """An output on ``problem.relaxed()`` (z) as an output on ``problem``: r = from_relaxed(z)
+    (none when z has the wrong shape), the claim, status and times as they are."""
+    z = output.impulses
+    impulses = None
+    if z is not None and np.shape(z) == (2 * problem.n_contacts,):
+        impulses = problem.from_relaxed(np.asarray(z, dtype=float))
+    return SolverOutput(impulses=impulses, status=output.status,
+                        claimed_success=output.claimed_success,
+                        iterations=output.iterations, backend_times=output.backend_times,
+                        info={**output.info, "relaxed_contacts": 2 * problem.n_contacts})
 
 
 def derived(spec: SolverSpec, formulation: str,

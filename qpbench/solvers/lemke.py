@@ -33,6 +33,10 @@ from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
 
 NAME = "lemke"
+# the ending on a secondary ray: for a copositive-plus matrix (every positive semi-definite Q)
+# the LCP then has no feasible point in exact arithmetic (Lemke, Management Science 11(7),
+# 1965; Cottle, Pang and Stone, "The Linear Complementarity Problem", 1992, chapter 4)
+RAY_TERMINATION = "ray termination"
 
 
 def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
@@ -91,7 +95,7 @@ def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
         column = tableau[:, entering]
         row = _lexicographic_row(tableau, rhs, column, n, pivot_tol)
         if row < 0:
-            status = "ray termination"
+            status = RAY_TERMINATION
             break
     z = np.zeros(n)
     in_z = (basis >= n) & (basis < 2 * n)

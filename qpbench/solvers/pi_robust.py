@@ -46,9 +46,12 @@ Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled
 envelope Cholesky factors, a start improved by ``start_sweeps`` projected Gauss-Seidel
 sweeps, new factors that copy the rows they share with a kept one); its answer is reported
 when a rounding bound or qpbench's own residual confirms it, otherwise (or when a factor
-fails) this Python path runs, and the time of both counts. The kernel is loaded from numba's
-cache (compiled once, ``cache=True``) by :func:`prepare`, which the harness calls before it
-starts any clock.
+fails) this Python path runs, and the time of both counts. When the kernel has run policy
+iteration and the interior point in full and failed, Lemke's method goes first: the Python
+path (the same methods again) runs only when Lemke neither solves the problem nor ends on a
+ray, which for a positive semi-definite Q shows that it has no solution. The kernel is loaded
+from numba's cache (compiled once, ``cache=True``) by :func:`prepare`, which the harness calls
+before it starts any clock.
 Converged means qpbench's ``residual(l) <= tol`` (confirmed with qpbench's own metric);
 otherwise it reports failure and returns its best l.
 """
@@ -268,9 +271,11 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               tol: float, rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
               stall_steps: int, backup_steps: int, active_set: bool, pi_budget: int,
               finish_budget: int,
-              finish_below: float, ipm_iters: int, lemke_limit: int
+              finish_below: float, ipm_iters: int, lemke_limit: int,
+              lemke_answer: LemkeAnswer | None = None
               ) -> tuple[np.ndarray, bool, str, int, dict]:
-    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0)."""
+    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0);
+    ``lemke_answer``: Lemke's method's answer when it has run on this LCP already."""
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
@@ -303,15 +308,45 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             "interior_iterations": iterations, "factorizations": blocks.factorizations}
     if converged:
         return impulses, True, "converged", solves, info
-    candidates = [impulses, first]
-    if lcp.n <= lemke_limit:
-        from qpbench.solvers.lemke import lemke
+    if lemke_answer is None and lcp.n <= lemke_limit:
+        lemke_answer = lemke_of(lcp, tol)
+    return _lemke_fallback(lcp, tol, lemke_answer, [impulses, first], solves, info)
 
-        impulses, converged, lemke_status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
-        info["path"] = f"lemke fallback: {lemke_status}"
-        if converged:
-            return impulses, True, "converged by lemke fallback", solves + pivots, info
-        candidates.append(impulses)
+
+class LemkeAnswer(NamedTuple):
+    """What Lemke's method gives on an LCP (``qpbench.solvers.lemke.lemke``); ``on_ray``: it
+    ended on a secondary ray, so the LCP has no solution (``lemke.RAY_TERMINATION``)."""
+
+    impulses: np.ndarray
+    converged: bool
+    status: str
+    pivots: int
+    on_ray: bool
+
+
+def lemke_of(lcp: Lcp, tol: float) -> LemkeAnswer:
+    """Lemke's method on the LCP, within ``50 n + 100`` pivots (imported here: the lemke module
+    registers its own solver, after this one)."""
+    from qpbench.solvers.lemke import RAY_TERMINATION, lemke
+
+    impulses, converged, status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
+    return LemkeAnswer(impulses, converged, status, pivots, status == RAY_TERMINATION)
+
+
+def _lemke_fallback(lcp: Lcp, tol: float, lemke_answer: LemkeAnswer | None,
+                    candidates: list[np.ndarray], solves: int, info: dict
+                    ) -> tuple[np.ndarray, bool, str, int, dict]:
+    """pi-robust's ending once its own methods have failed (their best l: ``candidates``):
+    Lemke's l when it converged, else the l of least residual among the candidates and
+    Lemke's, converged when qpbench's residual says so; Lemke's ending in ``info["path"]``
+    (``lemke_answer`` None: it did not run, above ``lemke_limit`` contacts).
+    (l, converged, status, linear solves and pivots, info)."""
+    if lemke_answer is not None:
+        info["path"] = f"lemke fallback: {lemke_answer.status}"
+        if lemke_answer.converged:
+            return lemke_answer.impulses, True, "converged by lemke fallback", \
+                solves + lemke_answer.pivots, info
+        candidates = [*candidates, lemke_answer.impulses]
     best = min(candidates, key=lcp.residual)
     if lcp.converged(best, tol):
         return best, True, "converged (best of the interior point's iterates)", solves, info
@@ -369,14 +404,18 @@ def settings_for(eps: float) -> Settings:
 def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray | None
               ) -> SolverOutput | None:
     """The compiled path (``pi_robust_envelope``) straight from the posed problem: its answer
-    when a rounding bound or qpbench's residual confirms it, else None (the caller then runs
-    the Python path). One call into compiled code; in Python only what it needs."""
+    when a rounding bound or qpbench's residual confirms it; when it failed in full,
+    :func:`_after_kernel_failure`; else None (the caller then runs the Python path). One call
+    into compiled code; in Python only what it needs."""
     try:
         answer = _kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
                               warm_start)
     except np.linalg.LinAlgError:
         return None
-    return _confirmed(problem, settings, answer[0], answer)
+    confirmed = _confirmed(problem, settings, answer[0], answer)
+    if confirmed is None and _failed_in_full(answer):
+        return _after_kernel_failure(problem, settings, answer, warm_start)
+    return confirmed
 
 
 def _kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
@@ -418,13 +457,47 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
                         iterations=solves, info=info)
 
 
+def _failed_in_full(answer: tuple) -> bool:
+    """The kernel's ``answer`` (l, converged, path, ...) is a failure after policy iteration
+    and then the interior point both ran (path ``PATH_NONE``)."""
+    return not answer[1] and answer[2] == _kernel_module().PATH_NONE
+
+
+def _after_kernel_failure(problem: ImpactProblem, settings: Settings, answer: tuple,
+                          warm_start: np.ndarray | None) -> SolverOutput:
+    """pi-robust's output on ``problem`` once the kernel's ``answer`` (l, converged, path,
+    solves, interior iterations, factorizations, certified) has failed in full. Lemke's method
+    runs first (``lemke_limit`` contacts at most). When it converges, or ends on a ray (then
+    the problem has no solution), the kernel's l or Lemke's, whichever has the lower residual,
+    is the answer, with the kernel's solves and Lemke's pivots as its iterations. Otherwise the
+    Python path runs from ``warm_start`` (in ``problem``'s variables) as it would have, Lemke's
+    answer standing in for its own last step: the Python path repeats the kernel's methods in
+    other arithmetic, and on extreme mass ratios that has solved what the kernel did not."""
+    lcp = Lcp.of(problem, dense_limit=settings.dense_limit)
+    tol, lemke_limit = settings.python["tol"], settings.python["lemke_limit"]
+    kernel_impulses, _, path, solves, interior, factorizations, _ = answer
+    lemke_answer = lemke_of(lcp, tol) if lcp.n <= lemke_limit else None
+    if lemke_answer is not None and (lemke_answer.converged or lemke_answer.on_ray):
+        info = {"path": _kernel_module().PATH_NAMES[path], "compiled": True,
+                "factorizations": factorizations, "interior_iterations": interior}
+        impulses, converged, status, iterations, info = _lemke_fallback(
+            lcp, tol, lemke_answer, [kernel_impulses], solves, info)
+        return output(impulses, converged, status, iterations, **info)
+    impulses, converged, status, iterations, info = pi_robust(
+        lcp, BlockSolver(lcp), lcp.start(warm_start), lemke_answer=lemke_answer,
+        **settings.python)
+    info["compiled"] = "failed in full; Lemke's method, then the Python path"
+    return output(impulses, converged, status, iterations, **info)
+
+
 def solve_relaxed(problem: FrictionalProblem, eps: float,
                   warm_start: np.ndarray | None = None) -> SolverOutput | None:
     """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``), its
     warm start mapped in, swept contact by contact (each contact's (z+, z-) as one block) and
     its answer r mapped back inside the one compiled call
-    (``pi_robust_envelope.relaxed_pi_robust``); None when the compiled path declines, so that
-    the ccp twin's general path runs."""
+    (``pi_robust_envelope.relaxed_pi_robust``); when that fails in full,
+    :func:`_after_kernel_failure` on the relaxed problem, mapped back; None when the compiled
+    path declines, so that the ccp twin's general path runs."""
     relaxed = problem.relaxed()
     settings = settings_for(eps)
     contacts = relaxed.n_contacts
@@ -435,10 +508,15 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
                               warm_start, problem.mu)
     except np.linalg.LinAlgError:
         return None
-    output = _confirmed(relaxed, settings, answer[0], answer[1:])
-    if output is not None:
-        output.info["relaxed_contacts"] = contacts
-    return output
+    confirmed = _confirmed(relaxed, settings, answer[0], answer[1:])
+    if confirmed is not None:
+        confirmed.info["relaxed_contacts"] = contacts
+    elif _failed_in_full(answer[1:]):
+        from qpbench.solvers import friction_ccp  # (which imports this module)
+
+        confirmed = friction_ccp.mapped_back(problem, _after_kernel_failure(
+            relaxed, settings, answer[1:], friction_ccp.relaxed_start(problem, warm_start)))
+    return confirmed
 
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
