@@ -14,6 +14,7 @@ HEAD_TO_HEAD_PASSES = 3  # whole-set passes, one after another
 HEAD_TO_HEAD_CANDIDATES = 6  # the fastest external impact pairs compared
 
 SEQUENCE_STEPS = 30  # impact steps replayed per scene
+SEQUENCE_PASSES = 3  # replays of every scene, one after another (as head-to-head's passes)
 SEQUENCE_ACCURACY = 1e-8
 
 SPEED_SIZES = (1000, 4000)  # balls of the box packings

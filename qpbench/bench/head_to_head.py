@@ -257,7 +257,7 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1) -
             f"{entry['contacts_max']} | `{own['solver']}` | {1e3 * own['sgm_s']:.3f} | "
             f"{100 * own['success_rate']:.0f}% | `{external['solver']}` | "
             f"{1e3 * external['sgm_s']:.3f} | {100 * external['success_rate']:.0f}% | "
-            f"{entry['speedup']:.2f}x | {_pass_range(entry)} | "
+            f"{entry['speedup']:.2f}x | {pass_range(entry)} | "
             f"{entry['median_problem_speedup']:.2f}x | "
             f"{'met' if entry['target_met'] else 'not met'} |")
     held = [entry["set"] for entry in summary if entry.get("target_met")]
@@ -284,8 +284,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1) -
     return "\n".join(lines) + "\n"
 
 
-def _pass_range(entry: dict[str, Any]) -> str:
-    """``lowest-highest x`` of a set's per-pass speedups (empty with one pass)."""
+def pass_range(entry: dict[str, Any]) -> str:
+    """``lowest-highest x`` of the per-pass speedups (``pass_speedups``) of a set's or a
+    scene's summary (empty with one pass)."""
     speedups = entry.get("pass_speedups", [])
     return f"{min(speedups):.2f}-{max(speedups):.2f}x" if speedups else ""
 
