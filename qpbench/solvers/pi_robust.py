@@ -308,8 +308,8 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             "interior_iterations": iterations, "factorizations": blocks.factorizations}
     if converged:
         return impulses, True, "converged", solves, info
-    if lemke_answer is None and lcp.n <= lemke_limit:
-        lemke_answer = lemke_of(lcp, tol)
+    if lemke_answer is None:
+        lemke_answer = lemke_of(lcp, tol, lemke_limit)
     return _lemke_fallback(lcp, tol, lemke_answer, [impulses, first], solves, info)
 
 
@@ -324,9 +324,11 @@ class LemkeAnswer(NamedTuple):
     on_ray: bool
 
 
-def lemke_of(lcp: Lcp, tol: float) -> LemkeAnswer:
-    """Lemke's method on the LCP, within ``50 n + 100`` pivots (imported here: the lemke module
-    registers its own solver, after this one)."""
+def lemke_of(lcp: Lcp, tol: float, lemke_limit: int) -> LemkeAnswer | None:
+    """Lemke's method on the LCP, within ``50 n + 100`` pivots; None above ``lemke_limit``
+    contacts (imported here: the lemke module registers its own solver, after this one)."""
+    if lcp.n > lemke_limit:
+        return None
     from qpbench.solvers.lemke import RAY_TERMINATION, lemke
 
     impulses, converged, status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
@@ -475,11 +477,11 @@ def _after_kernel_failure(problem: ImpactProblem, settings: Settings, answer: tu
     other arithmetic, and on extreme mass ratios that has solved what the kernel did not."""
     lcp = Lcp.of(problem, dense_limit=settings.dense_limit)
     tol, lemke_limit = settings.python["tol"], settings.python["lemke_limit"]
-    kernel_impulses, _, path, solves, interior, factorizations, _ = answer
-    lemke_answer = lemke_of(lcp, tol) if lcp.n <= lemke_limit else None
+    kernel_impulses, _, _, solves, interior, factorizations, _ = answer
+    lemke_answer = lemke_of(lcp, tol, lemke_limit)
     if lemke_answer is not None and (lemke_answer.converged or lemke_answer.on_ray):
-        info = {"path": _kernel_module().PATH_NAMES[path], "compiled": True,
-                "factorizations": factorizations, "interior_iterations": interior}
+        info = {"compiled": True, "factorizations": factorizations,
+                "interior_iterations": interior}  # "path": Lemke's ending
         impulses, converged, status, iterations, info = _lemke_fallback(
             lcp, tol, lemke_answer, [kernel_impulses], solves, info)
         return output(impulses, converged, status, iterations, **info)
