@@ -302,8 +302,12 @@ def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_se
     trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
     row = breakdown.measure(problem, trivial, repeats=1)
     for key in ("total_s", "harness_s", "trivial_s", "kernel_s", "python_path_s",
-                "outside_kernel_s", "product_s", "floor_s"):
+                "outside_kernel_s", "kernel_back_to_back_s", "cold_kernel_s", "product_s",
+                "floor_s"):
         assert row[key] >= 0, key
+    # the compiled path ran, so it was also timed back to back, and cold is the difference
+    assert row["compiled"] and row["kernel_back_to_back_s"] > 0
+    assert row["cold_kernel_s"] == max(0.0, row["kernel_s"] - row["kernel_back_to_back_s"])
     assert row["success"] and row["residual"] <= 1e-8
     answer = get("pi-robust").solve(problem.blind_copy(), 1e-8).impulses
     assert row["active"] == int(np.count_nonzero(answer > 0)) < problem.n_contacts
