@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -248,6 +249,50 @@ def test_pi_robust_ends_on_lemkes_ray_without_the_python_path_when_there_is_no_s
     row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     assert output.info["compiled"] is True and output.info["interior_iterations"] > 0
     assert output.info["path"] == "lemke fallback: ray termination"
+    assert not output.claimed_success and not row["success"] and row["status_honest"]
+
+
+def test_a_ray_certificate_is_a_non_negative_null_direction_of_q_with_b_t_y_below_zero() -> None:
+    """Q and b of one body between two walls, both contacts asking it to leave at speed 1: no
+    l >= 0 has Q l + b >= 0, and y = (1, 1) proves it (Q y = 0, b^T y = -2)."""
+    from qpbench.solvers.lemke import no_solution_certified
+
+    Q = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    b = np.array([-1.0, -1.0])
+    assert no_solution_certified(Q, b, np.array([1.0, 1.0]))
+    assert not no_solution_certified(Q, b, np.array([1.0, 0.0]))  # Q y != 0
+    assert not no_solution_certified(Q, -b, np.array([1.0, 1.0]))  # b^T y > 0: solvable
+    assert not no_solution_certified(Q, b, np.array([-1.0, -1.0]))  # y < 0
+    assert not no_solution_certified(Q, b, np.zeros(2))
+
+
+def test_lemke_ends_on_a_certified_ray_where_no_impulse_is_feasible() -> None:
+    """One body between two walls, both contacts asking it to leave at speed 1 (n_rel = -1):
+    impossible, and Lemke's ray proves it."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.lemke import RAY_TERMINATION, lemke
+
+    problem = ImpactProblem(name="opposed", G=sp.csc_matrix(np.array([[1.0, -1.0]])),
+                            m_inv=np.array([1.0]), v_minus=np.array([0.0]),
+                            restitution=np.zeros(2), n_rel=np.array([-1.0, -1.0]),
+                            dofs_per_body=1)
+    _, converged, status, _ = lemke(Lcp.of(problem), 1e-8, max_pivots=100)
+    assert not converged and status == RAY_TERMINATION
+
+
+def test_pi_robust_runs_the_python_path_after_a_ray_without_a_certificate(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The relaxed jammed wedge again, with the ray's certificate refused (as rounding in the
+    pivots could refuse it): the ray proves nothing then, so the Python path runs after Lemke's
+    method, and the answer still claims no success."""
+    from qpbench.problem.friction_generate import generate as generate_frictional
+    from qpbench.solvers import lemke
+
+    monkeypatch.setattr(lemke, "no_solution_certified", lambda *args: False)
+    problem = generate_frictional("wedge", 1)[0].relaxed()
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert output.info["compiled"] == "failed in full; Lemke's method, then the Python path"
+    assert output.info["path"] == f"lemke fallback: {lemke.UNCERTIFIED_RAY}"
     assert not output.claimed_success and not row["success"] and row["status_honest"]
 
 

@@ -10,7 +10,10 @@ Tableau of ``w - Q z - e z0 = b`` (covering vector e = 1) on the Jacobi-scaled L
 (``D^-1/2 Q D^-1/2``, unit diagonal), pivots below 1e-9 treated as zero, kept dense: meant for
 small problems and as a reference method; above ``max_contacts`` it declines and
 says so. Its answer is polished: on the final set F of basic z, ``Q_FF z_F = -b_F``
-is solved again by least squares and kept when qpbench's residual improves.
+is solved again by least squares and kept when qpbench's residual improves. An ending on a
+secondary ray is reported as ``ray termination`` (the LCP has no solution) only when the ray's
+direction checks out as a proof of it (:func:`no_solution_certified`), else as
+``ray termination without a certificate``.
 
 The same pivoting (:func:`complementary_pivoting`, any dense A) solves a frictional problem's
 exact 2D law as one LCP, Stewart-Trinkle's ``z = (l_N, b+, b-, s) >= 0`` with
@@ -37,6 +40,11 @@ NAME = "lemke"
 # the LCP then has no feasible point in exact arithmetic (Lemke, Management Science 11(7),
 # 1965; Cottle, Pang and Stone, "The Linear Complementarity Problem", 1992, chapter 4)
 RAY_TERMINATION = "ray termination"
+# a ray whose direction fails the check of :func:`no_solution_certified` (rounding in the
+# pivots, not a proof): reported apart, so that no caller takes it for one
+UNCERTIFIED_RAY = "ray termination without a certificate"
+# the relative tolerance of that check
+CERTIFICATE_TOL = 1e-9
 
 
 def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
@@ -59,10 +67,13 @@ def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
 
 
 def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
-                           pivot_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, str, int]:
+                           pivot_tol: float = 1e-9
+                           ) -> tuple[np.ndarray, np.ndarray, str, int, np.ndarray]:
     """Lemke's method on a general LCP ``w = A z + c >= 0, z >= 0, z^T w = 0`` (dense A, not
-    necessarily symmetric): (z, the indices of the basic z, status, pivots). Variables:
-    w_0..w_{n-1}, z_n..z_{2n-1}, z0 = 2n."""
+    necessarily symmetric): (z, the indices of the basic z, status, pivots, ray). Variables:
+    w_0..w_{n-1}, z_n..z_{2n-1}, z0 = 2n. ``ray``: on a secondary ray, the direction in which
+    z moves along it (the entering variable rises by one, each basic z_j by ``-d_i``, d the
+    entering column, none of whose entries is positive); else zeros."""
     n = c.shape[0]
     # columns: w (identity), z (-A), z0 (-e); each row reads w_i - (A z)_i - z0 = c_i
     tableau = np.hstack([np.eye(n), -A, -np.ones((n, 1))])
@@ -100,7 +111,33 @@ def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
     z = np.zeros(n)
     in_z = (basis >= n) & (basis < 2 * n)
     z[basis[in_z] - n] = np.maximum(rhs[in_z], 0.0)
-    return z, basis[in_z] - n, status, pivots
+    ray = np.zeros(n)
+    if status == RAY_TERMINATION:
+        ray[basis[in_z] - n] = -tableau[in_z, entering]
+        if n <= entering < 2 * n:
+            ray[entering - n] = 1.0
+    return z, basis[in_z] - n, status, pivots, ray
+
+
+def no_solution_certified(Q: np.ndarray, b: np.ndarray, direction: np.ndarray) -> bool:
+    """``direction`` y proves that LCP(Q, b) with a symmetric positive semi-definite Q has no
+    feasible point, hence no solution: ``y >= 0``, ``Q y = 0`` and ``b^T y < 0`` (for any
+    l >= 0 with Q l + b >= 0, ``0 <= y^T (Q l + b) = b^T y``), each to ``CERTIFICATE_TOL``
+    relative to ``max |Q| ||y||_1`` and ``||b||_inf ||y||_1``. Along a secondary ray of Lemke's
+    method on such a Q, z's direction zh is such a y in exact arithmetic: complementarity
+    along the ray gives ``zh^T Q zh + z0h e^T zh = 0``, both terms are non-negative, so
+    ``Q zh = 0``, and then ``b^T zh = -z0 e^T zh < 0`` (Cottle, Pang and Stone, 1992,
+    section 4.4)."""
+    size = float(np.abs(direction).sum())
+    if size == 0.0 or not np.all(np.isfinite(direction)):
+        return False
+    if float(direction.min()) < -CERTIFICATE_TOL * size:
+        return False
+    y = np.maximum(direction, 0.0)
+    q_scale = float(np.abs(Q).max(initial=0.0)) * size
+    b_scale = float(np.abs(b).max(initial=0.0)) * size
+    return bool(np.abs(Q @ y).max() <= CERTIFICATE_TOL * q_scale
+                and float(b @ y) < -CERTIFICATE_TOL * b_scale)
 
 
 def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str, int]:
@@ -114,7 +151,9 @@ def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str,
     root = 1.0 / np.sqrt(lcp.safe_diag)
     Q = lcp.Q.toarray() * root[:, None] * root[None, :]
     b = b * root
-    scaled, basic, status, pivots = complementary_pivoting(Q, b, max_pivots)
+    scaled, basic, status, pivots, ray = complementary_pivoting(Q, b, max_pivots)
+    if status == RAY_TERMINATION and not no_solution_certified(Q, b, ray):
+        status = UNCERTIFIED_RAY
     impulses = scaled * root
     impulses = _polish(lcp, impulses, basic, Q, root)
     converged = status == "converged" and lcp.converged(impulses, tol)
@@ -180,7 +219,7 @@ def solve_frictional(problem: FrictionalProblem, eps: float) -> SolverOutput:
     root = 1.0 / np.sqrt(np.where(diagonal > 0.0, diagonal, 1.0))
     A = A * root[:, None] * root[None, :]
     c = c * root
-    z, basic, status, pivots = complementary_pivoting(
+    z, basic, status, pivots, _ = complementary_pivoting(
         A, c, options["max_pivots_per_contact"] * 4 * n + 100)
     impulses = _polish_frictional(problem, A, c, z, basic, root)
     converged = status == "converged" and \

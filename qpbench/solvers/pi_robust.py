@@ -49,7 +49,8 @@ when a rounding bound or qpbench's own residual confirms it, otherwise (or when 
 fails) this Python path runs, and the time of both counts. When the kernel has run policy
 iteration and the interior point in full and failed, Lemke's method goes first: the Python
 path (the same methods again) runs only when Lemke neither solves the problem nor ends on a
-ray, which for a positive semi-definite Q shows that it has no solution. The kernel is loaded
+ray whose direction proves that it has no solution (``lemke.no_solution_certified``: y >= 0,
+Q y = 0, b^T y < 0, checked in floating point, not taken on trust). The kernel is loaded
 from numba's cache (compiled once, ``cache=True``) by :func:`prepare`, which the harness calls
 before it starts any clock.
 Converged means qpbench's ``residual(l) <= tol`` (confirmed with qpbench's own metric);
@@ -315,7 +316,8 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
 
 class LemkeAnswer(NamedTuple):
     """What Lemke's method gives on an LCP (``qpbench.solvers.lemke.lemke``); ``on_ray``: it
-    ended on a secondary ray, so the LCP has no solution (``lemke.RAY_TERMINATION``)."""
+    ended on a secondary ray whose direction proves that the LCP has no solution
+    (``lemke.RAY_TERMINATION``; a ray without that proof is ``lemke.UNCERTIFIED_RAY``)."""
 
     impulses: np.ndarray
     converged: bool
@@ -469,8 +471,8 @@ def _after_kernel_failure(problem: ImpactProblem, settings: Settings, answer: tu
                           warm_start: np.ndarray | None) -> SolverOutput:
     """pi-robust's output on ``problem`` once the kernel's ``answer`` (l, converged, path,
     solves, interior iterations, factorizations, certified) has failed in full. Lemke's method
-    runs first (``lemke_limit`` contacts at most). When it converges, or ends on a ray (then
-    the problem has no solution), the kernel's l or Lemke's, whichever has the lower residual,
+    runs first (``lemke_limit`` contacts at most). When it converges, or ends on a certified ray
+    (the problem has no solution), the kernel's l or Lemke's, whichever has the lower residual,
     is the answer, with the kernel's solves and Lemke's pivots as its iterations. Otherwise the
     Python path runs from ``warm_start`` (in ``problem``'s variables) as it would have, Lemke's
     answer standing in for its own last step: the Python path repeats the kernel's methods in
