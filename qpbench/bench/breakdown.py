@@ -18,8 +18,9 @@ of 1000 balls (``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, m
   the kernel loses inside ``call_solver``, where other work (the blind copy, the posing) has
   run since its last call. Back to back, the caches hold the kernel's code and data and the
   branch predictors have learned this very solve; other work in between wipes some of that
-  (a 1 ms pure-Python loop between calls costs the 7x7 kernel about as much as half the
-  posing does, a 1 ms sleep nothing). ``time_s`` includes this loss for every solver alike;
+  (on the 7x7 scenes, a 1 ms pure-Python loop between calls costs the kernel about half of
+  what the posing costs it, a 1 ms sleep nothing). ``time_s`` includes this loss for every
+  solver alike;
 * ``product_s``: one product ``Q l`` (SciPy CSC), and the counts the solver reports
   (linear solves, factorizations, interior iterations, its path);
 * ``floor_s``: one Cholesky of the final active block ``Q_AA + eps I``, the faster of dense
@@ -181,7 +182,7 @@ def _back_to_back(problem: ImpactProblem, repeats: int) -> float:
 
     def once() -> float:
         start = time.perf_counter()
-        pi_robust._kernel_call(pi_robust_envelope.envelope_pi_robust, blind, settings, None)
+        pi_robust.kernel_call(pi_robust_envelope.envelope_pi_robust, blind, settings, None)
         return time.perf_counter() - start
 
     once()

@@ -412,7 +412,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     :func:`_after_kernel_failure`; else None (the caller then runs the Python path). One call
     into compiled code; in Python only what it needs."""
     try:
-        answer = _kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
+        answer = kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
                               warm_start)
     except np.linalg.LinAlgError:
         return None
@@ -422,7 +422,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     return confirmed
 
 
-def _kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
+def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
                  warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
     """``kernel``'s answer from Q's CSC arrays, b, diag(Q), the start (empty: from zero),
     ``after_start``, the ordering threshold, the work limit and the packed options.
@@ -508,7 +508,7 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
     if not 0 < contacts <= settings.compiled_limit:
         return None
     try:
-        answer = _kernel_call(_kernel_module().relaxed_pi_robust, relaxed, settings,
+        answer = kernel_call(_kernel_module().relaxed_pi_robust, relaxed, settings,
                               warm_start, problem.mu)
     except np.linalg.LinAlgError:
         return None
