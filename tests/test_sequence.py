@@ -314,6 +314,16 @@ def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_se
     assert row["factorizations"] >= 1 and row["linear_solves"] >= 1
 
 
+def test_breakdown_table_rows_have_as_many_cells_as_its_header() -> None:
+    problem = import_dump(ROOT / "problems/dumps/grid5_itr_0.out")
+    trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
+    table = [line for line in breakdown.markdown([breakdown.measure(problem, trivial, 1)], 1)
+             .splitlines() if line.startswith("|")]
+    header, separator, row = table
+    assert "back to back [ms]" in header and "cold [ms]" in header
+    assert header.count("|") == separator.count("|") == row.count("|")
+
+
 def test_breakdown_floor_factors_exactly_the_positive_contacts() -> None:
     problem = import_dump(ROOT / "problems/dumps/grid5_itr_1.out")
     impulses = np.zeros(problem.n_contacts)
