@@ -413,7 +413,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
     into compiled code; in Python only what it needs."""
     try:
         answer = kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
-                              warm_start)
+                             warm_start)
     except np.linalg.LinAlgError:
         return None
     confirmed = _confirmed(problem, settings, answer[0], answer)
@@ -423,7 +423,7 @@ def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray
 
 
 def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
-                 warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
+                warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
     """``kernel``'s answer from Q's CSC arrays, b, diag(Q), the start (empty: from zero),
     ``after_start``, the ordering threshold, the work limit and the packed options.
 
@@ -509,7 +509,7 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
         return None
     try:
         answer = kernel_call(_kernel_module().relaxed_pi_robust, relaxed, settings,
-                              warm_start, problem.mu)
+                             warm_start, problem.mu)
     except np.linalg.LinAlgError:
         return None
     confirmed = _confirmed(relaxed, settings, answer[0], answer[1:])
