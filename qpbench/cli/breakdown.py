@@ -1,7 +1,8 @@
 """``qpbench breakdown [--repeats 5] -o results/breakdown.json``: where pi-robust's time goes
-on the 5x5 and 7x7 grids of the SCISim research fork and a 1000-ball box, against one dense
-Cholesky of the final active block (``qpbench.bench.breakdown``). Runs with single-threaded
-BLAS, in a child process unless this one already has it."""
+on the 5x5 and 7x7 grids of the SCISim research fork and a 1000-ball box, against one
+Cholesky of the final active block and one product, in compiled code
+(``qpbench.bench.breakdown``). Runs with single-threaded BLAS, in a child process unless this
+one already has it."""
 
 from __future__ import annotations
 

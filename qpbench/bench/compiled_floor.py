@@ -1,0 +1,129 @@
+"""The breakdown's floor in compiled code: LAPACK's Cholesky (``dpotrf`` dense, ``dpbtrf``
+banded) and a CSC product ``Q l``, each repeated inside one compiled call, so that no Python
+call overhead is counted (about a millisecond of repetitions per timed round).
+
+The LAPACK routines are SciPy's own (``scipy.linalg.cython_lapack``), called from numba
+through their addresses. A factorization overwrites its input, so every repetition first
+copies the pristine matrix back; the time of the copies alone, measured the same way, is
+subtracted. Times are per repetition, the fastest of the caller's rounds.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from collections.abc import Callable
+
+import numpy as np
+from numba import njit
+from numba.extending import get_cython_function_address
+
+# per timed round: repetitions inside the one compiled call, about ROUND_SECONDS of them
+MAX_REPETITIONS = 100
+ROUND_SECONDS = 1e-3
+_LOWER = ord("L")  # uplo: the lower triangle
+
+
+def _lapack(name: str, arguments: int) -> Callable[..., None]:
+    """SciPy's LAPACK routine ``name`` as a ctypes function of ``arguments`` pointers (the
+    Fortran convention: every argument by reference)."""
+    address = get_cython_function_address("scipy.linalg.cython_lapack", name)
+    return ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * arguments)(address)
+
+
+_dpotrf = _lapack("dpotrf", 5)  # (uplo, n, a, lda, info)
+_dpbtrf = _lapack("dpbtrf", 6)  # (uplo, n, kd, ab, ldab, info)
+
+
+@njit  # not cached: numba cannot cache a call through a ctypes address
+def _repeat_dense(pristine: np.ndarray, work: np.ndarray, count: int, factor: bool) -> int:
+    """``count`` times: copy ``pristine`` (n x n, Fortran order) into ``work`` and, when
+    ``factor``, ``dpotrf('L')`` on it; LAPACK's info of the last factorization (0: positive
+    definite)."""
+    lower = np.array([_LOWER], dtype=np.uint8)
+    n = np.array([pristine.shape[0]], dtype=np.int32)
+    info = np.zeros(1, dtype=np.int32)
+    flat_pristine, flat_work = pristine.T.ravel(), work.T.reshape(-1)
+    for _ in range(count):
+        flat_work[:] = flat_pristine
+        if factor:
+            _dpotrf(lower.ctypes, n.ctypes, flat_work.ctypes, n.ctypes, info.ctypes)
+    return info[0]
+
+
+@njit  # (as _repeat_dense)
+def _repeat_banded(pristine: np.ndarray, work: np.ndarray, count: int, factor: bool) -> int:
+    """As :func:`_repeat_dense` for a lower band (``(kd + 1) x n``, Fortran order:
+    ``band[i - j, j] = A_ij``) and ``dpbtrf('L')``."""
+    rows = np.array([pristine.shape[0]], dtype=np.int32)
+    n = np.array([pristine.shape[1]], dtype=np.int32)
+    width = np.array([pristine.shape[0] - 1], dtype=np.int32)
+    lower = np.array([_LOWER], dtype=np.uint8)
+    info = np.zeros(1, dtype=np.int32)
+    flat_pristine, flat_work = pristine.T.ravel(), work.T.reshape(-1)
+    for _ in range(count):
+        flat_work[:] = flat_pristine
+        if factor:
+            _dpbtrf(lower.ctypes, n.ctypes, width.ctypes, flat_work.ctypes, rows.ctypes,
+                    info.ctypes)
+    return info[0]
+
+
+@njit(cache=True)
+def _repeat_product(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                    impulses: np.ndarray, product: np.ndarray, count: int) -> None:
+    """``count`` times ``product = Q l`` over Q's CSC arrays, column by column."""
+    for _ in range(count):
+        product[:] = 0.0
+        for column in range(impulses.size):
+            value = impulses[column]
+            for k in range(indptr[column], indptr[column + 1]):
+                product[indices[k]] += data[k] * value
+
+
+def _repetitions(run: Callable[[int], object]) -> int:
+    """Repetitions per timed round: about ROUND_SECONDS of ``run``, between 1 and
+    MAX_REPETITIONS (after one untimed call that compiles or loads it)."""
+    run(1)
+    start = time.perf_counter()
+    run(1)
+    once = max(time.perf_counter() - start, 1e-9)
+    return int(min(MAX_REPETITIONS, max(1.0, ROUND_SECONDS / once)))
+
+
+def _per_repetition(run: Callable[[int], object], rounds: int, count: int) -> float:
+    """Seconds per repetition of ``run(count)``, the fastest of ``rounds``."""
+    best = np.inf
+    for _ in range(rounds):
+        start = time.perf_counter()
+        run(count)
+        best = min(best, (time.perf_counter() - start) / count)
+    return best
+
+
+def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
+    """Seconds of one Cholesky factorization of ``matrix`` (dense n x n, or a lower band when
+    ``banded``) in LAPACK, copies excluded; inf when it is not positive definite."""
+    pristine = np.asfortranarray(matrix, dtype=float)
+    work = np.empty_like(pristine, order="F")
+    repeat = _repeat_banded if banded else _repeat_dense
+    if pristine.size == 0:
+        return 0.0
+    if repeat(pristine, work, 1, True) != 0:
+        return np.inf
+    count = _repetitions(lambda count: repeat(pristine, work, count, True))
+    with_copies = _per_repetition(lambda count: repeat(pristine, work, count, True), rounds,
+                                  count)
+    copies = _per_repetition(lambda count: repeat(pristine, work, count, False), rounds, count)
+    return max(0.0, with_copies - copies)
+
+
+def product_seconds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                    impulses: np.ndarray, rounds: int) -> float:
+    """Seconds of one product ``Q l`` over Q's CSC arrays, in compiled code."""
+    impulses = np.ascontiguousarray(impulses, dtype=float)
+    product = np.empty(impulses.size)
+    def run(count: int) -> None:
+        _repeat_product(indptr, indices, data, impulses, product, count)
+
+    return _per_repetition(run, rounds, _repetitions(run))
