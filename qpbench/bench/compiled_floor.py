@@ -104,11 +104,11 @@ def _per_repetition(run: Callable[[int], object], rounds: int, count: int) -> fl
 def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
     """Seconds of one Cholesky factorization of ``matrix`` (dense n x n, or a lower band when
     ``banded``) in LAPACK, copies excluded; inf when it is not positive definite."""
+    if matrix.size == 0:
+        return 0.0
     pristine = np.asfortranarray(matrix, dtype=float)
     work = np.empty_like(pristine, order="F")
     repeat = _repeat_banded if banded else _repeat_dense
-    if pristine.size == 0:
-        return 0.0
     if repeat(pristine, work, 1, True) != 0:
         return np.inf
     count = _repetitions(lambda count: repeat(pristine, work, count, True))
@@ -123,6 +123,7 @@ def product_seconds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     """Seconds of one product ``Q l`` over Q's CSC arrays, in compiled code."""
     impulses = np.ascontiguousarray(impulses, dtype=float)
     product = np.empty(impulses.size)
+
     def run(count: int) -> None:
         _repeat_product(indptr, indices, data, impulses, product, count)
 
