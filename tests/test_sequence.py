@@ -331,6 +331,9 @@ def test_breakdown_floor_factors_exactly_the_positive_contacts() -> None:
     figures = breakdown.floor(problem, impulses, repeats=1)
     assert figures["active"] == 3 and figures["floor_s"] >= 0
     assert set(figures["floor_s_by_kind"]) == {"dense", "banded"}
+    # the floor is the faster factorization plus the very product reported beside it
+    fastest = min(figures["floor_s_by_kind"].values())
+    assert figures["floor_s"] == fastest + figures["product_s"]
     band = breakdown._banded_lower(problem.Q[[0, 3, 4]][:, [0, 3, 4]])
     assert band.shape[1] == 3
 

@@ -120,15 +120,6 @@ def _best(function: Callable[[], float], repeats: int) -> float:
     return min(function() for _ in range(repeats))
 
 
-def _product_time(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> float:
-    """One product ``Q l`` over the problem's CSC Q, in compiled code (seconds)."""
-    from qpbench.bench import compiled_floor  # (it loads numba)
-
-    Q = problem.Q.tocsc()
-    return compiled_floor.product_seconds(Q.indptr, Q.indices, Q.data, impulses,
-                                          max(repeats, 3))
-
-
 def _banded_lower(block: sp.spmatrix) -> np.ndarray:
     """The lower band storage (``cholesky_banded``'s, lower=True) of a symmetric matrix after
     reverse Cuthill-McKee ordering."""
@@ -146,11 +137,14 @@ def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[st
     """One Cholesky of the final active block ``Q_AA + eps I`` plus one product with Q
     (seconds), in compiled code (``compiled_floor``): the faster of dense (LAPACK ``dpotrf``)
     and banded in reverse Cuthill-McKee order (``dpbtrf``); the block and its band are built
-    outside the clock."""
-    from qpbench.bench import compiled_floor
+    outside the clock. Its dict also holds ``product_s``, the product alone (timed with
+    ``max(repeats, 3)`` rounds)."""
+    from qpbench.bench import compiled_floor  # (it loads numba)
 
     active = np.flatnonzero(impulses > 0)
     Q = problem.Q.tocsc()
+    product = compiled_floor.product_seconds(Q.indptr, Q.indices, Q.data, impulses,
+                                             max(repeats, 3))
     shift = FLOOR_SHIFT * metrics.vector_scale(problem.diag_Q)
     sparse_block = sp.csc_matrix(Q[active][:, active] + shift * sp.identity(active.size))
     band = _banded_lower(sparse_block) if active.size else np.zeros((1, 0))
@@ -158,7 +152,7 @@ def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[st
              "banded": compiled_floor.cholesky_seconds(band, True, repeats)}
     kind = min(times, key=times.get)
     return {"active": int(active.size), "bandwidth": int(band.shape[0] - 1),
-            "floor_s": times[kind] + _product_time(problem, impulses, repeats),
+            "product_s": product, "floor_s": times[kind] + product,
             "floor_kind": kind, "floor_s_by_kind": times}
 
 
@@ -220,8 +214,7 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = REPEA
         "outside_kernel_s": max(0.0, total - kernel_s - python_s),
         "kernel_back_to_back_s": back_to_back,
         "cold_kernel_s": max(0.0, kernel_s - back_to_back),
-        "product_s": _product_time(problem, impulses, repeats),
-        **floor(problem, impulses, repeats),
+        **floor(problem, impulses, repeats),  # product_s and floor_s
     }
     row["ratio_to_floor"] = row["total_s"] / row["floor_s"] if row["floor_s"] > 0 else math.nan
     return row
