@@ -297,10 +297,17 @@ def test_the_sequence_target_needs_every_pass_too() -> None:
     assert first_pass["target_met"] and "pass_speedups" not in first_pass
 
 
-def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_set() -> None:
+@pytest.fixture(scope="module")
+def grid5_breakdown() -> tuple[ImpactProblem, dict]:
+    """grid5_itr_0 and its breakdown row (one repeat), measured once for the tests below."""
     problem = import_dump(ROOT / "problems/dumps/grid5_itr_0.out")
     trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
-    row = breakdown.measure(problem, trivial, repeats=1)
+    return problem, breakdown.measure(problem, trivial, repeats=1)
+
+
+def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_set(
+        grid5_breakdown: tuple[ImpactProblem, dict]) -> None:
+    problem, row = grid5_breakdown
     for key in ("total_s", "harness_s", "trivial_s", "kernel_s", "python_path_s",
                 "outside_kernel_s", "kernel_back_to_back_s", "cold_kernel_s", "product_s",
                 "floor_s"):
@@ -314,11 +321,11 @@ def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_se
     assert row["factorizations"] >= 1 and row["linear_solves"] >= 1
 
 
-def test_breakdown_table_rows_have_as_many_cells_as_its_header() -> None:
-    problem = import_dump(ROOT / "problems/dumps/grid5_itr_0.out")
-    trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
-    table = [line for line in breakdown.markdown([breakdown.measure(problem, trivial, 1)], 1)
-             .splitlines() if line.startswith("|")]
+def test_breakdown_table_rows_have_as_many_cells_as_its_header(
+        grid5_breakdown: tuple[ImpactProblem, dict]) -> None:
+    _, measured = grid5_breakdown
+    table = [line for line in breakdown.markdown([measured], 1).splitlines()
+             if line.startswith("|")]
     header, separator, row = table
     assert "back to back [ms]" in header and "cold [ms]" in header
     assert header.count("|") == separator.count("|") == row.count("|")
