@@ -18,7 +18,7 @@ def spd(n: int, seed: int = 0) -> np.ndarray:
 def test_the_dense_floor_factors_as_numpy_does() -> None:
     matrix = np.asfortranarray(spd(9))
     work = np.empty_like(matrix, order="F")
-    assert compiled_floor._repeat_dense(matrix, work, 2, True) == 0
+    assert compiled_floor._repeat_cholesky(matrix, work, 2, True, False) == 0
     np.testing.assert_allclose(np.tril(work), np.linalg.cholesky(matrix), rtol=1e-12)
     assert compiled_floor.cholesky_seconds(matrix, False, rounds=1) >= 0
 
@@ -27,7 +27,7 @@ def test_the_banded_floor_factors_as_scipy_does() -> None:
     n = 12  # tridiagonal [-1, 4, -1] in lower band storage
     band = np.vstack([np.full(n, 4.0), np.append(np.full(n - 1, -1.0), 0.0)])
     work = np.empty_like(np.asfortranarray(band), order="F")
-    assert compiled_floor._repeat_banded(np.asfortranarray(band), work, 3, True) == 0
+    assert compiled_floor._repeat_cholesky(np.asfortranarray(band), work, 3, True, True) == 0
     np.testing.assert_allclose(work, la.cholesky_banded(band, lower=True), rtol=1e-14)
     assert compiled_floor.cholesky_seconds(band, True, rounds=1) >= 0
 

@@ -36,36 +36,25 @@ _dpbtrf = _lapack("dpbtrf", 6)  # (uplo, n, kd, ab, ldab, info)
 
 
 @njit  # not cached: numba cannot cache a call through a ctypes address
-def _repeat_dense(pristine: np.ndarray, work: np.ndarray, count: int, factor: bool) -> int:
-    """``count`` times: copy ``pristine`` (n x n, Fortran order) into ``work`` and, when
-    ``factor``, ``dpotrf('L')`` on it; LAPACK's info of the last factorization (0: positive
-    definite)."""
+def _repeat_cholesky(pristine: np.ndarray, work: np.ndarray, count: int, factor: bool,
+                     banded: bool) -> int:
+    """``count`` times: copy ``pristine`` (Fortran order) into ``work`` and, when ``factor``,
+    factor it in LAPACK: ``dpotrf('L')`` on a dense n x n matrix, or when ``banded``
+    ``dpbtrf('L')`` on a lower band (``(kd + 1) x n``: ``band[i - j, j] = A_ij``); LAPACK's
+    info of the last factorization (0: positive definite)."""
     lower = np.array([_LOWER], dtype=np.uint8)
-    n = np.array([pristine.shape[0]], dtype=np.int32)
-    info = np.zeros(1, dtype=np.int32)
-    flat_pristine, flat_work = pristine.T.ravel(), work.T.reshape(-1)
-    for _ in range(count):
-        flat_work[:] = flat_pristine
-        if factor:
-            _dpotrf(lower.ctypes, n.ctypes, flat_work.ctypes, n.ctypes, info.ctypes)
-    return info[0]
-
-
-@njit  # (as _repeat_dense)
-def _repeat_banded(pristine: np.ndarray, work: np.ndarray, count: int, factor: bool) -> int:
-    """As :func:`_repeat_dense` for a lower band (``(kd + 1) x n``, Fortran order:
-    ``band[i - j, j] = A_ij``) and ``dpbtrf('L')``."""
-    rows = np.array([pristine.shape[0]], dtype=np.int32)
+    rows = np.array([pristine.shape[0]], dtype=np.int32)  # the leading dimension
     n = np.array([pristine.shape[1]], dtype=np.int32)
-    width = np.array([pristine.shape[0] - 1], dtype=np.int32)
-    lower = np.array([_LOWER], dtype=np.uint8)
+    width = np.array([pristine.shape[0] - 1], dtype=np.int32)  # kd, of a band
     info = np.zeros(1, dtype=np.int32)
     flat_pristine, flat_work = pristine.T.ravel(), work.T.reshape(-1)
     for _ in range(count):
         flat_work[:] = flat_pristine
-        if factor:
+        if factor and banded:
             _dpbtrf(lower.ctypes, n.ctypes, width.ctypes, flat_work.ctypes, rows.ctypes,
                     info.ctypes)
+        elif factor:
+            _dpotrf(lower.ctypes, n.ctypes, flat_work.ctypes, rows.ctypes, info.ctypes)
     return info[0]
 
 
@@ -108,13 +97,18 @@ def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
         return 0.0
     pristine = np.asfortranarray(matrix, dtype=float)
     work = np.empty_like(pristine, order="F")
-    repeat = _repeat_banded if banded else _repeat_dense
-    if repeat(pristine, work, 1, True) != 0:
+    if _repeat_cholesky(pristine, work, 1, True, banded) != 0:
         return np.inf
-    count = _repetitions(lambda count: repeat(pristine, work, count, True))
-    with_copies = _per_repetition(lambda count: repeat(pristine, work, count, True), rounds,
-                                  count)
-    copies = _per_repetition(lambda count: repeat(pristine, work, count, False), rounds, count)
+
+    def factors(count: int) -> None:
+        _repeat_cholesky(pristine, work, count, True, banded)
+
+    def copies_only(count: int) -> None:
+        _repeat_cholesky(pristine, work, count, False, banded)
+
+    count = _repetitions(factors)
+    with_copies = _per_repetition(factors, rounds, count)
+    copies = _per_repetition(copies_only, rounds, count)
     return max(0.0, with_copies - copies)
 
 
