@@ -410,19 +410,15 @@ def _upper(A: Csc) -> Csc:
     indptr, indices, data = A
     n = indptr.size - 1
     starts = np.zeros(n + 1, dtype=np.int64)
+    rows = np.empty(indices.size, dtype=np.int64)  # (the upper triangle's entries at the front)
+    values = np.empty(indices.size)
+    end = 0
     for column in range(n):
-        count = 0
         for k in range(indptr[column], indptr[column + 1]):
-            count += indices[k] <= column
-        starts[column + 1] = starts[column] + count
-    rows = np.empty(starts[n], dtype=np.int64)
-    values = np.empty(starts[n])
-    for column in range(n):
-        end = starts[column]
-        for k in range(indptr[column], indptr[column + 1]):
-            if indices[k] <= column:
-                rows[end], values[end] = indices[k], data[k]
-                end += 1
+            # written, then kept only when in the upper triangle (end <= k): no branch on it
+            rows[end], values[end] = indices[k], data[k]
+            end += indices[k] <= column
+        starts[column + 1] = end
     return starts, rows, values
 
 
@@ -530,12 +526,11 @@ def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray
     zero elsewhere (by :func:`_block_solve`)."""
     x, rhs, free = work.x, work.rhs, work.free
     size = 0
-    for i in range(q.size):
+    for i in range(q.size):  # written, then kept only when free: no branch on the policy
         x[i] = 0.0
-        if policy[i]:
-            free[size] = i
-            rhs[size] = -q[i]
-            size += 1
+        free[size] = i
+        rhs[size] = -q[i]
+        size += policy[i]
     if size:
         _block_solve(lcp.upper, lcp.safe_diag, policy, free[:size], rho, rhs[:size],
                      work.cache)
