@@ -85,6 +85,18 @@ def test_lemke_finds_the_hand_answer_of_a_ball_on_the_floor(u_normal: float,
                                atol=1e-12)
 
 
+def test_lemke_on_the_wedge_says_its_ray_proves_nothing() -> None:
+    """The wedge has no solution, and Lemke ends on a ray of Stewart-Trinkle's LCP; that
+    matrix is not copositive-plus, so the ray is no proof, and the status says so instead of
+    the plain ``ray termination`` that is a proof on an impact LCP."""
+    from qpbench.problem.friction_generate import generate
+    from qpbench.solvers.lemke import RAY_TERMINATION, STEWART_TRINKLE_RAY
+
+    row, output = row_of("lemke/lcp", generate("wedge", 1)[0])
+    assert output.status == STEWART_TRINKLE_RAY != RAY_TERMINATION
+    assert not output.claimed_success and row["status"] != "solved" and row["status_honest"]
+
+
 def test_lemke_on_three_coupled_contacts_agrees_with_nsgs_on_the_residual() -> None:
     for seed in range(5):
         row, _ = row_of("lemke/lcp", pair_on_floor(mu=0.6, seed=seed))

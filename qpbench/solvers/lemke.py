@@ -20,7 +20,8 @@ exact 2D law as one LCP, Stewart-Trinkle's ``z = (l_N, b+, b-, s) >= 0`` with
 ``l_T = b+ - b-`` (:meth:`FrictionalProblem.stewart_trinkle`; Stewart and Trinkle, IJNME 39,
 1996; Anitescu and Potra, Nonlinear Dynamics 14, 1997): A is not symmetric and its slip rows
 have a zero diagonal, so termination at a solution is not guaranteed (it is for e = 0 without
-kinematic terms); ray termination is reported as such. One spec serves both kinds.
+kinematic terms); a ray there proves nothing and is reported as ``STEWART_TRINKLE_RAY``, never
+as ``ray termination``. One spec serves both kinds.
 """
 
 from __future__ import annotations
@@ -45,6 +46,10 @@ RAY_TERMINATION = "ray termination"
 UNCERTIFIED_RAY = "ray termination without a certificate"
 # the relative tolerance of that check
 CERTIFICATE_TOL = 1e-9
+# a ray on Stewart-Trinkle's LCP: its matrix is neither symmetric nor copositive-plus, so the
+# ray proves nothing about the problem, whether it has a solution or not
+STEWART_TRINKLE_RAY = "ray termination (no proof: Stewart-Trinkle's matrix is not " \
+    "copositive-plus)"
 
 
 def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
@@ -221,6 +226,8 @@ def solve_frictional(problem: FrictionalProblem, eps: float) -> SolverOutput:
     c = c * root
     z, basic, status, pivots, _ = complementary_pivoting(
         A, c, options["max_pivots_per_contact"] * 4 * n + 100)
+    if status == RAY_TERMINATION:
+        status = STEWART_TRINKLE_RAY
     impulses = _polish_frictional(problem, A, c, z, basic, root)
     converged = status == "converged" and \
         friction_metrics.residual(problem, impulses) <= options["tol"]
