@@ -86,9 +86,10 @@ def test_lemke_finds_the_hand_answer_of_a_ball_on_the_floor(u_normal: float,
 
 
 def test_lemke_on_the_wedge_says_its_ray_proves_nothing() -> None:
-    """The wedge has no solution, and Lemke ends on a ray of Stewart-Trinkle's LCP; that
-    matrix is not copositive-plus, so the ray is no proof, and the status says so instead of
-    the plain ``ray termination`` that is a proof on an impact LCP."""
+    """The wedge has no solution, and Lemke ends on a ray of Stewart-Trinkle's LCP. A ray
+    proves that no solution exists only for a copositive-plus matrix, which that one is not in
+    general, so the status says it is no proof, instead of the plain ``ray termination``
+    that is one on an impact LCP."""
     from qpbench.problem.friction_generate import generate
     from qpbench.solvers.lemke import RAY_TERMINATION, STEWART_TRINKLE_RAY
 

@@ -46,10 +46,11 @@ RAY_TERMINATION = "ray termination"
 UNCERTIFIED_RAY = "ray termination without a certificate"
 # the relative tolerance of that check
 CERTIFICATE_TOL = 1e-9
-# a ray on Stewart-Trinkle's LCP: its matrix is neither symmetric nor copositive-plus, so the
-# ray proves nothing about the problem, whether it has a solution or not
-STEWART_TRINKLE_RAY = "ray termination (no proof: Stewart-Trinkle's matrix is not " \
-    "copositive-plus)"
+# a ray on Stewart-Trinkle's LCP: a secondary ray proves that no solution exists only for a
+# copositive-plus matrix (the impact LCP's Q, PSD), which Stewart-Trinkle's, not symmetric, is
+# not in general; so there it proves nothing, whether the problem has a solution or not
+STEWART_TRINKLE_RAY = "ray termination (no proof that no solution exists: Stewart-Trinkle's " \
+    "LCP)"
 
 
 def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
