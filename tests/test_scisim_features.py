@@ -2,9 +2,11 @@
 
 * two bodies with the same centre: SCISim normalises the zero vector to zero, so the pair's
   constraint has a zero normal and does nothing; qpbench leaves it out and says so once;
-* a ``fixed="1"`` body with a velocity is kinematic: it keeps moving at that velocity, takes
-  no impulse, and enters its contacts through the relative velocity (``G^T v`` with its own
-  velocity, the n_rel of SCISim's kinematic constraints), in both dialects.
+* a rigidbody2d ``fixed="1"`` body with a velocity is kinematic: it keeps moving at that
+  velocity, takes no impulse, and enters its contacts through the relative velocity (``G^T v``
+  with its own velocity, the n_rel of SCISim's kinematic constraints);
+* a ball2d ``fixed="1"`` ball is an ordinary ball, as in SCISim, whose ball2d reads the flag
+  and never scripts a ball; qpbench says so once.
 """
 
 from __future__ import annotations
@@ -63,10 +65,11 @@ def test_the_coincident_pair_leaves_the_other_contacts_alone() -> None:
 
 
 # --- kinematic bodies --------------------------------------------------------------------
-def test_a_kinematic_ball_keeps_its_velocity_and_pushes_a_free_one() -> None:
-    # elastic hit of an infinitely heavy wall-ball moving at 1: the free ball leaves at 2
-    text = ball2d('<ball x="-1.2" y="0" vx="1" vy="0" m="1" r="0.5" fixed="1"/>'
-                  '<ball x="0" y="0" vx="0" vy="0" m="1" r="0.5" fixed="0"/>')
+def test_a_kinematic_circle_keeps_its_velocity_and_pushes_a_free_one() -> None:
+    # elastic hit of an infinitely heavy circle moving at 1: the free one leaves at 2
+    text = rigid('<rigid_body x="-1.2 0" theta="0" v="1 0" omega="0" rho="1" geo_idx="0" '
+                 'fixed="1"/>'
+                 '<rigid_body x="0 0" theta="0" v="0 0" omega="0" rho="1" geo_idx="0"/>')
     result = simulate(text, 50)
     assert np.allclose(result.v_final[0], [1.0, 0.0])
     assert np.allclose(result.x_final[0], [-1.2 + 0.5, 0.0])
@@ -74,11 +77,27 @@ def test_a_kinematic_ball_keeps_its_velocity_and_pushes_a_free_one() -> None:
     assert result.impacts == 1
 
 
-def test_a_kinematic_ball_moving_away_takes_no_impulse() -> None:
-    text = ball2d('<ball x="-0.99" y="0" vx="-1" vy="0" m="1" r="0.5" fixed="1"/>'
-                  '<ball x="0" y="0" vx="0" vy="0" m="1" r="0.5" fixed="0"/>')
+def test_a_kinematic_circle_moving_away_takes_no_impulse() -> None:
+    text = rigid('<rigid_body x="-0.99 0" theta="0" v="-1 0" omega="0" rho="1" geo_idx="0" '
+                 'fixed="1"/>'
+                 '<rigid_body x="0 0" theta="0" v="0 0" omega="0" rho="1" geo_idx="0"/>')
     result = simulate(text, 10)
     assert np.allclose(result.v_final[1], 0.0) and result.impacts == 0
+
+
+def test_a_fixed_ball_of_a_ball2d_scene_moves_like_any_other_as_in_scisim() -> None:
+    # SCISim's ball2d never scripts a ball: fixed="1" is read and has no effect. An elastic
+    # head-on hit of equal masses swaps the velocities, and gravity pulls the fixed ball too.
+    text = ball2d('<ball x="-1.2" y="0" vx="1" vy="0" m="1" r="0.5" fixed="1"/>'
+                  '<ball x="0" y="0" vx="0" vy="0" m="1" r="0.5" fixed="0"/>',
+                  extra='<gravity fx="0" fy="-1"/>')
+    scene = parse_scene(text, "fixed.xml")
+    assert not scene.bodies.fixed.any() and scene.balls_alone
+    assert [w for w in scene.warnings if '<ball> 0: fixed="1" has no effect' in w]
+    result = simulate(text, 50)
+    assert result.impacts == 1
+    assert np.allclose(result.v_final[:, 0], [0.0, 1.0], atol=1e-7)
+    assert np.allclose(result.v_final[:, 1], [-0.5, -0.5])  # 50 steps of 0.01 at g = 1
 
 
 def test_a_kinematic_rigid_circle_moves_and_spins_as_declared() -> None:

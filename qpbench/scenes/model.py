@@ -25,7 +25,8 @@ CACHE_MODES = ("none", "normal", "normal_and_friction")
 
 @dataclass
 class Bodies:
-    """Circles in file order. Fixed bodies are kinematic: infinite mass, constant velocity."""
+    """Circles in file order. Fixed bodies are kinematic: infinite mass, constant velocity
+    (rigidbody2d's ``fixed="1"``; a ball2d scene has none, as in SCISim)."""
 
     positions: np.ndarray  # (bodies, 2)
     velocities: np.ndarray  # (bodies, 2)

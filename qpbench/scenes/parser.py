@@ -252,7 +252,7 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
 
     warnings: list[str] = []
     if dialect == "ball2d":
-        bodies = _ball2d_bodies(reader, children)
+        bodies = _ball2d_bodies(reader, children, warnings)
     else:
         bodies = _rigidbody2d_bodies(reader, children, warnings)
     integrator, dt = _integrator(reader, children)
@@ -280,21 +280,34 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     return scene
 
 
-def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]]) -> Bodies:
-    """``<ball x y vx vy m r fixed/>``, mass given."""
+def _ball2d_bodies(reader: _Reader, children: dict[str, list[Element]],
+                   warnings: list[str]) -> Bodies:
+    """``<ball x y vx vy m r fixed/>``, mass given. ``fixed`` is required and checked, and
+    then has no effect, as in SCISim: its ball2d stores the flag, but no ball is kinematically
+    scripted there (``Ball2DSim::isKinematicallyScripted`` is false), so a fixed ball moves,
+    feels gravity and takes impulses with its own mass like any other. Said once in
+    ``warnings``."""
     rows = []
+    declared_fixed = []
     for index, ball in enumerate(children.get("ball", [])):
         rows.append((
             reader.number(ball, "x", index), reader.number(ball, "y", index),
             reader.number(ball, "vx", index), reader.number(ball, "vy", index),
             reader.number(ball, "m", index, check="positive"),
             reader.number(ball, "r", index, check="positive"),
-            float(reader.boolean(ball, "fixed", index)),
         ))
-    table = np.array(rows, dtype=float).reshape(-1, 7)
+        if reader.boolean(ball, "fixed", index):
+            declared_fixed.append(index)
+    if declared_fixed:
+        shown = ", ".join(str(index) for index in declared_fixed[:10])
+        more = f" and {len(declared_fixed) - 10} more" if len(declared_fixed) > 10 else ""
+        warnings.append(f'{reader.path}: <ball> {shown}{more}: fixed="1" has no effect in a '
+                        "ball2d scene, as in SCISim (which never scripts a ball): a fixed ball "
+                        "moves, feels gravity and takes impulses like any other")
+    table = np.array(rows, dtype=float).reshape(-1, 6)
     return Bodies(positions=table[:, 0:2].copy(), velocities=table[:, 2:4].copy(),
                   masses=table[:, 4].copy(), radii=table[:, 5].copy(),
-                  fixed=table[:, 6] > 0.5)
+                  fixed=np.zeros(len(rows), dtype=bool))
 
 
 def _rigidbody2d_bodies(reader: _Reader, children: dict[str, list[Element]],
