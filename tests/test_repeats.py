@@ -1,5 +1,6 @@
-"""The fastest of a few repeats, as the head-to-head and the sequence mode time a solve. The
-stopwatch is replaced by given times here: no test depends on the clock."""
+"""The fastest of a few repeats, as the head-to-head and the sequence mode time a solve, and the
+main table's repeats within a budget. The stopwatch is replaced by given times here: no test
+depends on the clock."""
 
 from __future__ import annotations
 
@@ -7,8 +8,12 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from bench_problems import collinear_balls
 
-from qpbench.bench import repeats
+from qpbench.bench import repeats, worker
+from qpbench.bench.settings import Cell, Limits
+from qpbench.errors import QpbenchError
+from qpbench.problem import files
 from qpbench.solvers.base import SolverOutput
 
 
@@ -43,3 +48,44 @@ def test_a_solve_slower_than_the_repeat_budget_is_not_repeated(
     assert repeats.fastest_solve(None, None, 1e-8, repeats=5).time_s == \
         2 * repeats.REPEAT_BUDGET_S
     assert len(warm_starts) == 1
+
+
+# --- the main table's repeats (qpbench run --repeats K --repeat-budget S) ------------------
+def repeats_of_a_cell(monkeypatch: pytest.MonkeyPatch, tmp_path, times: list[float],
+                      limits: Limits) -> dict:
+    """The worker's row of one cell whose solves take ``times`` in turn (a real solve of a
+    tiny problem, its stopwatch replaced)."""
+    upcoming: Iterator[float] = iter(times)
+    real_call_solver = worker.call_solver
+
+    def call_solver(spec, problem, accuracy, warm_start=None) -> SolverOutput:
+        output = real_call_solver(spec, problem, accuracy, warm_start)
+        output.time_s = next(upcoming)
+        return output
+
+    monkeypatch.setattr(worker, "call_solver", call_solver)
+    path = files.save(collinear_balls("three-in-a-row", 3), tmp_path / "three.npz")
+    cell = Cell(problem_file=str(path), problem="three-in-a-row", solver="pi-robust",
+                formulation="lcp", accuracy=1e-8, mode="cold")
+    return worker.CellSolver().solve(cell, limits)
+
+
+def test_a_cell_is_repeated_until_its_repeats_have_taken_the_budget(
+        monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    row = repeats_of_a_cell(monkeypatch, tmp_path, [0.004, 0.005, 0.003, 0.001, 0.001],
+                            Limits(timeout_s=10.0, repeats=5, repeat_budget_s=0.01))
+    assert row["repeats"] == 3  # 0.004 + 0.005 + 0.003 >= 0.01: the fourth never runs
+    assert row["time_s"] == 0.003 and row["time_max_s"] == 0.005
+    assert row["success"] is True
+
+
+def test_without_a_budget_a_cell_gets_every_repeat(monkeypatch: pytest.MonkeyPatch,
+                                                   tmp_path) -> None:
+    row = repeats_of_a_cell(monkeypatch, tmp_path, [0.004, 0.005, 0.003, 0.001, 0.002],
+                            Limits(timeout_s=10.0, repeats=5))
+    assert row["repeats"] == 5 and row["time_s"] == 0.001
+
+
+def test_a_repeat_budget_must_be_positive() -> None:
+    with pytest.raises(QpbenchError, match="--repeat-budget must be positive"):
+        Limits(repeat_budget_s=0.0)

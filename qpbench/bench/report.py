@@ -133,6 +133,8 @@ def _provenance(frame: pd.DataFrame) -> str:
         {"item": "time limit per solve [s]", "value": values("time_limit_s")},
         {"item": "memory cap per worker [MiB]", "value": values("memory_limit_mb")},
         {"item": "timed repeats (time_s = min)", "value": values("repeats_requested")},
+        {"item": "repeat budget per solve [s] (fewer repeats once they took this long)",
+         "value": values("repeat_budget_s")},
         {"item": "timer overhead (perf_counter back-to-back, min)",
          "value": f"{np.median(overhead) * 1e9:.0f} ns" if len(overhead) else "-"},
         {"item": "fastest solve measured (time_s)", "value": _fastest(frame, overhead)},

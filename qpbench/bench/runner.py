@@ -44,6 +44,7 @@ def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limit
         "mode": cell.mode,
         "time_limit_s": limits.timeout_s,
         "repeats_requested": limits.repeats,
+        "repeat_budget_s": limits.repeat_budget_s,
     }
 
 

@@ -6,6 +6,7 @@ mode)`` identifies it in the results, so a resumed run skips the cells already t
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -56,17 +57,22 @@ class Cell:
 @dataclass(frozen=True)
 class Limits:
     """Per-solve limits: wall clock (seconds, enforced by killing the worker process),
-    address space of the worker (MiB, via resource.setrlimit), and timed repeats."""
+    address space of the worker (MiB, via resource.setrlimit), and timed repeats: up to
+    ``repeats``, fewer once the repeats so far have taken ``repeat_budget_s`` of ``time_s``
+    in all (so that fast solves, whose times vary most, are repeated, and slow ones are not)."""
 
     timeout_s: float = DEFAULT_TIMEOUT_S
     memory_limit_mb: int = DEFAULT_MEMORY_LIMIT_MB
     repeats: int = DEFAULT_REPEATS
+    repeat_budget_s: float = math.inf
 
     def __post_init__(self) -> None:
         if not self.timeout_s > 0:
             raise QpbenchError(f"--timeout must be positive, got {self.timeout_s}")
         if self.repeats < 1:
             raise QpbenchError(f"--repeats must be at least 1, got {self.repeats}")
+        if not self.repeat_budget_s > 0:
+            raise QpbenchError(f"--repeat-budget must be positive, got {self.repeat_budget_s}")
         if self.memory_limit_mb < 0:
             raise QpbenchError(f"--memory-limit must be >= 0 (0: none), got {self.memory_limit_mb}")
 

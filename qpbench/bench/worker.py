@@ -142,7 +142,8 @@ class CellSolver:
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
         """The row of ``cell``: qpbench's judgement of the first repeat's answer, the times of
-        all repeats (``time_s`` their minimum)."""
+        all repeats (``time_s`` their minimum; up to ``limits.repeats``, fewer once they have
+        taken ``limits.repeat_budget_s`` in all, none after a failed solve)."""
         problem = self.problem(cell.problem_file)
         spec = self.spec(cell.solver_key)
         warm_start, warm_source = (None, "cold")
@@ -156,6 +157,8 @@ class CellSolver:
             outputs.append(output)
             if output.impulses is None:
                 break  # a failed solve is not repeated
+            if sum(output.time_s for output in outputs) >= limits.repeat_budget_s:
+                break
         row = judge(spec, problem, outputs[0], cell.accuracy)
         if str(row.get("solver_status", "")).startswith("error: MemoryError"):
             row["status"] = OUT_OF_MEMORY

@@ -1,5 +1,6 @@
 """``qpbench run [PROBLEMS...] [--solvers ...] [--accuracy ...] [--timeout S] [--repeats K]
-[--mode cold,warm] [--workers N] [--executor serial|processes|dask://HOST:PORT] -o FILE.parquet``.
+[--repeat-budget S] [--mode cold,warm] [--workers N]
+[--executor serial|processes|dask://HOST:PORT] -o FILE.parquet``.
 
 Re-running the same command resumes: cells already in FILE.parquet are skipped.
 """
@@ -7,6 +8,7 @@ Re-running the same command resumes: cells already in FILE.parquet are skipped.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from qpbench.bench import isolation, runner
@@ -43,6 +45,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="wall-clock limit per solve in seconds (default: %(default)s)")
     parser.add_argument("--repeats", type=int, default=DEFAULT_REPEATS,
                         help="timed repeats per cell; time_s is the minimum (default: 1)")
+    parser.add_argument("--repeat-budget", type=float, default=math.inf, metavar="S",
+                        help="stop repeating a cell once its repeats have taken S seconds of "
+                             "time_s in all (default: no budget)")
     parser.add_argument("--mode", default="cold",
                         help="cold, warm or cold,warm (default: cold)")
     parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT_MB,
@@ -70,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     accuracies = parse_accuracies(args.accuracy)
     modes = parse_modes(args.mode)
     limits = Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
-                    repeats=args.repeats)
+                    repeats=args.repeats, repeat_budget_s=args.repeat_budget)
     executor = make_executor(args.executor, args.workers)
     if not isinstance(executor, DaskExecutor):
         # started before this process imports the solver backends, so both import at once
