@@ -371,3 +371,31 @@ def test_the_cold_pairs_beside_are_the_main_tables_fastest_without_warm_starts()
                          + rows("quadprog", "dual", "quadprog", "k3", 1e-6)
                          + rows("pi-robust", "lcp", "qpbench", "scene:K4", 1e-6))
     assert fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]
+
+
+def test_breakdown_times_every_part_once_in_each_round(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a burst of load on the host then falls on all parts alike, not on one part's repeats
+    problem = import_dump(ROOT / "problems/dumps/grid5_itr_0.out")
+    trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
+    calls: list[str] = []
+    real_call_solver = breakdown.call_solver
+
+    def call_solver(spec, solved, accuracy, warm_start=None):
+        calls.append(f"{spec.name}:{'trivial' if solved is trivial else 'problem'}")
+        return real_call_solver(spec, solved, accuracy, warm_start)
+
+    floor_rounds: list[int] = []
+    real_round = breakdown._FloorRounds.round
+
+    def floor_round(self) -> None:
+        floor_rounds.append(len(calls))
+        real_round(self)
+
+    monkeypatch.setattr(breakdown, "call_solver", call_solver)
+    monkeypatch.setattr(breakdown._FloorRounds, "round", floor_round)
+    row = breakdown.measure(problem, trivial, repeats=2)
+    one_round = [f"{breakdown.HARNESS.name}:problem", "pi-robust:trivial",
+                 "pi-robust:problem", "pi-robust:problem", "pi-robust:problem"]
+    assert calls == ["pi-robust:problem", *one_round, *one_round]  # (the first: untimed)
+    assert floor_rounds == [3, 8]  # after the trivial solve of each round
+    assert row["kernel_s"] <= row["instrumented_total_s"]  # the kernel runs inside that call

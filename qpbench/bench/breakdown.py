@@ -3,7 +3,8 @@
 Problems (all in the repository): the SCISim research fork's 5x5 grid dumps
 (``problems/dumps/grid5_itr_*.out``), the first impact of its first 7x7 grid scene
 (``problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml``, copied verbatim) and a box packing
-of 1000 balls (``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, minimum over repeats:
+of 1000 balls (``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, the fastest of
+rounds that each time every part below once, in turn:
 
 * ``total_s``: pi-robust's ``time_s`` (the one stopwatch, ``call_solver``);
 * ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
@@ -45,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from qpbench.bench.defaults import REPEATS
+from qpbench.bench.defaults import BREAKDOWN_REPEATS
 from qpbench.problem import metrics
 from qpbench.problem.formulations import pose
 from qpbench.problem.impact import ImpactProblem
@@ -116,10 +117,6 @@ def _timed(module: Any, name: str, sink: list[float]):
         setattr(module, name, original)
 
 
-def _best(function: Callable[[], float], repeats: int) -> float:
-    return min(function() for _ in range(repeats))
-
-
 def _banded_lower(block: sp.spmatrix) -> np.ndarray:
     """The lower band storage (``cholesky_banded``'s, lower=True) of a symmetric matrix after
     reverse Cuthill-McKee ordering."""
@@ -133,33 +130,66 @@ def _banded_lower(block: sp.spmatrix) -> np.ndarray:
     return band
 
 
+class _FloorRounds:
+    """The floor of one problem (:func:`floor`), timed one round at a time (:meth:`round`), so
+    that the caller can interleave its rounds with other timings: one Cholesky of the final
+    active block ``Q_AA + eps I`` plus one product with Q, in compiled code
+    (``compiled_floor``), the factorization the faster of dense (LAPACK ``dpotrf``) and banded
+    in reverse Cuthill-McKee order (``dpbtrf``); the block and its band are built here,
+    outside any clock."""
+
+    def __init__(self, problem: ImpactProblem, impulses: np.ndarray) -> None:
+        from qpbench.bench import compiled_floor  # (it loads numba)
+
+        active = np.flatnonzero(impulses > 0)
+        Q = problem.Q.tocsc()
+        shift = FLOOR_SHIFT * metrics.vector_scale(problem.diag_Q)
+        sparse_block = sp.csc_matrix(Q[active][:, active] + shift * sp.identity(active.size))
+        band = _banded_lower(sparse_block) if active.size else np.zeros((1, 0))
+        self.active, self.bandwidth = int(active.size), int(band.shape[0] - 1)
+        self.product = compiled_floor.product_rounds(Q.indptr, Q.indices, Q.data, impulses)
+        self.factorizations = {
+            "dense": compiled_floor.cholesky_rounds(sparse_block.toarray(), False),
+            "banded": compiled_floor.cholesky_rounds(band, True)}
+        self.times: dict[str, list[float]] = {"product": []}
+        for kind in self.factorizations:
+            self.times[kind], self.times[f"{kind} copies"] = [], []
+
+    def round(self) -> None:
+        self.times["product"].append(self.product())
+        for kind, timer in self.factorizations.items():
+            if timer is not None:
+                with_copy, copy = timer()
+                self.times[kind].append(with_copy)
+                self.times[f"{kind} copies"].append(copy)
+
+    def figures(self) -> dict[str, Any]:
+        """The floor's row entries: each part's fastest round (a factorization: with its
+        copy, less the copy alone; inf when the block is not positive definite)."""
+        by_kind = {kind: max(0.0, min(self.times[kind]) - min(self.times[f"{kind} copies"]))
+                   if timer is not None else np.inf
+                   for kind, timer in self.factorizations.items()}
+        kind = min(by_kind, key=by_kind.get)
+        product = min(self.times["product"])
+        return {"active": self.active, "bandwidth": self.bandwidth, "product_s": product,
+                "floor_s": by_kind[kind] + product, "floor_kind": kind,
+                "floor_s_by_kind": by_kind}
+
+
 def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[str, Any]:
     """One Cholesky of the final active block ``Q_AA + eps I`` plus one product with Q
-    (seconds), in compiled code (``compiled_floor``): the faster of dense (LAPACK ``dpotrf``)
-    and banded in reverse Cuthill-McKee order (``dpbtrf``); the block and its band are built
-    outside the clock. Its dict also holds ``product_s``, the product alone (timed with
-    ``max(repeats, 3)`` rounds)."""
-    from qpbench.bench import compiled_floor  # (it loads numba)
-
-    active = np.flatnonzero(impulses > 0)
-    Q = problem.Q.tocsc()
-    product = compiled_floor.product_seconds(Q.indptr, Q.indices, Q.data, impulses,
-                                             max(repeats, 3))
-    shift = FLOOR_SHIFT * metrics.vector_scale(problem.diag_Q)
-    sparse_block = sp.csc_matrix(Q[active][:, active] + shift * sp.identity(active.size))
-    band = _banded_lower(sparse_block) if active.size else np.zeros((1, 0))
-    times = {"dense": compiled_floor.cholesky_seconds(sparse_block.toarray(), False, repeats),
-             "banded": compiled_floor.cholesky_seconds(band, True, repeats)}
-    kind = min(times, key=times.get)
-    return {"active": int(active.size), "bandwidth": int(band.shape[0] - 1),
-            "product_s": product, "floor_s": times[kind] + product,
-            "floor_kind": kind, "floor_s_by_kind": times}
+    (seconds, :class:`_FloorRounds`), the fastest of ``repeats`` rounds; its dict also holds
+    ``product_s``, the product alone."""
+    rounds = _FloorRounds(problem, impulses)
+    for _ in range(repeats):
+        rounds.round()
+    return rounds.figures()
 
 
-def _back_to_back(spec: SolverSpec, problem: ImpactProblem, repeats: int) -> float:
-    """The fastest of ``repeats`` compiled calls on one copy of ``problem`` posed for
-    ``spec``, one after another after an untimed first call (the caller has seen the compiled
-    path run)."""
+def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], float]:
+    """A function that times two compiled calls in a row on one copy of ``problem`` posed for
+    ``spec`` and returns the second's time: the kernel back to back, with nothing in between
+    (the caller has seen the compiled path run)."""
     from qpbench.solvers import pi_robust, pi_robust_envelope
 
     blind = problem.blind_copy()
@@ -171,35 +201,46 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem, repeats: int) -> flo
         pi_robust.kernel_call(pi_robust_envelope.envelope_pi_robust, blind, settings, None)
         return time.perf_counter() - start
 
-    once()
-    return _best(once, repeats)
+    def twice() -> float:
+        once()
+        return once()
+
+    return twice
 
 
-def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = REPEATS
+def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAKDOWN_REPEATS
             ) -> dict[str, Any]:
-    """The breakdown of one problem (module docstring)."""
+    """The breakdown of one problem (module docstring). Each of ``repeats`` rounds times every
+    part once, in turn, so that a burst of load on the host falls on all parts alike; each
+    part keeps its fastest round."""
     from qpbench.solvers import pi_robust, pi_robust_envelope
 
     spec = get(SOLVER)
-    outputs = [call_solver(spec, problem, ACCURACY) for _ in range(repeats)]
-    first = outputs[0]
-    total = min(output.time_s for output in outputs)
-    kernel: list[float] = []
-    python: list[float] = []
-    instrumented = []
+    first = call_solver(spec, problem, ACCURACY)  # untimed: its answer and counts are reported
+    kernel_ran = bool(first.info.get("compiled"))  # True, or how the Python path followed it
+    back_to_back_call = _back_to_back(spec, problem) if kernel_ran else None
+    impulses = np.zeros(problem.n_contacts) if first.impulses is None else first.impulses
+    floor_rounds = _FloorRounds(problem, impulses)
+    parts: dict[str, list[float]] = {name: [] for name in (
+        "total", "instrumented", "kernel", "python", "back_to_back", "harness", "trivial")}
     for _ in range(repeats):
+        parts["harness"].append(call_solver(HARNESS, problem, ACCURACY).time_s)
+        parts["trivial"].append(call_solver(spec, trivial, ACCURACY).time_s)
+        floor_rounds.round()
+        # pi-robust's own parts as head-to-head's repeats find it: its last solve was this
+        # problem's (one untimed), with a blind copy and a posing since
+        call_solver(spec, problem, ACCURACY)
+        parts["total"].append(call_solver(spec, problem, ACCURACY).time_s)
         kernel_calls: list[float] = []
         python_calls: list[float] = []
         with _timed(pi_robust_envelope, "envelope_pi_robust", kernel_calls), \
                 _timed(pi_robust, "pi_robust", python_calls):
-            instrumented.append(call_solver(spec, problem, ACCURACY).time_s)
-        kernel.append(sum(kernel_calls))
-        python.append(sum(python_calls))
-    kernel_s, python_s = min(kernel), min(python)
-    back_to_back = _back_to_back(spec, problem, repeats) if kernel_s > 0 else 0.0
-    harness = _best(lambda: call_solver(HARNESS, problem, ACCURACY).time_s, repeats)
-    trivial_s = _best(lambda: call_solver(spec, trivial, ACCURACY).time_s, repeats)
-    impulses = np.zeros(problem.n_contacts) if first.impulses is None else first.impulses
+            parts["instrumented"].append(call_solver(spec, problem, ACCURACY).time_s)
+        parts["kernel"].append(sum(kernel_calls))
+        parts["python"].append(sum(python_calls))
+        parts["back_to_back"].append(back_to_back_call() if back_to_back_call else 0.0)
+    total, kernel_s, python_s, back_to_back = (
+        min(parts[name]) for name in ("total", "kernel", "python", "back_to_back"))
     measured = metrics.evaluate(problem, impulses, ACCURACY)
     info = first.info
     row = {
@@ -208,13 +249,13 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = REPEA
         "path": str(info.get("path", "")), "compiled": info.get("compiled", False) is True,
         "linear_solves": first.iterations, "factorizations": info.get("factorizations"),
         "interior_iterations": info.get("interior_iterations", 0),
-        "total_s": total, "instrumented_total_s": min(instrumented),
-        "harness_s": harness, "trivial_s": trivial_s,
+        "total_s": total, "instrumented_total_s": min(parts["instrumented"]),
+        "harness_s": min(parts["harness"]), "trivial_s": min(parts["trivial"]),
         "kernel_s": kernel_s, "python_path_s": python_s,
         "outside_kernel_s": max(0.0, total - kernel_s - python_s),
         "kernel_back_to_back_s": back_to_back,
         "cold_kernel_s": max(0.0, kernel_s - back_to_back),
-        **floor(problem, impulses, repeats),  # product_s and floor_s
+        **floor_rounds.figures(),  # product_s and floor_s
     }
     row["ratio_to_floor"] = row["total_s"] / row["floor_s"] if row["floor_s"] > 0 else math.nan
     return row
@@ -223,18 +264,19 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = REPEA
 def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
     lines = [
         "## Where pi-robust's time goes\n",
-        f"pi-robust at accuracy {ACCURACY:g}, minimum of {repeats} repeats, single-threaded "
-        "BLAS. total = `time_s`; harness = `call_solver` around a solver that returns zeros; "
-        "trivial = pi-robust on one contact; kernel = the compiled call "
-        "`envelope_pi_robust` alone; Python path = the fallback when it runs; outside = "
-        "total - kernel - Python path; back to back = the same compiled call repeated with "
-        "nothing in between, and cold = kernel - back to back: what the kernel loses when "
-        "other work (the blind copy, the posing) has run since its last call, so that its "
-        "caches and branch predictors no longer hold this very solve (`time_s` includes such "
-        "a loss for every solver); "
-        "product = one `Q l` in compiled code; floor = one Cholesky in LAPACK (dense or "
-        "banded in RCM order, the faster) of the final active block (l > 0) plus that "
-        "product, both timed inside one compiled call, without Python call overhead.\n",
+        f"pi-robust at accuracy {ACCURACY:g}, {repeats} rounds that each time every part once "
+        "in turn (so that a burst of load on the host falls on all parts alike), each part's "
+        "fastest round kept; single-threaded BLAS. total = `time_s`; harness = `call_solver` "
+        "around a solver that returns zeros; trivial = pi-robust on one contact; kernel = the"
+        " compiled call `envelope_pi_robust` alone; Python path = the fallback when it runs; "
+        "outside = total - kernel - Python path; back to back = the same compiled call "
+        "repeated with nothing in between, and cold = kernel - back to back: what the kernel "
+        "loses when other work (the blind copy, the posing) has run since its last call, so "
+        "that its caches and branch predictors no longer hold this very solve (`time_s` "
+        "includes such a loss for every solver); product = one `Q l` in compiled code; floor "
+        "= one Cholesky in LAPACK (dense or banded in RCM order, the faster) of the final "
+        "active block (l > 0) plus that product, both timed inside one compiled call, without"
+        " Python call overhead.\n",
         "| problem | contacts | active | path | solves | factorizations | interior its | "
         "total [ms] | harness [ms] | trivial [ms] | kernel [ms] | back to back [ms] | "
         "cold [ms] | Python path [ms] | outside [ms] | product [ms] | floor [ms] | "
@@ -261,7 +303,7 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
 
 
 def breakdown(problems: list[ImpactProblem] | None = None,
-              repeats: int = REPEATS) -> dict[str, Any]:
+              repeats: int = BREAKDOWN_REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown``
     section."""
     from qpbench.problem.dumps import import_dump

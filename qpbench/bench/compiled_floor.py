@@ -5,7 +5,8 @@ call overhead is counted (about a millisecond of repetitions per timed round).
 The LAPACK routines are SciPy's own (``scipy.linalg.cython_lapack``), called from numba
 through their addresses. A factorization overwrites its input, so every repetition first
 copies the pristine matrix back; the time of the copies alone, measured the same way, is
-subtracted. Times are per repetition, the fastest of the caller's rounds.
+subtracted. Times are per repetition, the fastest of the caller's rounds; ``*_rounds`` give one
+round at a time, so that the caller can interleave them with its other timings.
 """
 
 from __future__ import annotations
@@ -80,25 +81,28 @@ def _repetitions(run: Callable[[int], object]) -> int:
     return int(min(MAX_REPETITIONS, max(1.0, ROUND_SECONDS / once)))
 
 
-def _per_repetition(run: Callable[[int], object], rounds: int, count: int) -> float:
-    """Seconds per repetition of ``run(count)``, the fastest of ``rounds``."""
-    best = np.inf
-    for _ in range(rounds):
+def _round(run: Callable[[int], object], count: int) -> Callable[[], float]:
+    """A function that times one round, ``run(count)``, and returns seconds per repetition."""
+    def timed() -> float:
         start = time.perf_counter()
         run(count)
-        best = min(best, (time.perf_counter() - start) / count)
-    return best
+        return (time.perf_counter() - start) / count
+
+    return timed
 
 
-def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
-    """Seconds of one Cholesky factorization of ``matrix`` (dense n x n, or a lower band when
-    ``banded``) in LAPACK, copies excluded; inf when it is not positive definite."""
-    if matrix.size == 0:
-        return 0.0
+def cholesky_rounds(matrix: np.ndarray, banded: bool
+                    ) -> Callable[[], tuple[float, float]] | None:
+    """A function that times one round of Cholesky factorizations of ``matrix`` (dense n x n,
+    or a lower band when ``banded``) in LAPACK and one round of its copies alone, and returns
+    (seconds per copy and factorization, seconds per copy); None when ``matrix`` is not
+    positive definite. The caller interleaves rounds with its other timings."""
     pristine = np.asfortranarray(matrix, dtype=float)
+    if pristine.size == 0:
+        return lambda: (0.0, 0.0)
     work = np.empty_like(pristine, order="F")
     if _repeat_cholesky(pristine, work, 1, True, banded) != 0:
-        return np.inf
+        return None
 
     def factors(count: int) -> None:
         _repeat_cholesky(pristine, work, count, True, banded)
@@ -107,18 +111,37 @@ def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
         _repeat_cholesky(pristine, work, count, False, banded)
 
     count = _repetitions(factors)
-    with_copies = _per_repetition(factors, rounds, count)
-    copies = _per_repetition(copies_only, rounds, count)
-    return max(0.0, with_copies - copies)
+    with_copies, copies = _round(factors, count), _round(copies_only, count)
+    return lambda: (with_copies(), copies())
 
 
-def product_seconds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
-                    impulses: np.ndarray, rounds: int) -> float:
-    """Seconds of one product ``Q l`` over Q's CSC arrays, in compiled code."""
+def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
+    """Seconds of one Cholesky factorization of ``matrix`` (as :func:`cholesky_rounds`),
+    copies excluded: the fastest of ``rounds`` with copies minus the fastest copies alone;
+    inf when it is not positive definite."""
+    timer = cholesky_rounds(matrix, banded)
+    if timer is None:
+        return np.inf
+    with_copies, copies = zip(*(timer() for _ in range(rounds)), strict=True)
+    return max(0.0, min(with_copies) - min(copies))
+
+
+def product_rounds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                   impulses: np.ndarray) -> Callable[[], float]:
+    """A function that times one round of products ``Q l`` over Q's CSC arrays, in compiled
+    code, and returns seconds per product."""
     impulses = np.ascontiguousarray(impulses, dtype=float)
     product = np.empty(impulses.size)
 
     def run(count: int) -> None:
         _repeat_product(indptr, indices, data, impulses, product, count)
 
-    return _per_repetition(run, rounds, _repetitions(run))
+    return _round(run, _repetitions(run))
+
+
+def product_seconds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                    impulses: np.ndarray, rounds: int) -> float:
+    """Seconds of one product ``Q l`` over Q's CSC arrays, in compiled code, the fastest of
+    ``rounds``."""
+    timer = product_rounds(indptr, indices, data, impulses)
+    return min(timer() for _ in range(rounds))

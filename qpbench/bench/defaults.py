@@ -2,7 +2,7 @@
 written once: the measurements and the command line both read them here. This module imports
 nothing, so the command line can read it without loading the measurements."""
 
-# timed repeats of one solve, the fastest kept (breakdown, sequence, speed)
+# timed repeats of one solve, the fastest kept (sequence, speed)
 REPEATS = 5
 
 # head-to-head: timed repeats per solve. The solves here take tens of microseconds to
@@ -18,3 +18,7 @@ SEQUENCE_PASSES = 3  # replays of every scene, one after another (as head-to-hea
 SEQUENCE_ACCURACY = 1e-8
 
 SPEED_SIZES = (1000, 4000)  # balls of the box packings
+
+# breakdown: rounds, each timing every part of one problem once (the fastest round of each part
+# kept). With 5, a burst of load on the host could double a whole row between two runs.
+BREAKDOWN_REPEATS = 20

@@ -1,4 +1,4 @@
-"""``qpbench breakdown [--repeats 5] -o results/breakdown.json``: where pi-robust's time goes
+"""``qpbench breakdown [--repeats 20] -o results/breakdown.json``: where pi-robust's time goes
 on the 5x5 and 7x7 grids of the SCISim research fork and a 1000-ball box, against one
 Cholesky of the final active block and one product, in compiled code
 (``qpbench.bench.breakdown``). Runs with single-threaded BLAS, in a child process unless this
@@ -8,15 +8,15 @@ from __future__ import annotations
 
 import argparse
 
-from qpbench.bench.defaults import REPEATS
+from qpbench.bench.defaults import BREAKDOWN_REPEATS
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import QpbenchError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes")
-    parser.add_argument("--repeats", type=int, default=REPEATS,
-                        help=f"timed repeats, minimum kept ({REPEATS})")
+    parser.add_argument("--repeats", type=int, default=BREAKDOWN_REPEATS,
+                        help=f"timed rounds, each part's fastest kept ({BREAKDOWN_REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
