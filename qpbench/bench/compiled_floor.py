@@ -115,17 +115,6 @@ def cholesky_rounds(matrix: np.ndarray, banded: bool
     return lambda: (with_copies(), copies())
 
 
-def cholesky_seconds(matrix: np.ndarray, banded: bool, rounds: int) -> float:
-    """Seconds of one Cholesky factorization of ``matrix`` (as :func:`cholesky_rounds`),
-    copies excluded: the fastest of ``rounds`` with copies minus the fastest copies alone;
-    inf when it is not positive definite."""
-    timer = cholesky_rounds(matrix, banded)
-    if timer is None:
-        return np.inf
-    with_copies, copies = zip(*(timer() for _ in range(rounds)), strict=True)
-    return max(0.0, min(with_copies) - min(copies))
-
-
 def product_rounds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
                    impulses: np.ndarray) -> Callable[[], float]:
     """A function that times one round of products ``Q l`` over Q's CSC arrays, in compiled
@@ -137,11 +126,3 @@ def product_rounds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
         _repeat_product(indptr, indices, data, impulses, product, count)
 
     return _round(run, _repetitions(run))
-
-
-def product_seconds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
-                    impulses: np.ndarray, rounds: int) -> float:
-    """Seconds of one product ``Q l`` over Q's CSC arrays, in compiled code, the fastest of
-    ``rounds``."""
-    timer = product_rounds(indptr, indices, data, impulses)
-    return min(timer() for _ in range(rounds))
