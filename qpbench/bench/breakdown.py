@@ -151,26 +151,26 @@ class _FloorRounds:
         self.factorizations = {
             "dense": compiled_floor.cholesky_rounds(sparse_block.toarray(), False),
             "banded": compiled_floor.cholesky_rounds(band, True)}
-        self.times: dict[str, list[float]] = {"product": []}
-        for kind in self.factorizations:
-            self.times[kind], self.times[f"{kind} copies"] = [], []
+        self.products: list[float] = []
+        # per kind, each round's (seconds with the copy, seconds of the copy alone)
+        self.rounds: dict[str, list[tuple[float, float]]] = {
+            kind: [] for kind in self.factorizations}
 
     def round(self) -> None:
-        self.times["product"].append(self.product())
+        self.products.append(self.product())
         for kind, timer in self.factorizations.items():
             if timer is not None:
-                with_copy, copy = timer()
-                self.times[kind].append(with_copy)
-                self.times[f"{kind} copies"].append(copy)
+                self.rounds[kind].append(timer())
 
     def figures(self) -> dict[str, Any]:
         """The floor's row entries: each part's fastest round (a factorization: with its
         copy, less the copy alone; inf when the block is not positive definite)."""
-        by_kind = {kind: max(0.0, min(self.times[kind]) - min(self.times[f"{kind} copies"]))
+        by_kind = {kind: max(0.0, min(with_copy for with_copy, _ in self.rounds[kind])
+                             - min(copy for _, copy in self.rounds[kind]))
                    if timer is not None else np.inf
                    for kind, timer in self.factorizations.items()}
         kind = min(by_kind, key=by_kind.get)
-        product = min(self.times["product"])
+        product = min(self.products)
         return {"active": self.active, "bandwidth": self.bandwidth, "product_s": product,
                 "floor_s": by_kind[kind] + product, "floor_kind": kind,
                 "floor_s_by_kind": by_kind}

@@ -157,7 +157,7 @@ class CellSolver:
             outputs.append(output)
             if output.impulses is None:
                 break  # a failed solve is not repeated
-            if sum(output.time_s for output in outputs) >= limits.repeat_budget_s:
+            if sum(done.time_s for done in outputs) >= limits.repeat_budget_s:
                 break
         row = judge(spec, problem, outputs[0], cell.accuracy)
         if str(row.get("solver_status", "")).startswith("error: MemoryError"):
