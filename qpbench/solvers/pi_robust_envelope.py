@@ -56,7 +56,14 @@ a policy only fixes contacts of a kept factor's block, deleting their rows and c
 it (the rows after each become the factor of ``L22 L22^T + x x^T``, x the deleted column)
 cut the 7x7 factorizations from 34.5 to 14.6 a problem with the same solves, yet the 7x7
 kernel was 5% faster and the 5x5 kernel 4% slower: each rotated entry is a chain of
-dependent multiplications, about what a refactored row's inner products cost.
+dependent multiplications, about what a refactored row's inner products cost. Nor by a dense
+factor in the active-set method, where most 7x7 solves are (29 of 38.5 a problem): keeping
+``U^T U = H_MM`` dense (loaded from the envelope factor at the method's first step, a joining
+contact appended by a forward substitution, a leaving one removed by a rank-one update with
+plane rotations) cut the 7x7 factorizations from 34.5 to 7.8 with the same solves, yet the
+kernel was 6% slower: at about 74 free contacts a dense solve (k^2 multiply-adds), an append
+(k^2 / 2) and a removal cost about 7, 3 and 2 thousand cycles, together about what the
+envelope refactor from the first changed row and its solves cost.
 
 Why the interior point is a fallback and not the first phase (same problems): on Q alone it
 needs about 12 iterations, but each factors all of Q's envelope (about 124k multiply-adds on
