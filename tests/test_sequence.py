@@ -335,7 +335,9 @@ def test_breakdown_floor_factors_exactly_the_positive_contacts() -> None:
     problem = import_dump(ROOT / "problems/dumps/grid5_itr_1.out")
     impulses = np.zeros(problem.n_contacts)
     impulses[[0, 3, 4]] = 1.0
-    figures = breakdown.floor(problem, impulses, repeats=1)
+    floor = breakdown._FloorRounds(problem, impulses)
+    floor.round()
+    figures = floor.figures()
     assert figures["active"] == 3 and figures["floor_s"] >= 0
     assert set(figures["floor_s_by_kind"]) == {"dense", "banded"}
     # the floor is the faster factorization plus the very product reported beside it

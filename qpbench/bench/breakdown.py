@@ -131,7 +131,7 @@ def _banded_lower(block: sp.spmatrix) -> np.ndarray:
 
 
 class _FloorRounds:
-    """The floor of one problem (:func:`floor`), timed one round at a time (:meth:`round`), so
+    """The floor of one problem (``floor_s``), timed one round at a time (:meth:`round`), so
     that the caller can interleave its rounds with other timings: one Cholesky of the final
     active block ``Q_AA + eps I`` plus one product with Q, in compiled code
     (``compiled_floor``), the factorization the faster of dense (LAPACK ``dpotrf``) and banded
@@ -174,16 +174,6 @@ class _FloorRounds:
         return {"active": self.active, "bandwidth": self.bandwidth, "product_s": product,
                 "floor_s": by_kind[kind] + product, "floor_kind": kind,
                 "floor_s_by_kind": by_kind}
-
-
-def floor(problem: ImpactProblem, impulses: np.ndarray, repeats: int) -> dict[str, Any]:
-    """One Cholesky of the final active block ``Q_AA + eps I`` plus one product with Q
-    (seconds, :class:`_FloorRounds`), the fastest of ``repeats`` rounds; its dict also holds
-    ``product_s``, the product alone."""
-    rounds = _FloorRounds(problem, impulses)
-    for _ in range(repeats):
-        rounds.round()
-    return rounds.figures()
 
 
 def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], float]:
