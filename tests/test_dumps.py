@@ -83,6 +83,9 @@ def test_a_minimal_dump_is_a_problem(tmp_path: Path) -> None:
         (lambda d: d.pop("v0"), r"<v0>: missing"),
         (lambda d: d["Minv"]["data"].append([0, 1, 0.5]), r"<Minv>.*diagonal"),
         (lambda d: d.update(b={"shape": [1, 1], "data": [[0, 0, 7.0]]}), r"<b>.*CoR"),
+        # summed, a repeated entry would double N and pass as CoR 1/3
+        (lambda d: d["N"]["data"].append([0, 0, -1.0]),
+         r"<N> attribute 'data': entry \(0, 0\) appears more than once"),
     ],
 )
 def test_bad_dumps_name_the_entry_and_field(tmp_path: Path, change, message: str) -> None:

@@ -51,8 +51,14 @@ def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
         raise InputError(file, f"an index lies outside shape [{rows}, {cols}]", name, "data")
     if not np.all(np.isfinite(data[:, 2])):
         raise InputError(file, "contains NaN or infinity", name, "data")
-    return sp.coo_matrix((data[:, 2], (data[:, 0].astype(int), data[:, 1].astype(int))),
-                         shape=(rows, cols))
+    row, col = data[:, 0].astype(int), data[:, 1].astype(int)
+    flat = row * cols + col
+    unique, counts = np.unique(flat, return_counts=True)
+    if np.any(counts > 1):  # a sparse matrix would sum them silently
+        twice = int(unique[np.argmax(counts > 1)])
+        raise InputError(file, f"entry ({twice // cols}, {twice % cols}) appears more than once",
+                         name, "data")
+    return sp.coo_matrix((data[:, 2], (row, col)), shape=(rows, cols))
 
 
 def _parse_json(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
