@@ -128,10 +128,28 @@ BAD_SCENES = [
     (ONE_CIRCLE.replace('geo_idx="0"', 'geo_idx="1"'), InputError,
      "<rigid_body> attribute 'geo_idx': out of range"),
     (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 0"'), InputError,
-     "<geometry> attribute 'r': box half-widths must be positive"),
+     "<geometry> attribute 'r': must be positive"),
     (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 nan"'), InputError,
      "<geometry> attribute 'r': must be finite"),
     (ONE_CIRCLE.replace('v="1 0"', 'v="1"'), InputError, "expected two numbers"),
+    # magnitudes whose products (energies, squared distances) would overflow, or whose
+    # inverses would
+    (TWO_BALLS.replace('vx="1"', 'vx="1e300"'), InputError,
+     "<ball> attribute 'vx': out of range: '1e300' (qpbench reads magnitudes up to 1e+40)"),
+    (TWO_BALLS.replace('r="0.5"', 'r="1e-300"', 1), InputError,
+     "<ball> attribute 'r': out of range: '1e-300' (qpbench reads magnitudes up to 1e+40, "
+     "positive values from 1e-40)"),
+    (ONE_CIRCLE.replace('v="1 0"', 'v="1 -1e50"'), InputError,
+     "<rigid_body> attribute 'v': out of range"),
+    (ONE_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="1 1e-50"'), InputError,
+     "<geometry> attribute 'r': out of range"),
+    (TWO_BALLS.replace('dt="0.01"', 'dt="1e400"'), InputError,
+     "<integrator> attribute 'dt': out of range"),
+    (TWO_BALLS.replace('dt="0.01"', f'dt="{10 ** 400}/1"'), InputError,
+     "<integrator> attribute 'dt': out of range"),
+    # refused before Fraction would build 10^999999999 exactly (for minutes)
+    (TWO_BALLS.replace('dt="0.01"', 'dt="1e-999999999"'), InputError,
+     "<integrator> attribute 'dt': not a decimal or a fraction"),
     (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
                        'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="0"/></ball2d_scene>'),
      InputError, "<planar_portal> attribute 'planeB': plane 0 is already a portal plane"),
@@ -187,7 +205,7 @@ BAD_SCENES += [
                    '</staggered_projections_friction_solver>'), InputError,
      "<mdp_friction_solver>: missing"),
     (FRICTION_CIRCLE.replace('type="circle" r="0.5"', 'type="box" r="-1 1"'), InputError,
-     "box half-widths must be positive"),
+     "<geometry> attribute 'r': must be positive"),
     (with_friction(SOBOGUS).replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/>'
                                     '<static_plane x="0 5" n="0 -1"/><planar_portal planeA="0"'
                                     ' planeB="2"/></ball2d_scene>'),

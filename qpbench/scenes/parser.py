@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from fractions import Fraction
 from pathlib import Path
@@ -39,6 +40,13 @@ from qpbench.scenes.model import (
 from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH, qpbench_name
 
 MAX_SCENE_BYTES = 256 * 1024 * 1024
+# the magnitudes qpbench reads: every real attribute lies in [-LARGEST, LARGEST], and a positive
+# one (a mass, a radius, a density, a time step) is at least 1 / LARGEST. Energies, inertias
+# and squared distances are products of up to seven of them (rho r^4 omega^2 for a circle), so
+# they stay inside floating-point range (about 1e308) instead of overflowing to inf.
+LARGEST = 1e40
+# a decimal as Fraction reads it, with an exponent of at most four digits
+_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d{1,4})?")
 
 # Known attributes of every element qpbench reads (``None``: any attribute is fine).
 _COMMON: dict[str, frozenset[str] | None] = {
@@ -121,7 +129,21 @@ class _Reader:
         if not math.isfinite(value):
             raise self.error(element, name, f"must be finite, got {raw!r}", index)
         self._check(element, name, value, raw, check, index)
+        self._check_range(element, name, np.array([value]), raw, check == "positive", index)
         return value
+
+    def _check_range(self, element: Element, name: str, values: np.ndarray, raw: str,
+                     positive: bool, index: int | None) -> None:
+        """Every ``|value| <= LARGEST``, and ``>= 1 / LARGEST`` when ``positive``."""
+        magnitude = np.abs(values)
+        if np.any(magnitude > LARGEST) or (positive and np.any(magnitude < 1.0 / LARGEST)):
+            raise self._out_of_range(element, name, raw, positive, index)
+
+    def _out_of_range(self, element: Element, name: str, raw: str, positive: bool,
+                      index: int | None) -> InputError:
+        smallest = f", positive values from {1.0 / LARGEST:g}" if positive else ""
+        return self.error(element, name, f"out of range: {raw!r} (qpbench reads magnitudes up "
+                                         f"to {LARGEST:g}{smallest})", index)
 
     def _check(self, element: Element, name: str, value: float, raw: str, check: str | None,
                index: int | None) -> None:
@@ -132,8 +154,10 @@ class _Reader:
         if check == "unit" and not 0 <= value <= 1:
             raise self.error(element, name, f"must lie in [0, 1], got {raw!r}", index)
 
-    def vector(self, element: Element, name: str, index: int | None = None) -> np.ndarray:
-        """Two finite floats separated by white space: ``x="0.5 -1"``."""
+    def vector(self, element: Element, name: str, index: int | None = None,
+               positive: bool = False) -> np.ndarray:
+        """Two finite floats separated by white space: ``x="0.5 -1"``; both > 0 when
+        ``positive``."""
         raw = self.text(element, name, index)
         parts = raw.split()
         if len(parts) != 2:
@@ -144,6 +168,9 @@ class _Reader:
             raise self.error(element, name, f"not two numbers: {raw!r}", index) from None
         if not np.all(np.isfinite(values)):
             raise self.error(element, name, f"must be finite, got {raw!r}", index)
+        if positive and not np.all(values > 0):
+            raise self.error(element, name, f"must be positive, got {raw.strip()!r}", index)
+        self._check_range(element, name, values, raw, positive, index)
         return values
 
     def boolean(self, element: Element, name: str, index: int | None = None,
@@ -176,23 +203,26 @@ class _Reader:
         return raw.strip()
 
     def fraction(self, element: Element, name: str, index: int | None = None) -> Fraction:
-        """A positive exact rational from a decimal (``0.01``) or a fraction (``1/10080``)."""
+        """A positive exact rational from a decimal (``0.01``, an exponent of at most four
+        digits: Fraction builds 10^exponent exactly) or a fraction (``1/10080``), within
+        [1 / LARGEST, LARGEST]."""
         raw = self.text(element, name, index)
         text = raw.strip()
         try:
             if "/" in text:
                 numerator, denominator = text.split("/", 1)
                 value = Fraction(int(numerator), int(denominator))
-            else:
-                as_float = float(text)
-                if not math.isfinite(as_float) or abs(as_float) > 1e300:
-                    raise ValueError(text)
+            elif _DECIMAL.fullmatch(text):
                 value = Fraction(text)
+            else:
+                raise ValueError(text)
         except (ValueError, ZeroDivisionError):
             raise self.error(element, name, f"not a decimal or a fraction: {raw!r}",
                              index) from None
-        if not value > 0 or float(value) <= 0.0:
+        if not value > 0:
             raise self.error(element, name, f"must be positive, got {raw!r}", index)
+        if not 1.0 / LARGEST <= value <= LARGEST:  # compared exactly
+            raise self._out_of_range(element, name, raw, True, index)
         return value
 
 
@@ -322,11 +352,7 @@ def _rigidbody2d_bodies(reader: _Reader, children: dict[str, list[Element]],
             radius = reader.number(geometry, "r", index, check="positive")
             geometries.append(("circle", np.array([radius, math.nan])))
         elif kind == "box":
-            half = reader.vector(geometry, "r", index)
-            if not np.all(half > 0):
-                raise reader.error(geometry, "r", "box half-widths must be positive, got "
-                                   f"{reader.text(geometry, 'r', index).strip()!r}", index)
-            geometries.append(("box", half))
+            geometries.append(("box", reader.vector(geometry, "r", index, positive=True)))
         else:
             raise reader.error(geometry, "type", f"must be circle or box, got {kind!r}", index)
     rows = []
