@@ -39,6 +39,18 @@ def test_the_hand_solution_of_a_ball_on_the_floor_has_zero_residual(
     assert fm.residual(problem, wrong) > 0.1
 
 
+def test_scaling_the_velocities_by_a_power_of_two_scales_q_and_the_answer_exactly() -> None:
+    # the hand solution of a sliding ball, at a quarter of the speed: the same law holds for
+    # a quarter of the impulses, to the last bit, on a problem that keeps no reference
+    problem = ball_on_floor(u_normal=-2.0, u_tangential=1.5, mu=0.5)
+    quarter = problem.with_velocities_scaled(0.25)
+    assert quarter.reference is None and quarter.q.tolist() == (0.25 * problem.q).tolist()
+    answer = np.array([2.0, -1.0])
+    assert fm.residual(problem, answer) == pytest.approx(0.0, abs=1e-15)
+    assert fm.residual(quarter, 0.25 * answer) == fm.residual(problem, answer)
+    assert quarter.largest_velocity == 0.25 * problem.largest_velocity
+
+
 def test_at_mu_zero_the_residual_is_the_frictionless_one_to_the_last_bit() -> None:
     problem = three_contacts(mu=0.0)
     rng = np.random.default_rng(1)

@@ -167,6 +167,18 @@ class FrictionalProblem:
         return FrictionalProblem(normal=self.normal.blind_copy(), T=self.T.copy(),
                                  mu=self.mu.copy(), d_rel=self.d_rel.copy())
 
+    def with_velocities_scaled(self, factor: float) -> FrictionalProblem:
+        """The same contacts with v-, nrel and d_rel multiplied by ``factor`` > 0 (see
+        :meth:`ImpactProblem.with_velocities_scaled`). Coulomb's law is positively
+        homogeneous, so the impulses become ``factor * r``."""
+        return FrictionalProblem(normal=self.normal.with_velocities_scaled(factor), T=self.T,
+                                 mu=self.mu, d_rel=factor * self.d_rel)
+
+    @property
+    def largest_velocity(self) -> float:
+        """max(|v-|, |nrel|, |d_rel|), 0 when there are none."""
+        return max(self.normal.largest_velocity, float(np.max(np.abs(self.d_rel), initial=0.0)))
+
     # --- derived matrices ----------------------------------------------------------------
     @cached_property
     def H(self) -> sp.csc_matrix:

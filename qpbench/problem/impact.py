@@ -14,7 +14,7 @@ solve ``min 1/2 l^T Q l + b^T l, l >= 0`` and give ``v+ = v- + M^-1 G l``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -121,6 +121,20 @@ class ImpactProblem:
         return ImpactProblem(name=self.name, G=self.G.copy(), m_inv=self.m_inv.copy(),
                              v_minus=self.v_minus.copy(), restitution=self.restitution.copy(),
                              n_rel=self.n_rel.copy(), dofs_per_body=self.dofs_per_body)
+
+    def with_velocities_scaled(self, factor: float) -> ImpactProblem:
+        """The same contacts with v- and nrel multiplied by ``factor`` > 0 (G, M^-1, c and the
+        metadata shared; no reference, stored data or posing, which belong to the velocities
+        as they were). Q stays and b becomes ``factor * b``, so the impulses become
+        ``factor * l`` and v+ becomes ``factor * v+``."""
+        return replace(self, v_minus=factor * self.v_minus, n_rel=factor * self.n_rel,
+                       data={}, reference=None, posed={})
+
+    @property
+    def largest_velocity(self) -> float:
+        """max(|v-|, |nrel|), 0 when there are none."""
+        return float(max(np.max(np.abs(self.v_minus), initial=0.0),
+                         np.max(np.abs(self.n_rel), initial=0.0)))
 
     # --- sizes -----------------------------------------------------------------
     @property
