@@ -88,7 +88,9 @@ bench-large:
 lint: setup
 	$(BIN)/ruff check qpbench tests
 
-# Forget the default benchmark's results (the next `make bench` starts afresh).
+# Forget the default benchmark's results and the problem sets built for it (the next
+# `make bench` starts afresh: a set is built incrementally, so problems captured by older
+# code would otherwise stay).
 clean-results:
 	rm -rf $(BENCH_RESULTS)/bench.parquet $(BENCH_RESULTS)/bench.parquet.parts \
-		$(BENCH_RESULTS)/bench.parquet.lock
+		$(BENCH_RESULTS)/bench.parquet.lock $(BENCH_PROBLEMS) $(HEAD_TO_HEAD_PROBLEMS)
