@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from qpbench.cli import build_parser
@@ -70,6 +71,23 @@ def test_unknown_solver_is_one_line(tmp_path: Path) -> None:
     done = qpbench("solve", str(tmp_path / "k3-3-s0.npz"), "--solver", "nope")
     assert done.returncode == 2
     assert "unknown solver 'nope'" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_problem_file_with_a_row_index_outside_g_is_refused_before_any_solver_runs(
+        tmp_path: Path) -> None:
+    """pi-robust's compiled kernel reads G's row indices unchecked: loading must refuse them."""
+    qpbench("generate", "k4", "-o", str(tmp_path))
+    path = tmp_path / "k4-4-s0.npz"
+    with np.load(path, allow_pickle=False) as archive:
+        arrays = {key: archive[key] for key in archive.files}
+    arrays["G_indices"][-1] = 10**6
+    with open(path, "wb") as stream:
+        np.savez_compressed(stream, **arrays)
+    done = qpbench("solve", str(path), "--solver", "pi-robust")
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"qpbench solve: {path} attribute 'G': not a valid sparse "
+                                  "matrix (")
     assert len(done.stderr.strip().splitlines()) == 1
 
 

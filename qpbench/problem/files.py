@@ -31,6 +31,18 @@ READABLE_VERSIONS = (1, 2)
 IMPACT = "impact"
 _REFERENCE_ARRAYS = ("v_plus", "impulses", "v_plus_check")
 _FRICTIONAL_REFERENCE_ARRAYS = ("impulses", "v_plus")
+# the header's fields beside format, kind and name, with the JSON types they take: the optional
+# fields of every file, and the fields of the two kinds of reference (all required but
+# ``solvable``, which files written before it existed lack)
+_REAL = (int, float)
+_HEADER_FIELDS: dict[str, tuple[type, ...]] = {
+    "family": (str,), "source": (str,), "dofs_per_body": (int,), "metadata": (dict,),
+    "data": (list,), "reference": (dict,), "frictional_reference": (dict,)}
+_REFERENCE_FIELDS: dict[str, tuple[type, ...]] = {
+    "method": (str,), "check_method": (str,), "agreement": _REAL, "tolerance": _REAL}
+_FRICTIONAL_REFERENCE_FIELDS: dict[str, tuple[type, ...]] = {
+    "method": (str,), "residual": _REAL, "unique": (bool, type(None)), "solvable": (bool,)}
+_OPTIONAL_REFERENCE_FIELDS = ("solvable",)
 
 AnyProblem = ImpactProblem | FrictionalProblem
 
@@ -46,10 +58,54 @@ def _csc_arrays(label: str, matrix: sp.spmatrix) -> dict[str, np.ndarray]:
             f"{label}_shape": np.asarray(matrix.shape, dtype=np.int64)}
 
 
-def _csc_of(label: str, arrays: dict[str, np.ndarray]) -> sp.csc_matrix:
-    return sp.csc_matrix(
-        (arrays[f"{label}_data"], arrays[f"{label}_indices"], arrays[f"{label}_indptr"]),
-        shape=tuple(int(s) for s in arrays[f"{label}_shape"]))
+def _array(arrays: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
+    """The array stored as ``key``; InputError naming it when the file has none."""
+    if key not in arrays:
+        raise InputError(str(path), "missing array", attribute=key)
+    return arrays[key]
+
+
+def _integers(arrays: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
+    """The one-dimensional integer array stored as ``key``; InputError naming it otherwise."""
+    values = _array(arrays, key, path)
+    if values.dtype.kind not in "iu" or values.ndim != 1:
+        raise InputError(str(path), f"must be a one-dimensional integer array, got "
+                         f"{values.dtype} of shape {values.shape}", attribute=key)
+    return values
+
+
+def _vector(arrays: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
+    """The one-dimensional real array stored as ``key``, as float64; InputError naming it
+    otherwise (its values are checked by the problem's ``validate``)."""
+    values = _array(arrays, key, path)
+    if values.dtype.kind not in "iuf" or values.ndim != 1:
+        raise InputError(str(path), f"must be a one-dimensional real array, got "
+                         f"{values.dtype} of shape {values.shape}", attribute=key)
+    return values.astype(float)
+
+
+def _csc_of(label: str, arrays: dict[str, np.ndarray], path: Path) -> sp.csc_matrix:
+    """The CSC matrix stored as ``label_data``, ``label_indices``, ``label_indptr`` and
+    ``label_shape``; InputError naming ``label`` unless it is one :func:`save` writes:
+    column pointers from 0 that never decrease and end at the number of entries, row
+    indices inside the shape, sorted within each column and never repeated."""
+    shape = _integers(arrays, f"{label}_shape", path)
+    if shape.shape != (2,) or np.any(shape < 0):
+        raise InputError(str(path), f"must be two sizes >= 0, got {shape.tolist()}",
+                         attribute=f"{label}_shape")
+    data = _vector(arrays, f"{label}_data", path)
+    indices = _integers(arrays, f"{label}_indices", path)
+    indptr = _integers(arrays, f"{label}_indptr", path)
+    try:
+        matrix = sp.csc_matrix((data, indices, indptr), shape=(int(shape[0]), int(shape[1])))
+        matrix.check_format(full_check=True)
+    except ValueError as error:
+        raise InputError(str(path), f"not a valid sparse matrix ({error})",
+                         attribute=label) from error
+    if not matrix.has_canonical_format:
+        raise InputError(str(path), "row indices are unsorted or repeated within a column",
+                         attribute=f"{label}_indices")
+    return matrix
 
 
 def save(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
@@ -115,30 +171,28 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
         raise InputError(str(path), f"not a qpbench problem file ({error})") from error
     try:
-        header = json.loads(arrays.pop("header_json").tobytes().decode())
-        G = _csc_of("G", arrays)
-    except KeyError as error:
-        raise InputError(str(path), "missing array", attribute=str(error.args[0])) from error
-    except (ValueError, json.JSONDecodeError) as error:
-        raise InputError(str(path), f"corrupt problem file ({error})") from error
+        header = json.loads(_array(arrays, "header_json", path).tobytes().decode())
+    except ValueError as error:  # also JSON and UTF-8 decoding errors
+        raise InputError(str(path), f"corrupt problem file header ({error})",
+                         attribute="header_json") from error
     _check_header(header, path)
     reference = None
     if "reference" in header:
         reference = Reference(
-            **{key: arrays[f"ref_{key}"] for key in _REFERENCE_ARRAYS}, **header["reference"]
-        )
+            **{key: _vector(arrays, f"ref_{key}", path) for key in _REFERENCE_ARRAYS},
+            **{key: header["reference"][key] for key in _REFERENCE_FIELDS})
     problem = ImpactProblem(
         name=header["name"],
-        G=G,
-        m_inv=arrays["m_inv"],
-        v_minus=arrays["v_minus"],
-        restitution=arrays["restitution"],
-        n_rel=arrays["n_rel"],
+        G=_csc_of("G", arrays, path),
+        m_inv=_vector(arrays, "m_inv", path),
+        v_minus=_vector(arrays, "v_minus", path),
+        restitution=_vector(arrays, "restitution", path),
+        n_rel=_vector(arrays, "n_rel", path),
         family=header.get("family", ""),
         source=header.get("source", ""),
-        dofs_per_body=int(header.get("dofs_per_body", 2)),
+        dofs_per_body=header.get("dofs_per_body", 2),
         metadata=header.get("metadata", {}),
-        data={key: arrays[f"data_{key}"] for key in header.get("data", [])},
+        data={key: _array(arrays, f"data_{key}", path) for key in header.get("data", [])},
         reference=reference,
     )
     if header.get("kind", IMPACT) == FRICTIONAL:
@@ -149,26 +203,22 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
 
 def _frictional(normal: ImpactProblem, header: dict[str, Any], arrays: dict[str, np.ndarray],
                 path: Path) -> FrictionalProblem:
-    try:
-        T = _csc_of("T", arrays)
-        reference = None
-        if "frictional_reference" in header:
-            reference = FrictionalReference(
-                **{key: arrays[f"fref_{key}"] for key in _FRICTIONAL_REFERENCE_ARRAYS},
-                **header["frictional_reference"])
-        problem = FrictionalProblem(normal=normal, T=T, mu=arrays["mu"], d_rel=arrays["d_rel"],
-                                    reference=reference)
-    except KeyError as error:
-        raise InputError(str(path), "missing array", attribute=str(error.args[0])) from error
-    except (ValueError, TypeError) as error:
-        raise InputError(str(path), f"corrupt problem file ({error})") from error
+    reference = None
+    if "frictional_reference" in header:
+        reference = FrictionalReference(
+            **{key: _vector(arrays, f"fref_{key}", path) for key in _FRICTIONAL_REFERENCE_ARRAYS},
+            **{key: value for key, value in header["frictional_reference"].items()
+               if key in _FRICTIONAL_REFERENCE_FIELDS})
+    problem = FrictionalProblem(normal=normal, T=_csc_of("T", arrays, path),
+                                mu=_vector(arrays, "mu", path),
+                                d_rel=_vector(arrays, "d_rel", path), reference=reference)
     problem.validate(str(path))
     return problem
 
 
 def _check_header(header: Any, path: Path) -> None:
     """InputError naming the file and the field when the header is not one :func:`save` writes:
-    a format version it cannot read, an unknown kind, or no name."""
+    a format version it cannot read, an unknown kind, no name, or a field of another type."""
     if not isinstance(header, dict):
         raise InputError(str(path), "corrupt problem file (the header is not a JSON object)")
     version = header.get("format")
@@ -183,6 +233,36 @@ def _check_header(header: Any, path: Path) -> None:
     if not isinstance(header.get("name"), str) or not header["name"]:
         raise InputError(str(path), "missing: every problem file names its problem",
                          attribute="name")
+    _check_fields(header, _HEADER_FIELDS, path, optional=tuple(_HEADER_FIELDS))
+    if header.get("dofs_per_body", 1) < 1:
+        raise InputError(str(path), f"must be at least 1, got {header['dofs_per_body']}",
+                         attribute="dofs_per_body")
+    if not all(isinstance(key, str) for key in header.get("data", [])):
+        raise InputError(str(path), "must list the names of the stored data arrays",
+                         attribute="data")
+    if "reference" in header:
+        _check_fields(header["reference"], _REFERENCE_FIELDS, path, prefix="reference.")
+    if "frictional_reference" in header:
+        _check_fields(header["frictional_reference"], _FRICTIONAL_REFERENCE_FIELDS, path,
+                      prefix="frictional_reference.", optional=_OPTIONAL_REFERENCE_FIELDS)
+
+
+def _check_fields(fields: dict[str, Any], types: dict[str, tuple[type, ...]], path: Path,
+                  prefix: str = "", optional: tuple[str, ...] = ()) -> None:
+    """InputError naming the first field of ``types`` that ``fields`` lacks (unless it is
+    ``optional``) or holds with another JSON type (true and false are not numbers);
+    fields that ``types`` does not name are left alone."""
+    for key, allowed in types.items():
+        if key not in fields:
+            if key in optional:
+                continue
+            raise InputError(str(path), "missing", attribute=prefix + key)
+        value = fields[key]
+        if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
+            expected = " or ".join("null" if kind is type(None) else kind.__name__
+                                   for kind in allowed)
+            raise InputError(str(path), f"must be {expected}, got {value!r}"[:200],
+                             attribute=prefix + key)
 
 
 def find(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.errors import InputError
-from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.impact import ImpactProblem, check_entries, check_vector
 
 KIND = "frictional"
 MODELS = ("coulomb", "ccp")  # the exact law, and Anitescu's relaxation (sliding separates)
@@ -95,22 +95,23 @@ class FrictionalProblem:
         return problem
 
     def validate(self, file: str | None = None) -> None:
-        """The normal problem's checks, plus T of G's shape, finite T, mu >= 0 and finite."""
+        """The normal problem's checks, plus T of G's shape with entries as G's, mu >= 0 and
+        d_rel of one entry per contact, and a reference of the problem's shapes."""
         self.normal.validate(file)
         where = file or self.normal.source or self.normal.name
         if self.T.shape != self.normal.G.shape:
             raise InputError(where, f"shape {self.T.shape} does not match G {self.normal.G.shape}",
                              attribute="T")
-        if not np.all(np.isfinite(self.T.data)):
-            raise InputError(where, "contains NaN or infinity", attribute="T")
-        for label, vector in (("mu", self.mu), ("d_rel", self.d_rel)):
-            if vector.shape != (self.n_contacts,):
-                raise InputError(where, f"shape {vector.shape} does not match G "
-                                 f"{self.normal.G.shape}", attribute=label)
-            if not np.all(np.isfinite(vector)):
-                raise InputError(where, "contains NaN or infinity", attribute=label)
+        check_entries(where, "T", self.T.data)
+        d, n = self.normal.G.shape
+        for label, vector, size in (("mu", self.mu, n), ("d_rel", self.d_rel, n)):
+            check_vector(where, label, vector, size, self.normal.G.shape)
         if np.any(self.mu < 0):
             raise InputError(where, "friction coefficients must be >= 0", attribute="mu")
+        if self.reference is not None:
+            for label, vector, size in (("fref_impulses", self.reference.impulses, 2 * n),
+                                        ("fref_v_plus", self.reference.v_plus, d)):
+                check_vector(where, label, vector, size, self.normal.G.shape)
 
     # --- what it shares with the normal problem ------------------------------------------
     @property

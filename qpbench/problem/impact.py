@@ -46,6 +46,29 @@ class Reference:
         return bool(np.isfinite(self.agreement) and self.agreement <= self.tolerance)
 
 
+# the largest magnitude of an entry: Q = G^T M^-1 G, b and the energies are products of at
+# most three entries (and sums of a few), so they stay inside floating-point range (about 1e308)
+LARGEST_ENTRY = 1e90
+
+
+def check_entries(where: str, label: str, values: np.ndarray) -> None:
+    """InputError naming ``label`` unless every value is finite, ``|value| <= LARGEST_ENTRY``."""
+    if not np.all(np.isfinite(values)):
+        raise InputError(where, "contains NaN or infinity", attribute=label)
+    if np.any(np.abs(values) > LARGEST_ENTRY):
+        raise InputError(where, f"magnitudes above {LARGEST_ENTRY:g}", attribute=label)
+
+
+def check_vector(where: str, label: str, vector: np.ndarray, size: int,
+                 matrix_shape: tuple[int, ...]) -> None:
+    """InputError naming ``label`` unless ``vector`` has shape (size,) and entries as
+    :func:`check_entries` wants them; ``matrix_shape`` is G's, named in the message."""
+    if vector.shape != (size,):
+        raise InputError(where, f"shape {vector.shape} does not match G {matrix_shape}",
+                         attribute=label)
+    check_entries(where, label, vector)
+
+
 @dataclass
 class ImpactProblem:
     """One impact event posed as the LCP/QP of simultaneous impact."""
@@ -94,26 +117,31 @@ class ImpactProblem:
         return problem
 
     def validate(self, file: str | None = None) -> None:
-        """Checks shapes, finiteness, m_inv >= 0 and 0 <= c <= 1; InputError names the field."""
+        """Checks shapes, finite entries of magnitude at most LARGEST_ENTRY, positive inverse
+        masses of at least 1 / LARGEST_ENTRY (or 0), 0 <= c <= 1, and a reference of the
+        problem's shapes; InputError names the field."""
         where = file or self.source or self.name
         d, n = self.G.shape
+        check_entries(where, "G", self.G.data)
         for label, vector, size in (
             ("m_inv", self.m_inv, d),
             ("v_minus", self.v_minus, d),
             ("restitution", self.restitution, n),
             ("n_rel", self.n_rel, n),
         ):
-            if vector.shape != (size,):
-                raise InputError(where, f"shape {vector.shape} does not match G {self.G.shape}",
-                                 attribute=label)
-            if not np.all(np.isfinite(vector)):
-                raise InputError(where, "contains NaN or infinity", attribute=label)
-        if not np.all(np.isfinite(self.G.data)):
-            raise InputError(where, "contains NaN or infinity", attribute="G")
+            check_vector(where, label, vector, size, self.G.shape)
         if np.any(self.m_inv < 0):
             raise InputError(where, "inverse masses must be >= 0", attribute="m_inv")
+        if np.any((self.m_inv > 0) & (self.m_inv < 1.0 / LARGEST_ENTRY)):
+            raise InputError(where, f"positive inverse masses must be at least "
+                             f"{1.0 / LARGEST_ENTRY:g}", attribute="m_inv")
         if np.any((self.restitution < 0) | (self.restitution > 1)):
             raise InputError(where, "restitution must lie in [0, 1]", attribute="restitution")
+        if self.reference is not None:
+            for label, vector, size in (("ref_v_plus", self.reference.v_plus, d),
+                                        ("ref_impulses", self.reference.impulses, n),
+                                        ("ref_v_plus_check", self.reference.v_plus_check, d)):
+                check_vector(where, label, vector, size, self.G.shape)
 
     def blind_copy(self) -> ImpactProblem:
         """What a solver may see: fresh copies of G, M^-1, v-, c and nrel under the same name;
