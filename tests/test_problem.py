@@ -153,12 +153,17 @@ def set_entry(key: str, index: int, value: float) -> Callable[[dict[str, np.ndar
         (set_array("ref_v_plus", np.zeros((2, 4))), "ref_v_plus", "one-dimensional real array"),
         (set_array("ref_v_plus", np.zeros(3)), "ref_v_plus", "does not match G"),
         (set_entry("ref_impulses", 0, np.nan), "ref_impulses", "NaN"),
+        (set_array("data_warm_start", [np.inf]), "data_warm_start", "NaN or infinity"),
+        (set_array("data_warm_start", [1.0, 2.0]), "data_warm_start", "does not match G"),
+        (set_array("data_contact_keys", [0.5]), "data_contact_keys", "integer array"),
     ],
 )
 def test_a_damaged_problem_file_is_one_line_naming_the_array(
         tmp_path: Path, change: Callable[[dict[str, np.ndarray]], None], attribute: str,
         message: str) -> None:
-    path = files.save(attach_reference(head_on_pair()), tmp_path / "pair")
+    problem = attach_reference(head_on_pair())
+    problem.data.update(warm_start=np.ones(1), contact_keys=np.array([7]))  # as a capture's
+    path = files.save(problem, tmp_path / "pair")
     files.load(path)  # the undamaged file loads
     rewrite(path, change)
     with pytest.raises(InputError) as raised:

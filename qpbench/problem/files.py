@@ -23,7 +23,7 @@ from qpbench.atomic import atomic_path
 from qpbench.errors import InputError
 from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
-from qpbench.problem.impact import ImpactProblem, Reference
+from qpbench.problem.impact import ImpactProblem, Reference, check_vector
 
 SUFFIX = ".npz"
 FORMAT_VERSION = 2
@@ -195,10 +195,29 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
         data={key: _array(arrays, f"data_{key}", path) for key in header.get("data", [])},
         reference=reference,
     )
+    loaded: AnyProblem = problem
     if header.get("kind", IMPACT) == FRICTIONAL:
-        return _frictional(problem, header, arrays, path)
-    problem.validate(str(path))
-    return problem
+        loaded = _frictional(problem, header, arrays, path)
+    else:
+        problem.validate(str(path))
+    _check_carried(loaded, arrays, path)
+    return loaded
+
+
+def _check_carried(problem: AnyProblem, arrays: dict[str, np.ndarray], path: Path) -> None:
+    """InputError naming the array unless what a captured scene carries has one entry per
+    contact: ``contact_keys`` integers, ``warm_start`` finite impulses (l, or r = (l_N, l_T)
+    of a frictional problem)."""
+    n = problem.n_contacts
+    if "contact_keys" in problem.data:
+        keys = _integers(arrays, "data_contact_keys", path)
+        if keys.shape != (n,):
+            raise InputError(str(path), f"shape {keys.shape} does not match G {problem.G.shape}",
+                             attribute="data_contact_keys")
+    if "warm_start" in problem.data:
+        size = 2 * n if isinstance(problem, FrictionalProblem) else n
+        check_vector(str(path), "data_warm_start", _vector(arrays, "data_warm_start", path),
+                     size, problem.G.shape)
 
 
 def _frictional(normal: ImpactProblem, header: dict[str, Any], arrays: dict[str, np.ndarray],
