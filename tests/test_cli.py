@@ -56,6 +56,17 @@ def test_generate_box_scene_writes_a_scene_that_simulates(tmp_path: Path) -> Non
         (("solve", "missing.npz", "--solver", "osqp"), "missing.npz: no such problem file"),
         (("generate", "k9", "-o", "x"), "unknown family 'k9'"),
         (("import-dump", __file__, "-o", "x"), "test_cli.py: malformed dump"),
+        # values outside their range are refused before any file is read or written
+        (("solve", "missing.npz", "--solver", "osqp", "--accuracy", "nan"),
+         "qpbench solve: --accuracy: accuracy levels must lie in (0, 1), got nan"),
+        (("simulate", "missing.xml", "--accuracy", "-1"), "lie in (0, 1), got -1.0"),
+        (("simulate", "missing.xml", "--end-time", "nan"),
+         "--end-time must be at least 0, got nan"),
+        (("render", "missing.xml", "--frames", "0", "-o", "x.gif"),
+         "--frames must be at least 1, got 0"),
+        (("generate", "k4", "--seed", "-1", "-o", "x"), "--seed must be at least 0, got -1"),
+        (("run", "missing.npz", "--workers", "0", "-o", "x.parquet"),
+         "--workers must be at least 1, got 0"),
     ],
 )
 def test_bad_input_is_one_line_and_nonzero(args: tuple[str, ...], message: str) -> None:

@@ -100,8 +100,21 @@ class RunSettings:
             if mode not in MODES:
                 raise QpbenchError(f"unknown mode '{mode}' (known: {', '.join(MODES)})")
         for accuracy in self.accuracies:
-            if not 0 < accuracy < 1:
-                raise QpbenchError(f"accuracy levels must lie in (0, 1), got {accuracy}")
+            check_accuracy(accuracy)
+
+
+def check_accuracy(accuracy: float, option: str = "--accuracy") -> float:
+    """``accuracy`` when it is a residual bound in (0, 1); QpbenchError naming ``option``
+    otherwise (NaN, infinity, zero, negative, 1 or more)."""
+    if not 0 < accuracy < 1:
+        raise QpbenchError(f"{option}: accuracy levels must lie in (0, 1), got {accuracy}")
+    return accuracy
+
+
+def check_at_least(value: float, minimum: float, option: str) -> None:
+    """QpbenchError naming ``option`` unless ``value >= minimum`` (NaN is refused)."""
+    if not value >= minimum:
+        raise QpbenchError(f"{option} must be at least {minimum}, got {value}")
 
 
 def parse_accuracies(text: str) -> tuple[float, ...]:

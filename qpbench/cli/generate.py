@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from qpbench.bench.settings import check_at_least
 from qpbench.errors import QpbenchError
 from qpbench.problem import files, friction_reference
 from qpbench.problem.friction_generate import FRICTION_FAMILIES
@@ -40,6 +41,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_at_least(args.count, 1, "--count")
+    check_at_least(args.seed, 0, "--seed")
     if args.scene:
         return write_box_scenes(args)
     if args.family in FRICTION_FAMILIES:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from qpbench.cli.simulate import DEFAULT_STEPS
+from qpbench.bench.settings import check_at_least
+from qpbench.cli.simulate import DEFAULT_STEPS, check_span
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 
@@ -25,6 +26,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from qpbench.simulation.render import render  # matplotlib only when drawing
 
+    check_span(args)
+    check_at_least(args.frames, 1, "--frames")
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench render: warning: {warning}", file=sys.stderr)

@@ -21,6 +21,7 @@ from qpbench.bench.settings import (
     PROBLEM_KINDS,
     Limits,
     RunSettings,
+    check_at_least,
     parse_accuracies,
     parse_modes,
     parse_statuses,
@@ -71,6 +72,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_at_least(args.workers, 1, "--workers")
+    check_at_least(args.batch, 1, "--batch")
     retry = parse_statuses(args.retry)
     accuracies = parse_accuracies(args.accuracy)
     modes = parse_modes(args.mode)

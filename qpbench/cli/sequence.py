@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_PASSES, SEQUENCE_STEPS
+from qpbench.bench.settings import check_accuracy
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
@@ -43,8 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.steps < 1 or args.repeats < 1 or args.passes < 1:
         raise QpbenchError("--steps, --repeats and --passes must be at least 1")
-    if not args.accuracy > 0:
-        raise QpbenchError("--accuracy must be positive")
+    check_accuracy(args.accuracy)
     output = writable_output(args.output)
     for scene in args.scenes:
         if not Path(scene).exists():

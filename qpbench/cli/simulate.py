@@ -12,8 +12,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from qpbench.bench.settings import check_accuracy, check_at_least
 from qpbench.cli.output import print_json
-from qpbench.errors import InputError, QpbenchError
+from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import DEFAULT_ACCURACY, Simulator
@@ -38,14 +39,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
+def check_span(args: argparse.Namespace) -> None:
+    """QpbenchError unless ``--steps`` and ``--end-time``, where given, are at least 0."""
+    if args.steps is not None:
+        check_at_least(args.steps, 0, "--steps")
+    if args.end_time is not None:
+        check_at_least(args.end_time, 0, "--end-time")
+
+
 def run(args: argparse.Namespace) -> int:
+    check_span(args)
+    if args.accuracy is not None:
+        check_accuracy(args.accuracy)
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench simulate: warning: {warning}", file=sys.stderr)
-    if args.steps is not None and args.steps < 0:
-        raise QpbenchError("--steps must be >= 0")
-    if args.end_time is not None and not args.end_time >= 0:
-        raise QpbenchError("--end-time must be >= 0")
     if args.capture is not None and Path(args.capture).exists() and not Path(args.capture).is_dir():
         raise InputError(args.capture, "--capture needs a folder, this is a file")
     steps = args.steps

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from qpbench.bench.settings import check_accuracy
 from qpbench.cli.output import print_json
 from qpbench.problem import files
 from qpbench.problem.friction import KIND as FRICTIONAL
@@ -22,6 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_accuracy(args.accuracy)
     problem = files.load(args.problem)
     spec = get(args.solver, kind_of(problem))
     row, output = solve_and_judge(spec, problem, args.accuracy)
