@@ -36,6 +36,18 @@ def test_the_candidates_are_the_fastest_external_pairs_of_the_main_table() -> No
     assert chosen["frictional"] == ["fric/ccp"]
 
 
+def test_each_candidate_familys_fastest_pair_is_a_candidate_too() -> None:
+    frame = pd.DataFrame(
+        bench_rows("fast", "x", "grid", [1e-4, 1e-4]) + bench_rows("fast", "x", "dump", [2e-4])
+        + bench_rows("second", "y", "grid", [2e-4, 2e-4]) + bench_rows("second", "y", "dump",
+                                                                        [3e-4])
+        # slowest over both families, yet the fastest on the dumps
+        + bench_rows("dumps", "z", "grid", [9e-3, 9e-3]) + bench_rows("dumps", "z", "dump",
+                                                                       [1e-4]))
+    chosen = head_to_head.fastest_external(frame, candidates=1)
+    assert chosen["impact"] == ["fast/dual", "dumps/dual"]
+
+
 def row(solver: str, own: bool, problem: str, time: float, success: bool = True) -> dict:
     return {"problem": problem, "set": "box packings", "solver": solver, "own": own,
             "contacts": 10, "status": "solved" if success else "failed", "success": success,

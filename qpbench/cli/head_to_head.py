@@ -32,7 +32,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "problem's fastest, and the spread of the passes' speedups is "
                              f"shown ({HEAD_TO_HEAD_PASSES})")
     parser.add_argument("--candidates", type=int, default=HEAD_TO_HEAD_CANDIDATES,
-                        help=f"fastest external impact pairs compared ({HEAD_TO_HEAD_CANDIDATES})")
+                        help="fastest external impact pairs compared, and each candidate "
+                             f"family's fastest besides ({HEAD_TO_HEAD_CANDIDATES})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
