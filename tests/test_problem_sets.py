@@ -8,7 +8,7 @@ import pytest
 
 from qpbench.bench import problem_sets
 from qpbench.cli import main
-from qpbench.errors import InputError
+from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
@@ -65,6 +65,19 @@ def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFi
     ("[families]\nnope = {}\n", r"<families> attribute 'nope': unknown family"),
     ('[[scenes]]\nsteps = 3\n', r"<scenes\[0\]> attribute 'path': missing"),
     ("[families\n", "malformed TOML"),
+    ("[families]\nk4 = 3\n", r"<families> attribute 'k4': must be a table"),
+    ("[families]\nk4 = { count = 1.5 }\n",
+     r"<families.k4> attribute 'count': must be an integer >= 1, got 1.5"),
+    ("[families]\nbox = { sizes = [-5] }\n", r"<families.box> attribute 'sizes': must be a list"),
+    ("[families]\nk4 = { seed = -1 }\n", r"<families.k4> attribute 'seed': must be an integer"),
+    # a misspelt or unsupported key is refused, not ignored
+    ("[families]\nk4 = { restitution = 0.5 }\n",
+     r"<families.k4> attribute 'restitution': unknown key \(known: sizes, count, seed\)"),
+    ("[dumps]\npaths = 'dumps/*'\n", r"<dumps> attribute 'paths': must be a list of globs"),
+    ("[[scenes]]\npath = 'a.xml'\nsteps = -1\n", r"<scenes\[0\]> attribute 'steps'"),
+    ("[[scenes]]\npath = 'a.xml'\nend_time = nan\n", r"<scenes\[0\]> attribute 'end_time'"),
+    ("[[scenes]]\npath = 'a.xml'\nmax_problem = 2\n", r"attribute 'max_problem': unknown key"),
+    ("[scenes]\npath = 'a.xml'\n", r"<set> attribute 'scenes': must be an array of tables"),
 ])
 def test_a_bad_set_file_is_one_line_naming_the_entry(tmp_path: Path, text: str,
                                                       message: str) -> None:
@@ -72,3 +85,12 @@ def test_a_bad_set_file_is_one_line_naming_the_entry(tmp_path: Path, text: str,
     set_file.write_text(text)
     with pytest.raises(InputError, match=message):
         problem_sets.read_set(set_file)
+
+
+def test_a_bad_scene_or_solver_stops_the_build_before_any_output(tmp_path: Path) -> None:
+    scene = PROBLEMS / "scenes" / "scisim" / "two_balls.xml"
+    set_file = tmp_path / "bad.toml"
+    set_file.write_text(f'[[scenes]]\npath = "{scene}"\nsteps = 2\nsolver = "nope"\n')
+    with pytest.raises(QpbenchError, match="unknown solver 'nope'"):
+        problem_sets.build(set_file, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

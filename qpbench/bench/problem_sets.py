@@ -25,10 +25,11 @@ incremental: a problem whose file exists is not made again. Building runs the si
 from __future__ import annotations
 
 import glob
+import math
 import sys
 import tempfile
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,8 +45,9 @@ from qpbench.problem.friction_generate import generate as generate_frictional
 from qpbench.problem.generate import FAMILIES, generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
-from qpbench.scenes import load_scene
+from qpbench.scenes import Scene, load_scene
 from qpbench.simulation.stepper import Simulator
+from qpbench.solvers.registry import resolve
 
 ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
 
@@ -59,14 +61,67 @@ def read_set(path: str | Path) -> dict[str, Any]:
         raise InputError(str(path), "no such set file") from error
     except tomllib.TOMLDecodeError as error:
         raise InputError(str(path), f"malformed TOML: {error}") from error
-    for family in definition.get("families", {}):
+    _check_entries(path, definition, "set", _SECTIONS)
+    for family, options in definition.get("families", {}).items():
         if family not in ALL_FAMILIES:
             raise InputError(str(path), f"unknown family (known: {', '.join(ALL_FAMILIES)})",
                              "families", family)
+        if not isinstance(options, dict):
+            raise InputError(str(path), "must be a table such as { count = 2 }", "families",
+                             family)
+        _check_entries(path, options, f"families.{family}", _FAMILY_KEYS)
+    _check_entries(path, definition.get("dumps", {}), "dumps", _DUMPS_KEYS)
     for index, scene in enumerate(definition.get("scenes", [])):
+        if not isinstance(scene, dict):
+            raise InputError(str(path), "must be a table ([[scenes]])", f"scenes[{index}]")
         if "path" not in scene:
             raise InputError(str(path), "missing", f"scenes[{index}]", "path")
+        _check_entries(path, scene, f"scenes[{index}]", _SCENE_KEYS)
     return definition
+
+
+def _is_integer(value: Any, minimum: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= minimum
+
+
+# what each key of a set file must be: (as the message says it, the test)
+_Rule = tuple[str, Callable[[Any], bool]]
+_SECTIONS: dict[str, _Rule] = {
+    "families": ("a table of families", lambda value: isinstance(value, dict)),
+    "dumps": ("a table with paths", lambda value: isinstance(value, dict)),
+    "scenes": ("an array of tables ([[scenes]])", lambda value: isinstance(value, list)),
+}
+_FAMILY_KEYS: dict[str, _Rule] = {
+    "sizes": ("a list of integers >= 1", lambda value: isinstance(value, list) and bool(value)
+              and all(_is_integer(size, 1) for size in value)),
+    "count": ("an integer >= 1", lambda value: _is_integer(value, 1)),
+    "seed": ("an integer >= 0", lambda value: _is_integer(value, 0)),
+}
+_DUMPS_KEYS: dict[str, _Rule] = {
+    "paths": ("a list of globs", lambda value: isinstance(value, list)
+              and all(isinstance(pattern, str) for pattern in value)),
+}
+_SCENE_KEYS: dict[str, _Rule] = {
+    "path": ("a path or glob", lambda value: isinstance(value, str)),
+    "steps": ("an integer >= 0", lambda value: _is_integer(value, 0)),
+    "end_time": ("a number >= 0", lambda value: isinstance(value, int | float)
+                 and not isinstance(value, bool) and 0 <= value < math.inf),
+    "solver": ("a solver name", lambda value: isinstance(value, str)),
+    "max_problems": ("an integer >= 1", lambda value: _is_integer(value, 1)),
+}
+
+
+def _check_entries(path: Path, table: dict[str, Any], element: str,
+                   rules: dict[str, _Rule]) -> None:
+    """InputError naming the file, ``element`` and the key: a key ``rules`` does not know (a
+    misspelt key would otherwise be ignored) or a value that breaks its rule."""
+    for key, value in table.items():
+        if key not in rules:
+            raise InputError(str(path), f"unknown key (known: {', '.join(rules)})", element,
+                             key)
+        what, test = rules[key]
+        if not test(value):
+            raise InputError(str(path), f"must be {what}, got {value!r}"[:200], element, key)
 
 
 def _family_problems(definition: dict[str, Any], existing: set[str]
@@ -75,8 +130,8 @@ def _family_problems(definition: dict[str, Any], existing: set[str]
         sizes = options.get("sizes", [None])
         make = generate_frictional if family in FRICTION_FAMILIES else generate
         for size in sizes:
-            for problem in make(family, size=size, seed=int(options.get("seed", 0)),
-                                count=int(options.get("count", 1))):
+            for problem in make(family, size=size, seed=options.get("seed", 0),
+                                count=options.get("count", 1)):
                 if problem.name not in existing:
                     yield problem
 
@@ -101,17 +156,26 @@ def _scene_paths(root: Path, entry: dict[str, Any], index: int) -> list[Path]:
     return [Path(path) for path in paths]
 
 
-def _scene_problems(definition: dict[str, Any], root: Path, existing: set[str]
+def _scenes(definition: dict[str, Any], root: Path) -> list[tuple[dict[str, Any], Scene]]:
+    """(entry, scene) of every scene the ``[[scenes]]`` entries name, each read and its inner
+    solver's name looked up, so that a bad scene or solver stops the build before anything is
+    written."""
+    scenes = []
+    for index, entry in enumerate(definition.get("scenes", [])):
+        if "solver" in entry:
+            resolve([entry["solver"]])  # an unknown name is one line here, before any output
+        scenes += [(entry, load_scene(path)) for path in _scene_paths(root, entry, index)]
+    return scenes
+
+
+def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[str]
                     ) -> Iterator[ImpactProblem]:
-    scenes = [(entry, path) for index, entry in enumerate(definition.get("scenes", []))
-              for path in _scene_paths(root, entry, index)]
-    for entry, scene_path in scenes:
+    for entry, scene in scenes:
         with tempfile.TemporaryDirectory() as capture:
-            scene = load_scene(scene_path)
             simulator = Simulator(scene, choose_by_name(entry.get("solver")), capture=capture)
             simulator.run(end_time=entry.get("end_time"), max_steps=entry.get("steps"))
             captured = files.find([capture])
-            keep = int(entry.get("max_problems", len(captured)))
+            keep = entry.get("max_problems", len(captured))
             if captured and keep < len(captured):
                 picks = np.unique(np.linspace(0, len(captured) - 1, keep).round().astype(int))
                 captured = [captured[i] for i in picks]
@@ -126,13 +190,14 @@ def build(set_file: str | Path, output: str | Path) -> list[Path]:
     set_file, output = Path(set_file), Path(output)
     definition = read_set(set_file)
     root = set_file.parent
+    scenes = _scenes(definition, root)
     output.mkdir(parents=True, exist_ok=True)
     existing = {path.stem for path in output.glob(f"*{files.SUFFIX}")}
     written = []
     sources = (
         _family_problems(definition, existing),
         _dump_problems(definition, root, existing),
-        _scene_problems(definition, root, existing),
+        _scene_problems(scenes, existing),
     )
     for source in sources:
         for problem in source:
