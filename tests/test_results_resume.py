@@ -8,7 +8,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -53,6 +53,23 @@ def test_parts_are_compacted_into_one_file_and_read_without_duplicates(tmp_path:
     assert len(frame) == 3
     assert not frame.duplicated(subset=list(CELL_KEY)).any()
     assert store.compact() == 3 and not store.parts.exists()
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda frame: frame.drop(columns=["time_s"]), "not a results table of this qpbench: no "
+                                                   "column time_s"),
+    (lambda frame: frame.assign(time_s="fast"), "column 'time_s' must hold numbers, not"),
+    (lambda frame: frame.assign(success=1.0), "column 'success' must hold true/false flags"),
+])
+def test_a_results_file_of_other_columns_is_one_line_naming_the_column(
+        tmp_path: Path, change: Callable[[pd.DataFrame], pd.DataFrame], message: str) -> None:
+    store = ResultStore(tmp_path / "r.parquet")
+    store.write_part([_row("a", 1e-4, 1e-5)])
+    store.compact()
+    assert store.read()["residual"].tolist() == [1e-5]  # as written, it reads
+    change(pd.read_parquet(store.path)).to_parquet(store.path)
+    with pytest.raises(InputError, match=message):
+        store.read()
 
 
 def _matrix_command(problems: Path, output: Path) -> list[str]:

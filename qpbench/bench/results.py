@@ -71,6 +71,20 @@ def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
     return frame
 
 
+def _check_dtypes(frame: pd.DataFrame, path: Path) -> None:
+    """InputError naming the column when a column of numbers or of flags holds anything else
+    (a column that is only missing values passes)."""
+    expected = {**{column: "numbers" for column in FLOAT_COLUMNS + INT_COLUMNS},
+                **{column: "true/false flags" for column in BOOL_COLUMNS}}
+    for column, what in expected.items():
+        if column not in frame.columns or frame[column].isna().all():
+            continue
+        kinds = "fiu" if what == "numbers" else "b"
+        if frame[column].dtype.kind not in kinds:
+            raise InputError(str(path), f"column '{column}' must hold {what}, not "
+                             f"{frame[column].dtype}")
+
+
 def _write_atomically(frame: pd.DataFrame, path: Path) -> None:
     """Writes ``frame`` to ``path`` through a synced temporary file and a rename."""
     with atomic_path(path, durable=True) as temporary:
@@ -111,17 +125,25 @@ class ResultStore:
         return sorted(self.parts.glob("part-*.parquet"))
 
     def _read_file(self, path: Path, columns: Iterable[str] | None) -> pd.DataFrame:
-        """One file's rows (``columns`` only, those it lacks as missing values)."""
+        """One file's rows (``columns`` only, those it lacks as missing values; all of them
+        when ``columns`` is None, and then every column of COLUMNS must be there)."""
         try:
             if columns is None:
-                return pd.read_parquet(path, engine="pyarrow")
-            wanted = list(columns)
-            present = set(pq.read_schema(path).names)
-            frame = pd.read_parquet(path, engine="pyarrow",
-                                    columns=[column for column in wanted if column in present])
-            return frame.reindex(columns=wanted)
+                frame = pd.read_parquet(path, engine="pyarrow")
+                missing = [column for column in COLUMNS if column not in frame.columns]
+                if missing:
+                    raise InputError(str(path), "not a results table of this qpbench: no "
+                                     f"column {', '.join(missing[:5])}"
+                                     f"{' ...' if len(missing) > 5 else ''}")
+            else:
+                wanted = list(columns)
+                present = set(pq.read_schema(path).names)
+                frame = pd.read_parquet(path, engine="pyarrow", columns=[
+                    column for column in wanted if column in present]).reindex(columns=wanted)
         except (OSError, ValueError) as error:
             raise InputError(str(path), f"not a readable results file ({error})") from error
+        _check_dtypes(frame, path)
+        return frame
 
     def read(self, columns: Iterable[str] | None = None) -> pd.DataFrame:
         """Every row: main file then parts in the order written, the last row of each cell key
