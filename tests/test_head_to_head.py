@@ -144,6 +144,19 @@ def test_a_missing_folder_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
     assert not (tmp_path / "h.json").exists()
 
 
+def test_a_table_without_times_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
+                                           ) -> None:
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    table = tmp_path / "bench.parquet"
+    pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])).drop(columns="time_s").to_parquet(
+        table)
+    code = main(["head-to-head", str(folder), "--results", str(table),
+                 "-o", str(tmp_path / "h.json")])
+    assert code != 0 and "no column time_s" in capsys.readouterr().err
+    assert not (tmp_path / "h.json").exists()
+
+
 def test_staggered_pairs_run_to_the_head_to_heads_round_cap(tmp_path: Path) -> None:
     """rough-box-30 needs about 1,700 staggered rounds at 1e-8, more than the accuracy table's
     cap: in the head-to-head every staggered pair may run STAGGERED_MAX_OUTER rounds, and the

@@ -99,6 +99,11 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
     return None
 
 
+# the columns of the main benchmark's table that fastest_external ranks by
+BENCH_COLUMNS = ("problem", "family", "kind", "solver", "formulation", "backend", "accuracy",
+                 "success", "time_s", "time_limit_s")
+
+
 def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACCURACY
                      ) -> dict[str, list[str]]:
     """{"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES,

@@ -50,12 +50,16 @@ def run(args: argparse.Namespace) -> int:
          "-o", str(args.output)])
     if child is not None:
         return child
-    from qpbench.bench.head_to_head import head_to_head
+    from qpbench.bench.head_to_head import BENCH_COLUMNS, head_to_head
     from qpbench.bench.results import ResultStore
 
-    bench = ResultStore(args.results).read()
+    bench = ResultStore(args.results).read(BENCH_COLUMNS)
     if bench.empty:
         raise InputError(args.results, "no results to choose the external pairs from")
+    for column in ("solver", "formulation", "accuracy", "time_s"):
+        if bench[column].isna().all():
+            raise InputError(args.results, f"no column {column}: not a results table of the "
+                             "main benchmark")
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
                           progress=lambda text: print(text, file=sys.stderr),
                           passes=args.passes)
