@@ -103,6 +103,25 @@ def test_nan_in_a_dump_is_refused(tmp_path: Path) -> None:
         import_dump(path)
 
 
+def test_an_entry_given_twice_is_refused(tmp_path: Path) -> None:
+    """json.loads and a plain dict would keep the second N silently."""
+    text = json.dumps(_pair())
+    twice = text.replace('"N":', '"N": {"shape": [4, 1], "data": [[1, 0, 1.0]]}, "N":', 1)
+    path = tmp_path / "twice.out"
+    path.write_text(twice)
+    with pytest.raises(InputError, match=r"twice.out: <N>: appears more than once"):
+        import_dump(path)
+
+
+def test_a_text_entry_given_twice_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "twice.txt"
+    block = "N:\nsize: 4 1\n(0,0,-1) (2,0,1)\n"
+    path.write_text(block + "Minv:\nsize: 4 4\n(0,0,1) (1,1,1) (2,2,1) (3,3,1)\n"
+                    "v0:\nsize: 4 1\n(0,0,1) (2,0,-1)\n" + block)
+    with pytest.raises(InputError, match=r"twice.txt: <N>: appears more than once"):
+        import_dump(path)
+
+
 def test_garbage_is_a_malformed_dump(tmp_path: Path) -> None:
     path = tmp_path / "garbage.out"
     path.write_text("hello\nworld\n")

@@ -61,9 +61,29 @@ def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
     return sp.coo_matrix((data[:, 2], (row, col)), shape=(rows, cols))
 
 
+class _RepeatedKey(ValueError):
+    """A JSON object that names one key twice (json keeps the last silently)."""
+
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """The object of ``pairs``; _RepeatedKey if a key appears twice."""
+    unique: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in unique:
+            raise _RepeatedKey(key)
+        unique[key] = value
+    return unique
+
+
 def _parse_json(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
     try:
-        raw = json.loads(_TRAILING_COMMA.sub(r"\1", text))
+        raw = json.loads(_TRAILING_COMMA.sub(r"\1", text), object_pairs_hook=_unique_keys)
+    except _RepeatedKey as error:
+        raise InputError(file, "appears more than once", error.key) from error
     except json.JSONDecodeError as error:
         raise InputError(file, f"malformed dump: {error.msg} at line {error.lineno}") from error
     if not isinstance(raw, dict):
@@ -93,6 +113,8 @@ def _parse_text(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[st
             continue
         name, _, rest = line.partition(":")
         name, rest = name.strip(), rest.strip()
+        if name in matrices or name in scalars:
+            raise InputError(file, "appears more than once", name)
         if rest:  # "solve status: 0"
             scalars[name] = rest
             continue
