@@ -60,6 +60,10 @@ def _write(tmp_path: Path, entries: dict) -> Path:
     return path
 
 
+_TEXT_DUMP = ("N:\nsize: 4 1\n(0,0,-1) (2,0,1)\nMinv:\nsize: 4 4\n(0,0,1) (1,1,1) (2,2,1) (3,3,1)\n"
+              "v0:\nsize: 4 1\n(0,0,1) (2,0,-1)\n")
+
+
 def _pair() -> dict:
     return {
         "N": {"shape": [4, 1], "data": [[0, 0, -1.0], [2, 0, 1.0]]},
@@ -115,10 +119,33 @@ def test_an_entry_given_twice_is_refused(tmp_path: Path) -> None:
 
 def test_a_text_entry_given_twice_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "twice.txt"
-    block = "N:\nsize: 4 1\n(0,0,-1) (2,0,1)\n"
-    path.write_text(block + "Minv:\nsize: 4 4\n(0,0,1) (1,1,1) (2,2,1) (3,3,1)\n"
-                    "v0:\nsize: 4 1\n(0,0,1) (2,0,-1)\n" + block)
+    path.write_text(_TEXT_DUMP + "N:\nsize: 4 1\n(0,0,-1) (2,0,1)\n")
     with pytest.raises(InputError, match=r"twice.txt: <N>: appears more than once"):
+        import_dump(path)
+
+
+def test_the_text_sample_is_a_problem(tmp_path: Path) -> None:
+    path = tmp_path / "pair.txt"
+    path.write_text(_TEXT_DUMP)
+    assert import_dump(path).b == pytest.approx([-4.0])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("(0,0,-1)", "(0,0,x)", r"<N> attribute 'data': a triplet part is not a number"),
+        ("(0,0,1) (2", "(0,0,1) junk (2", r"<v0> attribute 'data': not an \(i,j,value\) "
+                                           r"triplet: 'junk'"),
+        ("v0:", "stray\nv0:", r"malformed dump: line 7 \('stray'\)"),
+    ],
+)
+def test_text_dump_lines_are_read_whole(tmp_path: Path, old: str, new: str, message: str
+                                        ) -> None:
+    """Nothing in a text dump is skipped: a stray line or a word among the triplets is one
+    line naming it, not a dump read with an entry left out."""
+    path = tmp_path / "bad.txt"
+    path.write_text(_TEXT_DUMP.replace(old, new, 1))
+    with pytest.raises(InputError, match=message):
         import_dump(path)
 
 

@@ -101,6 +101,19 @@ def _parse_json(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[st
     return matrices, scalars
 
 
+def _triplets(file: str, name: str, body: str) -> list[list[float]]:
+    """The ``(i,j,value)`` triplets of a text block's body line; InputError naming the entry
+    when anything else stands there or a part is not a number."""
+    leftover = _TRIPLET.sub(" ", body).strip()
+    if leftover:
+        raise InputError(file, f"not an (i,j,value) triplet: {leftover[:40]!r}", name, "data")
+    try:
+        return [[float(part) for part in triplet] for triplet in _TRIPLET.findall(body)]
+    except ValueError as error:
+        raise InputError(file, f"a triplet part is not a number ({error})", name,
+                         "data") from error
+
+
 def _parse_text(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
     matrices: dict[str, sp.coo_matrix] = {}
     scalars: dict[str, Any] = {}
@@ -109,8 +122,11 @@ def _parse_text(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[st
     while index < len(lines):
         line = lines[index]
         index += 1
-        if not line or ":" not in line:
+        if not line:
             continue
+        if ":" not in line:
+            raise InputError(file, f"malformed dump: line {index} ({line[:40]!r}) is neither "
+                             "NAME: nor the body of one")
         name, _, rest = line.partition(":")
         name, rest = name.strip(), rest.strip()
         if name in matrices or name in scalars:
@@ -122,8 +138,7 @@ def _parse_text(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[st
         if following.startswith("size:"):
             shape = following.split(":", 1)[1].split()
             body = lines[index + 1] if index + 1 < len(lines) else ""
-            triplets = [[float(a), float(b), float(c)] for a, b, c in _TRIPLET.findall(body)]
-            matrices[name] = _matrix(file, name, shape, triplets)
+            matrices[name] = _matrix(file, name, shape, _triplets(file, name, body))
             index += 2
         else:
             scalars[name] = following
