@@ -87,6 +87,13 @@ def test_a_minimal_dump_is_a_problem(tmp_path: Path) -> None:
         (lambda d: d.pop("v0"), r"<v0>: missing"),
         (lambda d: d["Minv"]["data"].append([0, 1, 0.5]), r"<Minv>.*diagonal"),
         (lambda d: d.update(b={"shape": [1, 1], "data": [[0, 0, 7.0]]}), r"<b>.*CoR"),
+        (lambda d: d["N"].update(shape=[4.5, 1]), r"<N> attribute 'shape': shape must be "
+                                                  r"two integers, got \[4.5, 1\]"),
+        (lambda d: d["N"].update(shape=[4, 1, 1]), r"<N> attribute 'shape'"),
+        (lambda d: d["v0"].update(shape=[4, 10**12]), r"<v0> attribute 'shape'.*beyond"),
+        (lambda d: d.update(Q={"shape": [2, 2], "data": []}), r"<Q> attribute 'shape'"),
+        (lambda d: d.update(policy_sol={"shape": [1, 3], "data": []}),
+         r"<policy_sol> attribute 'shape'"),
         # summed, a repeated entry would double N and pass as CoR 1/3
         (lambda d: d["N"]["data"].append([0, 0, -1.0]),
          r"<N> attribute 'data': entry \(0, 0\) appears more than once"),

@@ -31,15 +31,30 @@ _TRAILING_COMMA = re.compile(r",(\s*[}\]])")
 _TRIPLET = re.compile(r"\(\s*([^,()]+),\s*([^,()]+),\s*([^,()]+)\)")
 
 
+# the most rows or columns a dumped matrix may have (the shared dumps have at most a few
+# hundred); the dumped Q is kept as a dense array, so at most LARGEST_DENSE entries
+LARGEST_DIMENSION = 10_000_000
+LARGEST_DENSE = 100_000_000
+
+
+def _is_size(size: Any) -> bool:
+    """A JSON integer or a text dump's run of digits (optionally signed)."""
+    if isinstance(size, str):
+        return re.fullmatch(r"[+-]?\d{1,12}", size.strip()) is not None
+    return isinstance(size, int) and not isinstance(size, bool)
+
+
 def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
     """A sparse matrix from its shape and (i, j, value) triplets, checked against the shape."""
-    try:
-        rows, cols = (int(size) for size in shape)
-    except (TypeError, ValueError) as error:
-        raise InputError(file, f"shape must be two integers, got {shape!r}", name,
-                         "shape") from error
+    sizes = list(shape) if isinstance(shape, list | tuple) else []
+    if len(sizes) != 2 or not all(_is_size(size) for size in sizes):
+        raise InputError(file, f"shape must be two integers, got {shape!r}"[:200], name, "shape")
+    rows, cols = (int(size) for size in sizes)
     if rows < 0 or cols < 0:
         raise InputError(file, f"negative shape {shape!r}", name, "shape")
+    if max(rows, cols) > LARGEST_DIMENSION:
+        raise InputError(file, f"shape {shape!r} is beyond {LARGEST_DIMENSION:,} rows or "
+                         "columns", name, "shape")
     try:
         data = np.asarray(triplets, dtype=float).reshape(-1, 3)
     except (TypeError, ValueError) as error:
@@ -177,17 +192,17 @@ def import_dump(path: str | Path, restitution: float | None = None) -> ImpactPro
         raise InputError(file, f"is {m_inv_matrix.shape}, N has {dofs} rows", "Minv", "shape")
     if sp.triu(m_inv_matrix, 1).nnz or sp.tril(m_inv_matrix, -1).nnz:
         raise InputError(file, "must be diagonal", "Minv", "data")
-    v0 = matrices["v0"].toarray()
-    if v0.shape != (dofs, 1):
-        raise InputError(file, f"is {v0.shape}, expected ({dofs}, 1)", "v0", "shape")
-    v_minus = v0.ravel()
+    if matrices["v0"].shape != (dofs, 1):
+        raise InputError(file, f"is {matrices['v0'].shape}, expected ({dofs}, 1)", "v0",
+                         "shape")
+    v_minus = matrices["v0"].toarray().ravel()
     u_minus = G.T @ v_minus
     kept: dict[str, np.ndarray] = {}
     if "b" in matrices:
-        b = matrices["b"].toarray()
-        if b.shape != (contacts, 1):
-            raise InputError(file, f"is {b.shape}, expected ({contacts}, 1)", "b", "shape")
-        kept["b"] = b.ravel()
+        if matrices["b"].shape != (contacts, 1):
+            raise InputError(file, f"is {matrices['b'].shape}, expected ({contacts}, 1)", "b",
+                             "shape")
+        kept["b"] = matrices["b"].toarray().ravel()
     if restitution is None:
         restitution = 1.0
         if "b" in kept:
@@ -202,13 +217,19 @@ def import_dump(path: str | Path, restitution: float | None = None) -> ImpactPro
             ):
                 raise InputError(file, "is not (1 + CoR) N^T v0 for one CoR in [0, 1]", "b")
     if "Q" in matrices:
+        if matrices["Q"].shape != (contacts, contacts):
+            raise InputError(file, f"is {matrices['Q'].shape}, expected ({contacts}, "
+                             f"{contacts})", "Q", "shape")
+        if contacts * contacts > LARGEST_DENSE:
+            raise InputError(file, f"too large to keep ({contacts} x {contacts} entries); "
+                             "leave Q out of the dump", "Q", "shape")
         kept["Q"] = matrices["Q"].toarray()
     for name in ("ipopt_sol", "policy_sol"):
         if name in matrices:
+            if matrices[name].shape != (contacts, 1):  # a column of n entries
+                raise InputError(file, f"is {matrices[name].shape}, expected ({contacts}, 1)",
+                                 name, "shape")
             kept[name] = matrices[name].toarray().ravel()
-    for name, value in kept.items():
-        if name.endswith("_sol") and value.shape != (contacts,):  # a column of n entries
-            raise InputError(file, f"is {value.shape}, expected ({contacts}, 1)", name, "shape")
     m_inv = m_inv_matrix.diagonal()
     rotation_rows = np.arange(2, dofs, 3)
     dofs_per_body = 3 if dofs % 3 == 0 and G[rotation_rows].nnz == 0 else 2
