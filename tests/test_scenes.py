@@ -149,6 +149,8 @@ BAD_SCENES = [
      "<integrator> attribute 'dt': out of range"),
     # refused before Fraction would build 10^999999999 exactly (for minutes)
     (TWO_BALLS.replace('dt="0.01"', 'dt="1e-999999999"'), InputError,
+     "<integrator> attribute 'dt': out of range: an exponent of more than four digits"),
+    (TWO_BALLS.replace('dt="0.01"', 'dt="0.01x"'), InputError,
      "<integrator> attribute 'dt': not a decimal or a fraction"),
     (TWO_BALLS.replace("</ball2d_scene>", '<static_plane x="0 -5" n="0 1"/><static_plane '
                        'x="0 5" n="0 -1"/><planar_portal planeA="0" planeB="0"/></ball2d_scene>'),

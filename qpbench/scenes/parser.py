@@ -47,6 +47,7 @@ MAX_SCENE_BYTES = 256 * 1024 * 1024
 LARGEST = 1e40
 # a decimal as Fraction reads it, with an exponent of at most four digits
 _DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d{1,4})?")
+_LONG_EXPONENT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)[eE][+-]?\d{5,}")
 
 # Known attributes of every element qpbench reads (``None``: any attribute is fine).
 _COMMON: dict[str, frozenset[str] | None] = {
@@ -214,6 +215,9 @@ class _Reader:
                 value = Fraction(int(numerator), int(denominator))
             elif _DECIMAL.fullmatch(text):
                 value = Fraction(text)
+            elif _LONG_EXPONENT.fullmatch(text):
+                raise self.error(element, name, "out of range: an exponent of more than four "
+                                 f"digits, {raw[:40]!r}", index)
             else:
                 raise ValueError(text)
         except (ValueError, ZeroDivisionError):
