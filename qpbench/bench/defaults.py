@@ -2,6 +2,10 @@
 written once: the measurements and the command line both read them here. This module imports
 nothing, so the command line can read it without loading the measurements."""
 
+# pi-robust's speed target: at least this many times faster than the fastest external pair
+# (the main table, each head-to-head set, sequence mode)
+TARGET_SPEEDUP = 3.0
+
 # timed repeats of one solve, the fastest kept (sequence, speed)
 REPEATS = 5
 

@@ -49,6 +49,7 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_CANDIDATES,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
+    TARGET_SPEEDUP,
 )
 from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
 from qpbench.problem import files
@@ -59,7 +60,6 @@ from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.run import NO_SOLUTION, judge
 
 ACCURACY = 1e-8
-TARGET_SPEEDUP = 3.0
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
 OWN_IMPACT = ("pi-robust/lcp",)
 OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")

@@ -22,6 +22,7 @@ import pandas as pd
 
 from qpbench.atomic import atomic_path
 from qpbench.bench import html_report, plots, stats
+from qpbench.bench.defaults import TARGET_SPEEDUP
 from qpbench.bench.results import ResultStore
 from qpbench.errors import InputError
 from qpbench.problem.friction import KIND as FRICTIONAL
@@ -36,7 +37,6 @@ ROBUST_SOLVER = "pi-robust"
 PROFILE_LEVELS = (1e-4, 1e-8)
 TARGET_LEVEL = 1e-8
 TARGET_V_ERROR = 1e-7
-TARGET_SPEEDUP = 3.0
 
 Formatter = Callable[[Any], str]
 INDEX_POINTER = ("At a glance, interactive and offline: [index.html](index.html) (open it in a "

@@ -48,7 +48,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_PASSES, SEQUENCE_STEPS
+from qpbench.bench.defaults import (
+    REPEATS,
+    SEQUENCE_ACCURACY,
+    SEQUENCE_PASSES,
+    SEQUENCE_STEPS,
+    TARGET_SPEEDUP,
+)
 from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
 from qpbench.errors import InputError
 from qpbench.problem import files
@@ -57,7 +63,6 @@ from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.run import judge
 
 OWN = "pi-robust/lcp"
-TARGET_SPEEDUP = 3.0
 # the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
 # three-ball chain), whose elastic impacts rarely repeat a contact, and a pile of 30 balls
 # resting under gravity (``circle_pile(30, "ql")`` of qpbench.simulation.scaling), whose
