@@ -19,6 +19,8 @@ import numpy as np
 from numba import njit
 from numba.extending import get_cython_function_address
 
+from qpbench.solvers.pi_robust_envelope import matvec_into
+
 # per timed round: repetitions inside the one compiled call, about ROUND_SECONDS of them
 MAX_REPETITIONS = 100
 ROUND_SECONDS = 1e-3
@@ -62,13 +64,9 @@ def _repeat_cholesky(pristine: np.ndarray, work: np.ndarray, count: int, factor:
 @njit(cache=True)
 def _repeat_product(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
                     impulses: np.ndarray, product: np.ndarray, count: int) -> None:
-    """``count`` times ``product = Q l`` over Q's CSC arrays, column by column."""
+    """``count`` times ``product = Q l`` over Q's CSC arrays, by pi-robust's own product."""
     for _ in range(count):
-        product[:] = 0.0
-        for column in range(impulses.size):
-            value = impulses[column]
-            for k in range(indptr[column], indptr[column + 1]):
-                product[indices[k]] += data[k] * value
+        matvec_into((indptr, indices, data), impulses, product)
 
 
 def _repetitions(run: Callable[[int], object]) -> int:

@@ -264,7 +264,7 @@ def _natural_residual_into(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: flo
     """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten). The columns
     of zero entries of l are skipped: their terms are zeros, and adding a zero to a sum that
     starts at +0 never changes it, so the value is the same to the bit."""
-    _matvec_into(csc, impulses, product)
+    matvec_into(csc, impulses, product)
     worst = 0.0
     for i in range(impulses.size):
         value = abs(min(diag[i] * impulses[i], product[i] + b[i]))
@@ -312,12 +312,12 @@ def _original_residual(original: Posed, scale: float, impulses: np.ndarray,
 def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
     """Q x over Q's CSC arrays."""
     product = np.empty(x.size)
-    _matvec_into(csc, x, product)
+    matvec_into(csc, x, product)
     return product
 
 
 @njit(cache=True)
-def _matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
+def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
     """``product = Q x`` over Q's CSC arrays (the columns of zero entries of x skipped)."""
     indptr, indices, data = csc
     product[:] = 0.0
@@ -565,7 +565,7 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     while solves < budget:
         _policy_solve(lcp, policy, rho, q, work)
         solves += 1
-        _matvec_into(A, x, y)
+        matvec_into(A, x, y)
         count = 0
         for i in range(n):  # y = Q x + rho D x + q, compared in place
             if policy[i]:
@@ -600,7 +600,7 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
 def _objective(A: Csc, rho: float, safe_diag: np.ndarray, q: np.ndarray, x: np.ndarray,
                product: np.ndarray) -> float:
     """``x^T (Q + rho D) x / 2 + q^T x``, with Q x formed in ``product``."""
-    _matvec_into(A, x, product)
+    matvec_into(A, x, product)
     total = 0.0
     for i in range(x.size):
         total += x[i] * (0.5 * (product[i] + rho * safe_diag[i] * x[i]) + q[i])
