@@ -67,6 +67,8 @@ def test_generate_box_scene_writes_a_scene_that_simulates(tmp_path: Path) -> Non
         (("generate", "k4", "--seed", "-1", "-o", "x"), "--seed must be at least 0, got -1"),
         (("run", "missing.npz", "--workers", "0", "-o", "x.parquet"),
          "--workers must be at least 1, got 0"),
+        (("speed", "--seed", "-1", "-o", "x.json"), "--seed must be at least 0, got -1"),
+        (("scaling", "--seed", "-1", "-o", "x.json"), "--seed must be at least 0, got -1"),
     ],
 )
 def test_bad_input_is_one_line_and_nonzero(args: tuple[str, ...], message: str) -> None:

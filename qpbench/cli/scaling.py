@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 
+from qpbench.bench.settings import check_at_least
 from qpbench.cli.output import write_json
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
@@ -54,10 +55,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.steps < 1:
-        raise QpbenchError("--steps must be at least 1")
-    if args.pile_steps < 1:
-        raise QpbenchError("--pile-steps must be at least 1")
+    check_at_least(args.steps, 1, "--steps")
+    check_at_least(args.pile_steps, 1, "--pile-steps")
+    check_at_least(args.seed, 0, "--seed")
     if not args.pile_solve_budget > 0:
         raise QpbenchError("--pile-solve-budget must be a positive number of seconds")
     circles = args.pile_sizes or args.sizes

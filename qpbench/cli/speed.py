@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 
 from qpbench.bench.defaults import REPEATS, SPEED_SIZES
+from qpbench.bench.settings import check_at_least
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
-from qpbench.errors import QpbenchError
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -36,8 +36,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.repeats < 1:
-        raise QpbenchError("--repeats must be at least 1")
+    check_at_least(args.repeats, 1, "--repeats")
+    check_at_least(args.seed, 0, "--seed")
     output = writable_output(args.output)
     child = single_threaded_rerun(["speed", "--sizes", ",".join(str(size) for size in args.sizes),
                                    "--seed", str(args.seed), "--repeats", str(args.repeats),
