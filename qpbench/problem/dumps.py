@@ -173,6 +173,19 @@ def _scalar(value: Any) -> Any:
     return value
 
 
+def _dense(file: str, matrices: dict[str, sp.coo_matrix], name: str,
+           expected: tuple[int, int]) -> np.ndarray:
+    """Entry ``name`` as a dense array, once its shape is ``expected`` and it has at most
+    LARGEST_DENSE entries; InputError naming the entry otherwise."""
+    shape = matrices[name].shape
+    if shape != expected:
+        raise InputError(file, f"is {shape}, expected {expected}", name, "shape")
+    if shape[0] * shape[1] > LARGEST_DENSE:
+        raise InputError(file, f"too large to keep ({shape[0]} x {shape[1]} entries); leave "
+                         "it out of the dump", name, "shape")
+    return matrices[name].toarray()
+
+
 def import_dump(path: str | Path, restitution: float | None = None) -> ImpactProblem:
     """The ImpactProblem of one dump file; InputError names the file, entry and field at fault."""
     file = str(path)
@@ -192,17 +205,11 @@ def import_dump(path: str | Path, restitution: float | None = None) -> ImpactPro
         raise InputError(file, f"is {m_inv_matrix.shape}, N has {dofs} rows", "Minv", "shape")
     if sp.triu(m_inv_matrix, 1).nnz or sp.tril(m_inv_matrix, -1).nnz:
         raise InputError(file, "must be diagonal", "Minv", "data")
-    if matrices["v0"].shape != (dofs, 1):
-        raise InputError(file, f"is {matrices['v0'].shape}, expected ({dofs}, 1)", "v0",
-                         "shape")
-    v_minus = matrices["v0"].toarray().ravel()
+    v_minus = _dense(file, matrices, "v0", (dofs, 1)).ravel()
     u_minus = G.T @ v_minus
     kept: dict[str, np.ndarray] = {}
     if "b" in matrices:
-        if matrices["b"].shape != (contacts, 1):
-            raise InputError(file, f"is {matrices['b'].shape}, expected ({contacts}, 1)", "b",
-                             "shape")
-        kept["b"] = matrices["b"].toarray().ravel()
+        kept["b"] = _dense(file, matrices, "b", (contacts, 1)).ravel()
     if restitution is None:
         restitution = 1.0
         if "b" in kept:
@@ -217,19 +224,10 @@ def import_dump(path: str | Path, restitution: float | None = None) -> ImpactPro
             ):
                 raise InputError(file, "is not (1 + CoR) N^T v0 for one CoR in [0, 1]", "b")
     if "Q" in matrices:
-        if matrices["Q"].shape != (contacts, contacts):
-            raise InputError(file, f"is {matrices['Q'].shape}, expected ({contacts}, "
-                             f"{contacts})", "Q", "shape")
-        if contacts * contacts > LARGEST_DENSE:
-            raise InputError(file, f"too large to keep ({contacts} x {contacts} entries); "
-                             "leave Q out of the dump", "Q", "shape")
-        kept["Q"] = matrices["Q"].toarray()
+        kept["Q"] = _dense(file, matrices, "Q", (contacts, contacts))
     for name in ("ipopt_sol", "policy_sol"):
         if name in matrices:
-            if matrices[name].shape != (contacts, 1):  # a column of n entries
-                raise InputError(file, f"is {matrices[name].shape}, expected ({contacts}, 1)",
-                                 name, "shape")
-            kept[name] = matrices[name].toarray().ravel()
+            kept[name] = _dense(file, matrices, name, (contacts, 1)).ravel()
     m_inv = m_inv_matrix.diagonal()
     rotation_rows = np.arange(2, dofs, 3)
     dofs_per_body = 3 if dofs % 3 == 0 and G[rotation_rows].nnz == 0 else 2
