@@ -45,9 +45,9 @@ MAX_SCENE_BYTES = 256 * 1024 * 1024
 # and squared distances are products of up to seven of them (rho r^4 omega^2 for a circle), so
 # they stay inside floating-point range (about 1e308) instead of overflowing to inf.
 LARGEST = 1e40
-# a decimal as Fraction reads it, with an exponent of at most four digits
-_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d{1,4})?")
-_LONG_EXPONENT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)[eE][+-]?\d{5,}")
+# a decimal as Fraction reads it; qpbench reads exponents of at most MAX_EXPONENT_DIGITS digits
+_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?(?P<exponent>\d+))?")
+MAX_EXPONENT_DIGITS = 4
 
 # Known attributes of every element qpbench reads (``None``: any attribute is fine).
 _COMMON: dict[str, frozenset[str] | None] = {
@@ -213,11 +213,11 @@ class _Reader:
             if "/" in text:
                 numerator, denominator = text.split("/", 1)
                 value = Fraction(int(numerator), int(denominator))
-            elif _DECIMAL.fullmatch(text):
+            elif decimal := _DECIMAL.fullmatch(text):
+                if len(decimal["exponent"] or "") > MAX_EXPONENT_DIGITS:
+                    raise self.error(element, name, "out of range: an exponent of more than "
+                                     f"four digits, {raw[:40]!r}", index)
                 value = Fraction(text)
-            elif _LONG_EXPONENT.fullmatch(text):
-                raise self.error(element, name, "out of range: an exponent of more than four "
-                                 f"digits, {raw[:40]!r}", index)
             else:
                 raise ValueError(text)
         except (ValueError, ZeroDivisionError):
