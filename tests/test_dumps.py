@@ -124,6 +124,30 @@ def test_an_entry_given_twice_is_refused(tmp_path: Path) -> None:
         import_dump(path)
 
 
+def test_a_key_given_twice_inside_an_entry_names_the_entry(tmp_path: Path) -> None:
+    text = json.dumps(_pair()).replace('"shape":', '"shape": [9, 9], "shape":', 1)
+    path = tmp_path / "inner.out"
+    path.write_text(text)
+    with pytest.raises(InputError, match=r"inner.out: <N> attribute 'shape': appears more "):
+        import_dump(path)
+
+
+def test_a_key_given_twice_deeper_down_is_refused_too(tmp_path: Path) -> None:
+    entries = {**_pair(), "notes": [{"solver": "ipopt"}]}
+    path = tmp_path / "deep.out"
+    path.write_text(json.dumps(entries).replace('"solver": "ipopt"', '"solver": "ipopt", '
+                                                '"solver": "pi"', 1))
+    with pytest.raises(InputError, match=r"deep.out: <notes> attribute 'solver': appears "):
+        import_dump(path)
+
+
+def test_arrays_nested_beyond_reason_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "deep.out"
+    path.write_text('{"N": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(InputError, match=r"deep.out: malformed dump: .* nested too deeply"):
+        import_dump(path)
+
+
 def test_a_text_entry_given_twice_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "twice.txt"
     path.write_text(_TEXT_DUMP + "N:\nsize: 4 1\n(0,0,-1) (2,0,1)\n")

@@ -139,6 +139,8 @@ def set_entry(key: str, index: int, value: float) -> Callable[[dict[str, np.ndar
         (lambda arrays: arrays.pop("header_json"), "header_json", "missing array"),
         (set_array("header_json", np.frombuffer(b"{nope", dtype=np.uint8)), "header_json",
          "corrupt problem file header"),
+        (set_array("header_json", np.frombuffer(b"[" * 100_000, dtype=np.uint8)),
+         "header_json", "corrupt problem file header"),
         (set_entry("G_indices", 1, 10**6), "G", "not a valid sparse matrix"),
         (set_entry("G_indices", 0, -3), "G", "not a valid sparse matrix"),
         (set_array("G_indices", [2, 2]), "G_indices", "unsorted or repeated"),

@@ -65,6 +65,7 @@ def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFi
     ("[families]\nnope = {}\n", r"<families> attribute 'nope': unknown family"),
     ('[[scenes]]\nsteps = 3\n', r"<scenes\[0\]> attribute 'path': missing"),
     ("[families\n", "malformed TOML"),
+    ("scenes = " + "[" * 100_000 + "]" * 100_000 + "\n", "nested too deeply"),
     ("[families]\nk4 = 3\n", r"<families> attribute 'k4': must be a table"),
     ("[families]\nk4 = { count = 1.5 }\n",
      r"<families.k4> attribute 'count': must be an integer >= 1, got 1.5"),
@@ -85,6 +86,15 @@ def test_a_bad_set_file_is_one_line_naming_the_entry(tmp_path: Path, text: str,
     set_file.write_text(text)
     with pytest.raises(InputError, match=message):
         problem_sets.read_set(set_file)
+
+
+def test_a_folder_or_a_binary_file_is_no_set_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="cannot read set file"):
+        problem_sets.read_set(tmp_path)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(bytes([0xFF, 0xFE, 0xAD]) * 100)
+    with pytest.raises(InputError, match=r"binary.toml: cannot read set file"):
+        problem_sets.read_set(binary)
 
 
 def test_a_bad_scene_or_solver_stops_the_build_before_any_output(tmp_path: Path) -> None:

@@ -59,8 +59,13 @@ def read_set(path: str | Path) -> dict[str, Any]:
         definition = tomllib.loads(path.read_text())
     except FileNotFoundError as error:
         raise InputError(str(path), "no such set file") from error
+    except (OSError, UnicodeDecodeError) as error:  # a folder, a binary file
+        raise InputError(str(path), f"cannot read set file ({error})") from error
     except tomllib.TOMLDecodeError as error:
         raise InputError(str(path), f"malformed TOML: {error}") from error
+    except RecursionError as error:  # tomllib's own limit on nested arrays and tables
+        raise InputError(str(path), "malformed TOML: arrays or tables nested too deeply") \
+            from error
     _check_entries(path, definition, "set", _SECTIONS)
     for family, options in definition.get("families", {}).items():
         if family not in ALL_FAMILIES:

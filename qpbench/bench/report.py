@@ -448,7 +448,7 @@ def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
             seen.add(path.resolve())
             try:
                 content = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
+            except (OSError, ValueError, RecursionError):
                 continue
             if isinstance(content, dict) and isinstance(content.get("markdown"), str):
                 title = str(content.get("title") or path.stem.replace("_", " ").capitalize())

@@ -76,36 +76,55 @@ def _matrix(file: str, name: str, shape: Any, triplets: list) -> sp.coo_matrix:
     return sp.coo_matrix((data[:, 2], (row, col)), shape=(rows, cols))
 
 
-class _RepeatedKey(ValueError):
-    """A JSON object that names one key twice (json keeps the last silently)."""
+class _JsonObject(dict):
+    """A JSON object, with the first key it names twice (json keeps the last one silently)."""
 
-    def __init__(self, key: str) -> None:
-        super().__init__(key)
-        self.key = key
+    repeated: str | None = None
 
 
-def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    """The object of ``pairs``; _RepeatedKey if a key appears twice."""
-    unique: dict[str, Any] = {}
+def _unique_keys(pairs: list[tuple[str, Any]]) -> _JsonObject:
+    """The object of ``pairs``, its first repeated key noted."""
+    unique = _JsonObject()
     for key, value in pairs:
-        if key in unique:
-            raise _RepeatedKey(key)
+        if key in unique and unique.repeated is None:
+            unique.repeated = key
         unique[key] = value
     return unique
+
+
+def _repeated_within(value: Any) -> str | None:
+    """The first key that an object in ``value`` (itself, or within its values or items)
+    names twice; None when there is none."""
+    if isinstance(value, _JsonObject):
+        if value.repeated is not None:
+            return value.repeated
+        value = list(value.values())
+    if isinstance(value, list):
+        for item in value:
+            if isinstance(item, (list, dict)):
+                repeated = _repeated_within(item)
+                if repeated is not None:
+                    return repeated
+    return None
 
 
 def _parse_json(file: str, text: str) -> tuple[dict[str, sp.coo_matrix], dict[str, Any]]:
     try:
         raw = json.loads(_TRAILING_COMMA.sub(r"\1", text), object_pairs_hook=_unique_keys)
-    except _RepeatedKey as error:
-        raise InputError(file, "appears more than once", error.key) from error
     except json.JSONDecodeError as error:
         raise InputError(file, f"malformed dump: {error.msg} at line {error.lineno}") from error
+    except RecursionError as error:  # json's own limit on nested arrays and objects
+        raise InputError(file, "malformed dump: arrays or objects nested too deeply") from error
     if not isinstance(raw, dict):
         raise InputError(file, "malformed dump: expected an object")
+    if raw.repeated is not None:
+        raise InputError(file, "appears more than once", raw.repeated)
     matrices: dict[str, sp.coo_matrix] = {}
     scalars: dict[str, Any] = {}
     for name, value in raw.items():
+        repeated = _repeated_within(value)
+        if repeated is not None:
+            raise InputError(file, "appears more than once", name, repeated)
         if isinstance(value, dict):
             if "shape" not in value or "data" not in value:
                 missing = "shape" if "shape" not in value else "data"

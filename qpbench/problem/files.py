@@ -172,7 +172,7 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
         raise InputError(str(path), f"not a qpbench problem file ({error})") from error
     try:
         header = json.loads(_array(arrays, "header_json", path).tobytes().decode())
-    except ValueError as error:  # also JSON and UTF-8 decoding errors
+    except (ValueError, RecursionError) as error:  # JSON, UTF-8, nesting beyond json's limit
         raise InputError(str(path), f"corrupt problem file header ({error})",
                          attribute="header_json") from error
     _check_header(header, path)
