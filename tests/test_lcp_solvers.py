@@ -487,3 +487,83 @@ def test_primal_active_set_solves_the_prox_lcp_from_zero(family: str, size: int,
     assert np.all(w[~free] >= -tol_w)
     assert np.all(np.abs(w[free]) <= 1e-6 * lcp.scale)
     assert 0.5 * x @ (w + lcp.b) <= 0.0
+
+
+def box_pile_impact(bodies: int) -> ImpactProblem:
+    """The first impact of ``qpbench scaling``'s dense pile of ``bodies`` unit boxes: about
+    7.6 contacts per box against 3 degrees of freedom, Q singular."""
+    from qpbench.inner_solvers import choose_by_name
+    from qpbench.simulation.scaling import box_pile
+    from qpbench.simulation.stepper import Simulator
+
+    simulator = Simulator(box_pile(bodies), choose_by_name("pi-robust"))
+    found = simulator.find_contacts(simulator.positions, simulator.positions)
+    return simulator.impact_problem(found, simulator.dof_velocity())
+
+
+def test_the_newton_matrix_over_the_degrees_of_freedom_solves_the_same_system() -> None:
+    """(Q~ + diag(d)) x = r solved through L = M^-1/2 G (Woodbury): backward stable (the
+    residual is rounding's, relative to |Q~ + diag(d)| |x|) for d from 1e-2..1e2 to
+    1e-12..1e4 (the range an interior point's w / l sweeps), and on moderate d the same x as
+    the solve over the contacts."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.lcp_interior import FactoredNormalMatrix, NormalMatrix, jacobi_scaled
+
+    problem = box_pile_impact(50)
+    lcp = Lcp.of(problem)
+    assert FactoredNormalMatrix.moving_rows(problem.L) == 150 < problem.n_contacts
+    scaled, root = jacobi_scaled(lcp)
+    factored, over_contacts = FactoredNormalMatrix(scaled, root, problem.L), NormalMatrix(
+        scaled, root)
+    rng = np.random.default_rng(0)
+    q_norm = float(np.max(np.abs(scaled.op).sum(axis=1)))
+    for smallest, largest in [(-2, 2), (-8, 4), (-12, 4)]:
+        diagonal = 10.0 ** rng.uniform(smallest, largest, problem.n_contacts)
+        rhs = rng.normal(size=problem.n_contacts)
+        factored.factorize(diagonal)
+        over_contacts.factorize(diagonal)
+        x = factored.solve(rhs)
+        residual = scaled.op @ x + diagonal * x - rhs
+        size = (q_norm + 10.0 ** largest) * np.max(np.abs(x)) + np.max(np.abs(rhs))
+        assert np.max(np.abs(residual)) <= 1e-14 * size
+        if smallest == -2:
+            assert np.max(np.abs(x - over_contacts.solve(rhs))) <= 1e-10 * np.max(np.abs(x))
+
+
+def test_pi_robust_puts_the_interior_point_first_on_sparse_problems(
+        pi_robust_row: Callable[[str, object], None]) -> None:
+    """Above ``dense_limit`` contacts the Python path runs the interior point first, its
+    Newton matrix over the 600 degrees of freedom of 200 boxes instead of the 1,504 contacts,
+    and ends on qpbench's verdict. From a warm start, policy iteration goes first."""
+    problem = box_pile_impact(200)
+    pi_robust_row("compiled_limit", 0)
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert row["success"] and output.claimed_success and row["residual"] <= 1e-8
+    assert output.info["path"].startswith("interior point"), output.info
+    assert output.info["interior_newton_matrix"] == "degrees of freedom"
+    warm = 1.01 * output.impulses
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8, warm_start=warm)
+    assert row["success"] and output.info["path"] == "policy iteration", output.info
+
+
+def test_a_stalled_interior_point_hands_on_its_best_iterate_and_ends() -> None:
+    """On a pile of 400 boxes complementarity outruns feasibility and the steps shrink to
+    nothing near a residual of 1e-4; with ``end_on_stall`` the interior point hands its best
+    iterate to the finish once five iterations have not cut the residual by 10%, and ends."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.lcp_interior import interior_point
+    from qpbench.solvers.pi_robust import _normal_matrix
+
+    problem = box_pile_impact(400)
+    lcp = Lcp.of(problem)
+    normal = _normal_matrix(lcp)
+    handed: list[float] = []
+
+    def no_finish(impulses: np.ndarray, w: np.ndarray) -> None:
+        handed.append(lcp.residual(impulses))
+
+    impulses, converged, iterations, _ = interior_point(
+        lcp, normal.lcp, normal.root, normal, 1e-8, 80, no_finish, 1e-3, end_on_stall=True)
+    assert not converged and iterations < 80
+    assert len(handed) == 2  # below finish_below, then the best iterate on the stall
+    assert handed[-1] == lcp.residual(impulses) > 1e-8

@@ -8,6 +8,12 @@ Interior-Point Methods", SIAM 1997, chapter 8. Iterates keep ``l, w > 0`` and dr
 l, w > 0 even when Q is singular), then ``dw = Q dl + r``; one common step length
 (0.99 of the way to the boundary) keeps ``r`` shrinking by ``1 - alpha``.
 
+Those systems are solved over the contacts (:class:`NormalMatrix`), or, when the problem has
+fewer moving degrees of freedom than contacts, over the degrees of freedom through Q's factor
+``L = M^-1/2 G`` (:class:`FactoredNormalMatrix`): the same directions, from a smaller matrix
+(a dense pile of 1,000 boxes: 3,000 degrees of freedom against 7,778 contacts, a
+factorization about 5x cheaper).
+
 It does not polish: the caller (pi-robust) hands each iterate, once close, to its
 policy iteration, which ends on an exact active set.
 """
@@ -63,6 +69,46 @@ class NormalMatrix:
         return self.factor.solve(rhs)
 
 
+class FactoredNormalMatrix:
+    """Solves ``(Q~ + diag(d)) x = rhs`` for the scaled LCP, ``Q~ = S Q S = A^T A`` with
+    ``A = L S`` (``L = M^-1/2 G``: its rows of the degrees of freedom that move, S = ``root``),
+    by the Sherman-Morrison-Woodbury identity
+
+        (A^T A + D)^-1 = D^-1 - D^-1 A^T (I + A D^-1 A^T)^-1 A D^-1,
+
+    factoring ``K = I + A D^-1 A^T`` (sparse SuperLU, one row per degree of freedom; K >= I
+    is positive definite whatever d > 0 is)."""
+
+    def __init__(self, lcp: Lcp, root: np.ndarray, factor: sp.spmatrix) -> None:
+        self.lcp, self.root = lcp, root
+        factor = sp.csr_matrix(factor)
+        moving = np.flatnonzero(np.diff(factor.indptr))
+        self.A = sp.csr_matrix(factor[moving] @ sp.diags(root))
+        self.A_T = sp.csr_matrix(self.A.T)
+        self.identity = sp.identity(moving.size, format="csc")
+        self.inverse = np.ones(lcp.n)
+        self.factor: object = None
+
+    @staticmethod
+    def moving_rows(factor: sp.spmatrix) -> int:
+        """The degrees of freedom that move: rows of L with an entry."""
+        return int(np.count_nonzero(np.diff(sp.csr_matrix(factor).indptr)))
+
+    def factorize(self, diagonal: np.ndarray) -> None:
+        self.inverse = 1.0 / diagonal
+        matrix = sp.csc_matrix(self.identity + self.A @ sp.diags(self.inverse) @ self.A_T)
+        try:
+            self.factor = spla.splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                    options={"SymmetricMode": True})
+        except RuntimeError as error:
+            raise np.linalg.LinAlgError(str(error)) from error
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``x = D^-1 rhs - D^-1 A^T K^-1 A D^-1 rhs``."""
+        spread = self.inverse * rhs
+        return spread - self.inverse * (self.A_T @ self.factor.solve(self.A @ spread))
+
+
 def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
     """(the LCP in l~ = D^1/2 l, i.e. (S Q S, S b) with S = D^-1/2, unit diagonal; and S)."""
     root = 1.0 / np.sqrt(lcp.safe_diag)
@@ -73,27 +119,32 @@ def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
     return Lcp(Q=Q, b=b, diag=np.ones(lcp.n), scale=scale, op=op), root
 
 
-def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix, tol: float,
-                   max_iters: int,
+def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
+                   normal: NormalMatrix | FactoredNormalMatrix, tol: float, max_iters: int,
                    try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
-                   finish_below: float) -> tuple[np.ndarray, bool, int, int]:
+                   finish_below: float, end_on_stall: bool = False
+                   ) -> tuple[np.ndarray, bool, int, int]:
     """(l, converged, interior iterations, finishing solves), iterating on the Jacobi-scaled
     LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``; ``normal`` factors its matrices) and
     judging by the original ``lcp``. ``try_finish(l, w)`` is called on an iterate whose
     residual is below ``finish_below`` (then below a tenth of the last failed try's) and
-    returns a converged l or None."""
+    returns a converged l or None. ``end_on_stall``: once five iterations in a row have not
+    cut the best residual by 10% (complementarity can outrun feasibility on degenerate
+    piles, after which the steps shrink to nothing), the best iterate is handed to
+    ``try_finish`` and the interior point ends there."""
     n = scaled.n
     impulses = np.full(n, scaled.scale)
     slack = np.maximum(scaled.w(impulses), scaled.scale)
     floor = 1e-14
-    best, best_res = impulses * root, np.inf
+    best, best_w, best_res = impulses * root, slack / root, np.inf
+    progress, stalled = np.inf, 0
     for iteration in range(1, max_iters + 1):
         infeasibility = scaled.op @ impulses + scaled.b - slack
         mu = float(impulses @ slack) / n
         original_l, original_w = impulses * root, (infeasibility + slack) / root
         res = lcp.residual_of(original_l, original_w)
         if res < best_res:
-            best, best_res = original_l, res
+            best, best_w, best_res = original_l, original_w, res
         if res <= 10.0 * tol and lcp.converged(original_l, tol):
             return original_l, True, iteration - 1, 0
         if res <= finish_below:
@@ -101,6 +152,12 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray, normal: NormalMatrix
             if finished is not None:
                 return finished, True, iteration - 1, 1
             finish_below = 0.1 * res  # try again once the residual is ten times smaller
+        progress, stalled = (res, 0) if res < 0.9 * progress else (progress, stalled + 1)
+        if end_on_stall and stalled >= 5:
+            finished = try_finish(best, best_w)
+            if finished is not None:
+                return finished, True, iteration - 1, 1
+            return best, False, iteration - 1, 1
         normal.factorize(np.maximum(slack / impulses, floor))
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)

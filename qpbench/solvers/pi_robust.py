@@ -34,7 +34,12 @@ and adds published safeguards:
    the prox policy iteration for ``finish_budget`` solves from its policy
    ``{w < D l}``: near the solution that finds the exact active set in one or
    two solves (an active-set polish), so the answer is not an interior point's
-   approximation.
+   approximation. On sparse problems (more than ``dense_limit`` contacts, each policy
+   solve a sparse factorization) without a warm start the order is reversed: the
+   interior point first, its Newton systems solved over the degrees of freedom through
+   ``L = M^-1/2 G`` when fewer of them move than there are contacts
+   (``lcp_interior.FactoredNormalMatrix``), ended once it stalls, then policy iteration
+   from its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
@@ -75,7 +80,12 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
-from qpbench.solvers.lcp_interior import NormalMatrix, interior_point, jacobi_scaled
+from qpbench.solvers.lcp_interior import (
+    FactoredNormalMatrix,
+    NormalMatrix,
+    interior_point,
+    jacobi_scaled,
+)
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
@@ -276,19 +286,23 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               lemke_answer: LemkeAnswer | None = None
               ) -> tuple[np.ndarray, bool, str, int, dict]:
     """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0);
-    ``lemke_answer``: Lemke's method's answer when it has run on this LCP already."""
+    ``lemke_answer``: Lemke's method's answer when it has run on this LCP already.
+
+    Dense LCPs, and any from a warm start (``start`` not 0): policy iteration from ``start``,
+    then the interior point. Sparse ones (above ``dense_limit`` contacts, where each policy
+    solve is a sparse factorization of a block of contacts) from a cold start: the interior
+    point first (its Newton matrix over the degrees of freedom when fewer of them move than
+    there are contacts, :func:`_normal_matrix`), ended once it stalls, then policy iteration
+    from its best iterate. Measured against policy iteration first on problems the compiled
+    path declines (best of two solves at 1e-8, all converged either way): dense piles of
+    1,000 and 10,000 boxes 1.94 s -> 0.31 s and 177 s -> 11.5 s, a pile of 10,000 circles
+    1.88 s -> 0.88 s, the five 40 x 40 grids of the large set 0.26-0.51 s -> 0.14-0.20 s."""
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
     settings = {"tol": tol, "rho": rho, "rho_min": rho_min, "rho_decrease": rho_decrease,
                 "stall_ratio": stall_ratio, "stall_steps": stall_steps,
                 "backup_steps": backup_steps, "active_set": active_set}
-    first, converged, status, solves, best_res = _prox_policy_iteration(
-        lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
-    impulses = first
-    if converged:
-        return impulses, True, "converged", solves, {
-            "path": "policy iteration", "factorizations": blocks.factorizations}
     finishing_solves = [0]
 
     def finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
@@ -298,20 +312,63 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         finishing_solves[0] += used
         return result if done else None
 
-    try:
-        normal = NormalMatrix(*jacobi_scaled(lcp))
-        impulses, converged, iterations, _ = interior_point(
-            lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below)
-    except np.linalg.LinAlgError as error:
-        converged, iterations, status = False, 0, f"interior point failed: {error}"
+    newton_matrix = [""]  # what the interior point's Newton matrix runs over
+
+    def interior(end_on_stall: bool) -> tuple[np.ndarray | None, bool, int, str]:
+        """(the interior point's l, None when a factorization failed; converged; its
+        iterations; the failure)."""
+        try:
+            normal = _normal_matrix(lcp)
+            newton_matrix[0] = ("degrees of freedom" if isinstance(normal, FactoredNormalMatrix)
+                                else "contacts")
+            impulses, converged, iterations, _ = interior_point(
+                lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below,
+                end_on_stall)
+        except np.linalg.LinAlgError as error:
+            return None, False, 0, f"interior point failed: {error}"
+        return impulses, converged, iterations, ""
+
+    if lcp.dense or np.any(start):
+        first, converged, status, solves, _ = _prox_policy_iteration(
+            lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
+        if converged:
+            return first, True, "converged", solves, {
+                "path": "policy iteration", "factorizations": blocks.factorizations}
+        impulses, converged, iterations, failure = interior(end_on_stall=False)
+        path = "interior point + policy iteration"
+    else:
+        impulses, converged, iterations, failure = interior(end_on_stall=True)
+        first = start if impulses is None else impulses
+        status = "converged" if converged else "interior point stalled or out of iterations"
+        path, solves = "interior point + policy iteration", 0
+        if not converged:  # policy iteration from the interior point's best
+            first, converged, _, solves, _ = _prox_policy_iteration(
+                lcp, blocks, first, lcp.w(first) <= lcp.diag * first, budget=pi_budget,
+                **settings)
+            impulses, path = first, "interior point, then policy iteration"
+    status = failure or status
     solves += iterations + finishing_solves[0]
-    info = {"path": "interior point + policy iteration", "first_status": status,
-            "interior_iterations": iterations, "factorizations": blocks.factorizations}
+    info = {"path": path, "first_status": status, "interior_iterations": iterations,
+            "interior_newton_matrix": newton_matrix[0], "factorizations": blocks.factorizations}
     if converged:
         return impulses, True, "converged", solves, info
     if lemke_answer is None:
         lemke_answer = lemke_of(lcp, tol, lemke_limit)
-    return _lemke_fallback(lcp, tol, lemke_answer, [impulses, first], solves, info)
+    candidates = [first] if impulses is None else [impulses, first]
+    return _lemke_fallback(lcp, tol, lemke_answer, candidates, solves, info)
+
+
+def _normal_matrix(lcp: Lcp) -> NormalMatrix | FactoredNormalMatrix:
+    """The interior point's Newton matrix of the Jacobi-scaled ``lcp``: over the degrees of
+    freedom through Q's factor L = M^-1/2 G when fewer of them move than there are contacts
+    (and the LCP is sparse), else over the contacts."""
+    scaled, root = jacobi_scaled(lcp)
+    problem = lcp.problem
+    if not lcp.dense and isinstance(problem, ImpactProblem):
+        factor = problem.L
+        if FactoredNormalMatrix.moving_rows(factor) < lcp.n:
+            return FactoredNormalMatrix(scaled, root, factor)
+    return NormalMatrix(scaled, root)
 
 
 class LemkeAnswer(NamedTuple):

@@ -1,10 +1,10 @@
 """pi-robust compiled with numba, on envelope (skyline, profile) Cholesky factors.
 
-The same algorithm as ``qpbench.solvers.pi_robust`` (proximal policy iteration with block
-principal pivoting, then the Mehrotra interior point of ``qpbench.solvers.lcp_interior`` whose
-close iterates are finished by policy iteration), for problems with at most the accuracy
-table's ``compiled_limit`` contacts, without per-step Python overhead. Nothing here is dense:
-Q stays sparse throughout.
+The same algorithm as ``qpbench.solvers.pi_robust`` in its order for dense problems
+(proximal policy iteration with block principal pivoting, then the Mehrotra interior point of
+``qpbench.solvers.lcp_interior`` whose close iterates are finished by policy iteration), for
+problems with at most the accuracy table's ``compiled_limit`` contacts, without per-step
+Python overhead. Nothing here is dense: Q stays sparse throughout.
 
 What it computes: l >= 0 with ``min(D l, Q l + b) = 0`` (D = diag Q), to qpbench's residual
 ``||min(D l, Q l + b)||_inf / scale <= tol``. Each prox step around a centre z solves
