@@ -295,8 +295,9 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
     there are contacts, :func:`_normal_matrix`), ended once it stalls, then policy iteration
     from its best iterate. Measured against policy iteration first on problems the compiled
     path declines (best of two solves at 1e-8, all converged either way): dense piles of
-    1,000 and 10,000 boxes 1.94 s -> 0.31 s and 177 s -> 11.5 s, a pile of 10,000 circles
-    1.88 s -> 0.88 s, the five 40 x 40 grids of the large set 0.26-0.51 s -> 0.14-0.20 s."""
+    1,000 and 10,000 boxes 1.94 s -> 0.31 s and 177 s -> 11.5 s (the 1,000-box pile's next
+    two steps 1.07 and 1.61 s -> 0.64 and 0.79 s), a pile of 10,000 circles 1.88 s -> 0.88 s,
+    the five 40 x 40 grids of the large set 0.26-0.51 s -> 0.14-0.20 s."""
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
