@@ -43,6 +43,8 @@ class NormalMatrix:
     """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky or sparse SuperLU) and solves
     with it; keeps the scaled LCP and its scaling ``root``."""
 
+    over = "contacts"
+
     def __init__(self, lcp: Lcp, root: np.ndarray) -> None:
         self.lcp, self.root = lcp, root
         self.dense = lcp.dense
@@ -79,20 +81,25 @@ class FactoredNormalMatrix:
     factoring ``K = I + A D^-1 A^T`` (sparse SuperLU, one row per degree of freedom; K >= I
     is positive definite whatever d > 0 is)."""
 
-    def __init__(self, lcp: Lcp, root: np.ndarray, factor: sp.spmatrix) -> None:
+    over = "degrees of freedom"
+
+    def __init__(self, lcp: Lcp, root: np.ndarray, moving_rows: sp.csr_matrix) -> None:
+        """``moving_rows``: the rows of L with an entry (:meth:`when_smaller` selects them)."""
         self.lcp, self.root = lcp, root
-        factor = sp.csr_matrix(factor)
-        moving = np.flatnonzero(np.diff(factor.indptr))
-        self.A = sp.csr_matrix(factor[moving] @ sp.diags(root))
+        self.A = sp.csr_matrix(moving_rows @ sp.diags(root))
         self.A_T = sp.csr_matrix(self.A.T)
-        self.identity = sp.identity(moving.size, format="csc")
+        self.identity = sp.identity(moving_rows.shape[0], format="csc")
         self.inverse = np.ones(lcp.n)
         self.factor: object = None
 
-    @staticmethod
-    def moving_rows(factor: sp.spmatrix) -> int:
-        """The degrees of freedom that move: rows of L with an entry."""
-        return int(np.count_nonzero(np.diff(sp.csr_matrix(factor).indptr)))
+    @classmethod
+    def when_smaller(cls, lcp: Lcp, root: np.ndarray, factor: sp.spmatrix
+                     ) -> FactoredNormalMatrix | None:
+        """The matrix over the degrees of freedom that move (the rows of ``factor`` = L with
+        an entry) when there are fewer of them than contacts; else None."""
+        factor = sp.csr_matrix(factor)
+        moving = np.flatnonzero(np.diff(factor.indptr))
+        return cls(lcp, root, factor[moving]) if moving.size < lcp.n else None
 
     def factorize(self, diagonal: np.ndarray) -> None:
         self.inverse = 1.0 / diagonal

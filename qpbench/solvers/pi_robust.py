@@ -313,21 +313,17 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         finishing_solves[0] += used
         return result if done else None
 
-    newton_matrix = [""]  # what the interior point's Newton matrix runs over
-
-    def interior(end_on_stall: bool) -> tuple[np.ndarray | None, bool, int, str]:
+    def interior(end_on_stall: bool) -> tuple[np.ndarray | None, bool, int, str, str]:
         """(the interior point's l, None when a factorization failed; converged; its
-        iterations; the failure)."""
+        iterations; the failure; what its Newton matrix runs over)."""
+        normal = _normal_matrix(lcp)
         try:
-            normal = _normal_matrix(lcp)
-            newton_matrix[0] = ("degrees of freedom" if isinstance(normal, FactoredNormalMatrix)
-                                else "contacts")
             impulses, converged, iterations, _ = interior_point(
                 lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below,
                 end_on_stall)
         except np.linalg.LinAlgError as error:
-            return None, False, 0, f"interior point failed: {error}"
-        return impulses, converged, iterations, ""
+            return None, False, 0, f"interior point failed: {error}", normal.over
+        return impulses, converged, iterations, "", normal.over
 
     if lcp.dense or np.any(start):
         first, converged, status, solves, _ = _prox_policy_iteration(
@@ -335,10 +331,10 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         if converged:
             return first, True, "converged", solves, {
                 "path": "policy iteration", "factorizations": blocks.factorizations}
-        impulses, converged, iterations, failure = interior(end_on_stall=False)
+        impulses, converged, iterations, failure, over = interior(end_on_stall=False)
         path = "interior point + policy iteration"
     else:
-        impulses, converged, iterations, failure = interior(end_on_stall=True)
+        impulses, converged, iterations, failure, over = interior(end_on_stall=True)
         first = start if impulses is None else impulses
         status = "converged" if converged else "interior point stalled or out of iterations"
         path, solves = "interior point + policy iteration", 0
@@ -350,7 +346,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
     status = failure or status
     solves += iterations + finishing_solves[0]
     info = {"path": path, "first_status": status, "interior_iterations": iterations,
-            "interior_newton_matrix": newton_matrix[0], "factorizations": blocks.factorizations}
+            "interior_newton_matrix": over, "factorizations": blocks.factorizations}
     if converged:
         return impulses, True, "converged", solves, info
     if lemke_answer is None:
@@ -364,12 +360,10 @@ def _normal_matrix(lcp: Lcp) -> NormalMatrix | FactoredNormalMatrix:
     freedom through Q's factor L = M^-1/2 G when fewer of them move than there are contacts
     (and the LCP is sparse), else over the contacts."""
     scaled, root = jacobi_scaled(lcp)
-    problem = lcp.problem
-    if not lcp.dense and isinstance(problem, ImpactProblem):
-        factor = problem.L
-        if FactoredNormalMatrix.moving_rows(factor) < lcp.n:
-            return FactoredNormalMatrix(scaled, root, factor)
-    return NormalMatrix(scaled, root)
+    factored = None
+    if not lcp.dense and isinstance(lcp.problem, ImpactProblem):
+        factored = FactoredNormalMatrix.when_smaller(scaled, root, lcp.problem.L)
+    return factored or NormalMatrix(scaled, root)
 
 
 class LemkeAnswer(NamedTuple):
