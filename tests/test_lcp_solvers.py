@@ -530,6 +530,49 @@ def test_the_newton_matrix_over_the_degrees_of_freedom_solves_the_same_system() 
             assert np.max(np.abs(x - over_contacts.solve(rhs))) <= 1e-10 * np.max(np.abs(x))
 
 
+def test_a_policy_block_over_the_degrees_of_freedom_is_refined_to_rounding() -> None:
+    """A policy block ``Q_FF + rho D_F`` of a box pile solved through L's columns (Woodbury,
+    149 degrees of freedom against 197 contacts): the subtraction loses digits as rho falls,
+    and one step of iterative refinement wins them back (backward error, relative to
+    |H| |x|, at rounding's level)."""
+    from qpbench.solvers.lcp_interior import WoodburyFactor, moving_rows
+
+    problem = box_pile_impact(50)
+    Q = problem.Q.toarray()
+    rng = np.random.default_rng(0)
+    free = np.flatnonzero(rng.random(problem.n_contacts) < 0.6)
+    rows = moving_rows(problem.L[:, free])
+    assert rows.shape[0] == 149 < free.size == 197
+
+    def backward_error(rho: float, refinements: int) -> float:
+        shift = rho * np.diag(Q)[free]
+        block = Q[np.ix_(free, free)] + np.diag(shift)
+        rhs = np.random.default_rng(1).normal(size=free.size)
+        x = WoodburyFactor(rows, shift, refinements).solve(rhs)
+        size = np.max(np.abs(block).sum(axis=1)) * np.max(np.abs(x)) + np.max(np.abs(rhs))
+        return float(np.max(np.abs(block @ x - rhs)) / size)
+
+    for rho in (1e-5, 1e-8, 1e-11):
+        assert backward_error(rho, 1) <= 1e-15
+    assert backward_error(1e-11, 0) > 100.0 * backward_error(1e-11, 1)
+
+
+def test_pi_robust_factors_sparse_policy_blocks_over_the_degrees_of_freedom(
+        pi_robust_row: Callable[[str, object], None]) -> None:
+    """On a pile of 200 boxes (1,504 contacts, 600 degrees of freedom), from a warm start
+    (policy iteration first, on the Python path), the policy blocks are factored through L
+    when fewer degrees of freedom than contacts move, and the answer is judged solved."""
+    problem = box_pile_impact(200)
+    pi_robust_row("compiled_limit", 0)
+    cold, cold_output = solve_and_judge(get("pi-robust"), problem, 1e-8)
+    assert cold["success"]
+    warm = 1.05 * cold_output.impulses
+    row, output = solve_and_judge(get("pi-robust"), problem, 1e-8, warm_start=warm)
+    assert row["success"] and output.claimed_success and row["residual"] <= 1e-8
+    assert output.info["path"] == "policy iteration", output.info
+    assert 0 < output.info["factorizations_over_dofs"] <= output.info["factorizations"]
+
+
 def test_pi_robust_puts_the_interior_point_first_on_sparse_problems(
         pi_robust_row: Callable[[str, object], None]) -> None:
     """Above ``dense_limit`` contacts the Python path runs the interior point first, its

@@ -10,9 +10,10 @@ l, w > 0 even when Q is singular), then ``dw = Q dl + r``; one common step lengt
 
 Those systems are solved over the contacts (:class:`NormalMatrix`), or, when the problem has
 fewer moving degrees of freedom than contacts, over the degrees of freedom through Q's factor
-``L = M^-1/2 G`` (:class:`FactoredNormalMatrix`): the same directions, from a smaller matrix
-(a dense pile of 1,000 boxes: 3,000 degrees of freedom against 7,778 contacts, a
-factorization about 5x cheaper).
+``L = M^-1/2 G`` (:class:`FactoredNormalMatrix`, by :class:`WoodburyFactor`, which
+pi-robust's policy blocks use too): the same directions, from a smaller matrix (a dense pile
+of 1,000 boxes: 3,000 degrees of freedom against 7,778 contacts, a factorization about 5x
+cheaper).
 
 It does not polish: the caller (pi-robust) hands each iterate, once close, to its
 policy iteration, which ends on an exact active set.
@@ -58,12 +59,7 @@ class NormalMatrix:
             matrix[np.diag_indices_from(matrix)] += diagonal
             self.factor = la.cho_factor(matrix, lower=True, check_finite=False)
         else:
-            matrix = sp.csc_matrix(self.Q_csc + sp.diags(diagonal))
-            try:
-                self.factor = spla.splu(matrix, permc_spec="MMD_AT_PLUS_A",
-                                        diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            except RuntimeError as error:
-                raise np.linalg.LinAlgError(str(error)) from error
+            self.factor = symmetric_splu(self.Q_csc + sp.diags(diagonal))
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         if self.dense:
@@ -71,49 +67,80 @@ class NormalMatrix:
         return self.factor.solve(rhs)
 
 
-class FactoredNormalMatrix:
-    """Solves ``(Q~ + diag(d)) x = rhs`` for the scaled LCP, ``Q~ = S Q S = A^T A`` with
-    ``A = L S`` (``L = M^-1/2 G``: its rows of the degrees of freedom that move, S = ``root``),
-    by the Sherman-Morrison-Woodbury identity
+def symmetric_splu(matrix: sp.spmatrix) -> spla.SuperLU:
+    """SuperLU's factor of a symmetric positive definite sparse matrix (a symmetric ordering,
+    diagonal pivots); ``np.linalg.LinAlgError`` when it is exactly singular."""
+    try:
+        return spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                         options={"SymmetricMode": True})
+    except RuntimeError as error:
+        raise np.linalg.LinAlgError(str(error)) from error
+
+
+def moving_rows(factor: sp.spmatrix) -> sp.csr_matrix:
+    """The rows of ``factor`` (L = M^-1/2 G, or some of its columns) that have an entry: the
+    degrees of freedom that those contacts move."""
+    factor = sp.csr_matrix(factor)
+    return factor[np.flatnonzero(np.diff(factor.indptr))]
+
+
+class WoodburyFactor:
+    """Solves ``(A^T A + diag(d)) x = rhs`` (d > 0) by the Sherman-Morrison-Woodbury identity
 
         (A^T A + D)^-1 = D^-1 - D^-1 A^T (I + A D^-1 A^T)^-1 A D^-1,
 
-    factoring ``K = I + A D^-1 A^T`` (sparse SuperLU, one row per degree of freedom; K >= I
-    is positive definite whatever d > 0 is)."""
+    factoring ``K = I + A D^-1 A^T`` (sparse SuperLU, one row per row of A; K >= I is positive
+    definite whatever d > 0 is), then ``refinements`` steps of iterative refinement,
+    ``x += solve(rhs - (A^T A + D) x)``. Why refine: the subtraction loses about
+    ``log10(max(A^T A) / min(d))`` digits when d is small beside A^T A (policy blocks
+    ``Q_FF + rho D_F`` with rho = 1e-5), and each step wins them back."""
+
+    def __init__(self, A: sp.csr_matrix, diagonal: np.ndarray, refinements: int = 0) -> None:
+        self.A, self.A_T = A, sp.csr_matrix(A.T)
+        self.diagonal, self.inverse = diagonal, 1.0 / diagonal
+        self.refinements = refinements
+        self.factor = symmetric_splu(sp.identity(A.shape[0], format="csc")
+                                     + A @ sp.diags(self.inverse) @ self.A_T)
+
+    def _inverse_times(self, rhs: np.ndarray) -> np.ndarray:
+        """``D^-1 rhs - D^-1 A^T K^-1 A D^-1 rhs``."""
+        spread = self.inverse * rhs
+        return spread - self.inverse * (self.A_T @ self.factor.solve(self.A @ spread))
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        x = self._inverse_times(rhs)
+        for _ in range(self.refinements):
+            x = x + self._inverse_times(rhs - self.A_T @ (self.A @ x) - self.diagonal * x)
+        return x
+
+
+class FactoredNormalMatrix:
+    """Solves ``(Q~ + diag(d)) x = rhs`` for the scaled LCP, ``Q~ = S Q S = A^T A`` with
+    ``A = L S`` (``L = M^-1/2 G``: its rows of the degrees of freedom that move, S = ``root``),
+    over the degrees of freedom (:class:`WoodburyFactor`, without refinement: the interior
+    point's steps need no more)."""
 
     over = "degrees of freedom"
 
-    def __init__(self, lcp: Lcp, root: np.ndarray, moving_rows: sp.csr_matrix) -> None:
-        """``moving_rows``: the rows of L with an entry (:meth:`when_smaller` selects them)."""
+    def __init__(self, lcp: Lcp, root: np.ndarray, rows: sp.csr_matrix) -> None:
+        """``rows``: the rows of L with an entry (:meth:`when_smaller` selects them)."""
         self.lcp, self.root = lcp, root
-        self.A = sp.csr_matrix(moving_rows @ sp.diags(root))
-        self.A_T = sp.csr_matrix(self.A.T)
-        self.identity = sp.identity(moving_rows.shape[0], format="csc")
-        self.inverse = np.ones(lcp.n)
-        self.factor: object = None
+        self.A = sp.csr_matrix(rows @ sp.diags(root))
+        self.factor: WoodburyFactor | None = None
 
     @classmethod
     def when_smaller(cls, lcp: Lcp, root: np.ndarray, factor: sp.spmatrix
                      ) -> FactoredNormalMatrix | None:
         """The matrix over the degrees of freedom that move (the rows of ``factor`` = L with
         an entry) when there are fewer of them than contacts; else None."""
-        factor = sp.csr_matrix(factor)
-        moving = np.flatnonzero(np.diff(factor.indptr))
-        return cls(lcp, root, factor[moving]) if moving.size < lcp.n else None
+        rows = moving_rows(factor)
+        return cls(lcp, root, rows) if rows.shape[0] < lcp.n else None
 
     def factorize(self, diagonal: np.ndarray) -> None:
-        self.inverse = 1.0 / diagonal
-        matrix = sp.csc_matrix(self.identity + self.A @ sp.diags(self.inverse) @ self.A_T)
-        try:
-            self.factor = spla.splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                    options={"SymmetricMode": True})
-        except RuntimeError as error:
-            raise np.linalg.LinAlgError(str(error)) from error
+        self.factor = WoodburyFactor(self.A, diagonal)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """``x = D^-1 rhs - D^-1 A^T K^-1 A D^-1 rhs``."""
-        spread = self.inverse * rhs
-        return spread - self.inverse * (self.A_T @ self.factor.solve(self.A @ spread))
+        return self.factor.solve(rhs)
 
 
 def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:

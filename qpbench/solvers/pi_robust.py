@@ -43,8 +43,11 @@ and adds published safeguards:
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
-by LU) or sparse SuperLU; the last factors of policy blocks are kept, so prox
-steps on a settled policy cost triangular solves only.
+by LU) or sparse SuperLU, a sparse block over the degrees of freedom its contacts move
+when there are fewer of them than contacts (``lcp_interior.WoodburyFactor``, refined
+once: a later step of a dense 10,000-box pile took 67 s with blocks over the contacts,
+14 s so); the last factors of policy blocks are kept, so prox steps on a settled policy
+cost triangular solves only.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
 (``qpbench.solvers.pi_robust_envelope``: numba, contacts in reverse Cuthill-McKee order,
@@ -72,7 +75,6 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
@@ -83,12 +85,18 @@ from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
     FactoredNormalMatrix,
     NormalMatrix,
+    WoodburyFactor,
     interior_point,
     jacobi_scaled,
+    moving_rows,
+    symmetric_splu,
 )
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
+# iterative-refinement steps of a policy block solved over the degrees of freedom
+# (lcp_interior.WoodburyFactor)
+BLOCK_REFINEMENTS = 1
 
 
 class BlockSolver:
@@ -100,9 +108,18 @@ class BlockSolver:
         self.small = small  # blocks up to this size are solved by LU each time (cheapest)
         self.Q_dense = lcp.op if self.dense else None
         self.Q_csc = None if self.dense else sp.csc_matrix(lcp.Q)
+        # Q's factor L = M^-1/2 G, whose columns give a sparse block's Woodbury form
+        self.L = None if self.dense or not isinstance(lcp.problem, ImpactProblem) \
+            else lcp.problem.L
         self.keep = keep
         self.cache: dict[tuple[bytes, float], object] = {}
         self.factorizations = 0
+        self.factorizations_over_dofs = 0  # of them, blocks factored through L (Woodbury)
+
+    def counts(self) -> dict[str, int]:
+        """The factorizations so far, and how many of them ran over the degrees of freedom."""
+        return {"factorizations": self.factorizations,
+                "factorizations_over_dofs": self.factorizations_over_dofs}
 
     def solve(self, policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray
               ) -> np.ndarray:
@@ -130,12 +147,12 @@ class BlockSolver:
             if index.size <= self.small:
                 return block
             return la.cho_factor(block, lower=True, check_finite=False)
-        block = self.Q_csc[:, index][index, :] + sp.diags(shift)
-        try:
-            return spla.splu(sp.csc_matrix(block), permc_spec="MMD_AT_PLUS_A",
-                             diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        except RuntimeError as error:  # an exactly singular factor
-            raise np.linalg.LinAlgError(str(error)) from error
+        if self.L is not None:  # over the degrees of freedom when fewer of them move
+            rows = moving_rows(self.L[:, index])
+            if rows.shape[0] < index.size:
+                self.factorizations_over_dofs += 1
+                return WoodburyFactor(rows, shift, refinements=BLOCK_REFINEMENTS)
+        return symmetric_splu(self.Q_csc[:, index][index, :] + sp.diags(shift))
 
 
 def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray
@@ -330,7 +347,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
         if converged:
             return first, True, "converged", solves, {
-                "path": "policy iteration", "factorizations": blocks.factorizations}
+                "path": "policy iteration", **blocks.counts()}
         impulses, converged, iterations, failure, over = interior(end_on_stall=False)
         path = "interior point + policy iteration"
     else:
@@ -346,7 +363,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
     status = failure or status
     solves += iterations + finishing_solves[0]
     info = {"path": path, "first_status": status, "interior_iterations": iterations,
-            "interior_newton_matrix": over, "factorizations": blocks.factorizations}
+            "interior_newton_matrix": over, **blocks.counts()}
     if converged:
         return impulses, True, "converged", solves, info
     if lemke_answer is None:
