@@ -45,6 +45,34 @@ def test_a_pile_keeps_most_bodies_in_contact_and_its_parts_add_up() -> None:
             assert row["contacts_per_body"] >= (1.5 if kind == "circles" else 1.0)
 
 
+def test_a_pile_counts_the_inner_solves_that_miss_the_accuracy_asked() -> None:
+    """Every inner solve of a pile is judged by qpbench's residual: answers scaled by 1 + 1e-5
+    (usable, far above 1e-8) are counted inaccurate, with their largest residual, and the
+    table says so; pi-robust's own answers count none (clarabel/dual's miss 1e-8 on this
+    pile)."""
+    from qpbench.simulation.operators import ChosenSolve, SolvedImpulses
+
+    pi_robust = choose_by_name("pi-robust/lcp")
+    exact = pi_robust(None)
+
+    def nudged(problem, accuracy, warm_start):  # noqa: ANN001, ANN202 (an ImpactSolve)
+        answer = exact.solve(problem, accuracy, warm_start)
+        return SolvedImpulses((1.0 + 1e-5) * answer.impulses, answer.time_s, answer.status)
+
+    def choose_nudged(operator):  # noqa: ANN001, ANN202 (a ChooseSolve)
+        return ChosenSolve("nudged clarabel/dual", nudged)
+
+    sizes = {"boxes": (20,)}
+    row = pile_scaling(choose_nudged, sizes, steps=2)["kinds"]["boxes"]["rows"][0]
+    assert row["success"] and row["inner_solves"] == 2 == row["inaccurate_solves"]
+    assert 1e-8 < row["max_residual"] < 1e-3 and row["accuracy"] == 1e-8
+    table = pile_markdown(pile_scaling(choose_nudged, sizes, steps=1), "nudged")
+    assert "| 1 of 1 |" in table
+    row = pile_scaling(pi_robust, sizes, steps=2)["kinds"]["boxes"]["rows"][0]
+    assert row["inner_solves"] == 2 and row["inaccurate_solves"] == 0
+    assert row["max_residual"] <= 1e-8
+
+
 def test_scaling_writes_the_piles_beside_the_sparse_boxes(tmp_path: Path) -> None:
     output = tmp_path / "scaling.json"
     assert main(["scaling", "--sizes", "50,200", "--steps", "2", "--pile-steps", "1",
