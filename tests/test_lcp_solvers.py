@@ -610,3 +610,47 @@ def test_a_stalled_interior_point_hands_on_its_best_iterate_and_ends() -> None:
     assert not converged and iterations < 80
     assert len(handed) == 2  # below finish_below, then the best iterate on the stall
     assert handed[-1] == lcp.residual(impulses) > 1e-8
+
+
+def test_the_proximal_interior_point_converges_where_the_plain_one_stalls() -> None:
+    """The same 400-box pile has no strictly feasible point (no velocity separates every
+    contact); the proximal LCP ``(Q~ + 1e-10 I) l~ + b~`` has one, and its iterates reach
+    qpbench's 1e-8 on the pile's own LCP, with no finishing policy iteration."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.lcp_interior import interior_point
+    from qpbench.solvers.pi_robust import INTERIOR_PROX, _normal_matrix
+
+    lcp = Lcp.of(box_pile_impact(400))
+
+    def run(prox: float) -> tuple[tuple, list[float]]:
+        normal = _normal_matrix(lcp)
+        handed: list[float] = []
+        answer = interior_point(
+            lcp, normal.lcp, normal.root, normal, 1e-8, 80,
+            lambda impulses, w: handed.append(lcp.residual(impulses)), 0.0,
+            end_on_stall=True, prox=prox)
+        return answer, handed
+
+    (impulses, converged, iterations, _), handed = run(INTERIOR_PROX)
+    assert converged and iterations < 80 and lcp.residual(impulses) <= 1e-8 and not handed
+    (impulses, converged, _, _), handed = run(0.0)
+    assert not converged and lcp.residual(impulses) > 1e-6 and len(handed) == 1
+
+
+def test_the_proximal_interior_point_hands_on_at_its_floor() -> None:
+    """With a large weight (1e-6) the proximal solution misses the LCP by about 1e-6 max(l~)
+    (scaled); once the LCP's residual stands 100 times above the proximal LCP's the iterate is
+    handed on at once, near that floor."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.lcp_interior import interior_point
+    from qpbench.solvers.pi_robust import _normal_matrix
+
+    lcp = Lcp.of(box_pile_impact(400))
+    normal = _normal_matrix(lcp)
+    handed: list[float] = []
+    impulses, converged, _, _ = interior_point(
+        lcp, normal.lcp, normal.root, normal, 1e-8, 80,
+        lambda impulses, w: handed.append(lcp.residual(impulses)), 0.0, end_on_stall=True,
+        prox=1e-6)
+    assert not converged and len(handed) == 1
+    assert 1e-6 < handed[0] == lcp.residual(impulses) < 1e-4

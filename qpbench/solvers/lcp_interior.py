@@ -156,7 +156,7 @@ def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
 def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
                    normal: NormalMatrix | FactoredNormalMatrix, tol: float, max_iters: int,
                    try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
-                   finish_below: float, end_on_stall: bool = False
+                   finish_below: float, end_on_stall: bool = False, prox: float = 0.0
                    ) -> tuple[np.ndarray, bool, int, int]:
     """(l, converged, interior iterations, finishing solves), iterating on the Jacobi-scaled
     LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``; ``normal`` factors its matrices) and
@@ -165,7 +165,16 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     returns a converged l or None. ``end_on_stall``: once five iterations in a row have not
     cut the best residual by 10% (complementarity can outrun feasibility on degenerate
     piles, after which the steps shrink to nothing), the best iterate is handed to
-    ``try_finish`` and the interior point ends there."""
+    ``try_finish`` and the interior point ends there.
+
+    ``prox`` > 0: the iterates solve the proximal LCP ``(Q~ + prox I) l~ + b~ = w~`` around
+    0 instead (Rockafellar's proximal point; the regularization of PIQP's interior point).
+    Its matrix is positive definite, so it has a strictly feasible point even where the LCP
+    has none (a dense pile of boxes: no velocity separates every contact), and the iterates
+    converge where the plain ones stall. Its solution misses the LCP by at most
+    ``prox max(l~)`` (scaled): once the LCP's residual is 100 times the proximal one's, more
+    iterations cannot lower it, and with ``end_on_stall`` the iterate is handed on as on a
+    stall."""
     n = scaled.n
     impulses = np.full(n, scaled.scale)
     slack = np.maximum(scaled.w(impulses), scaled.scale)
@@ -173,9 +182,10 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     best, best_w, best_res = impulses * root, slack / root, np.inf
     progress, stalled = np.inf, 0
     for iteration in range(1, max_iters + 1):
-        infeasibility = scaled.op @ impulses + scaled.b - slack
+        plain_w = scaled.op @ impulses + scaled.b
+        infeasibility = plain_w + prox * impulses - slack
         mu = float(impulses @ slack) / n
-        original_l, original_w = impulses * root, (infeasibility + slack) / root
+        original_l, original_w = impulses * root, plain_w / root
         res = lcp.residual_of(original_l, original_w)
         if res < best_res:
             best, best_w, best_res = original_l, original_w, res
@@ -187,22 +197,24 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
                 return finished, True, iteration - 1, 1
             finish_below = 0.1 * res  # try again once the residual is ten times smaller
         progress, stalled = (res, 0) if res < 0.9 * progress else (progress, stalled + 1)
-        if end_on_stall and stalled >= 5:
+        at_floor = prox > 0.0 and res > 100.0 * lcp.residual_of(
+            original_l, (plain_w + prox * impulses) / root)
+        if end_on_stall and (stalled >= 5 or at_floor):
             finished = try_finish(best, best_w)
             if finished is not None:
                 return finished, True, iteration - 1, 1
             return best, False, iteration - 1, 1
-        normal.factorize(np.maximum(slack / impulses, floor))
+        normal.factorize(np.maximum(slack / impulses, floor) + prox)
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
-        dw = scaled.op @ dl + infeasibility
+        dw = scaled.op @ dl + prox * dl + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
         mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
-        dw = scaled.op @ dl + infeasibility
+        dw = scaled.op @ dl + prox * dl + infeasibility
         alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
                                     _step_to_boundary(slack, dw)))
         impulses = np.maximum(impulses + alpha * dl, 1e-300)

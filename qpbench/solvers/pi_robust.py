@@ -36,10 +36,11 @@ and adds published safeguards:
    two solves (an active-set polish), so the answer is not an interior point's
    approximation. On sparse problems (more than ``dense_limit`` contacts, each policy
    solve a sparse factorization) without a warm start the order is reversed: the
-   interior point first, its Newton systems solved over the degrees of freedom through
-   ``L = M^-1/2 G`` when fewer of them move than there are contacts
-   (``lcp_interior.FactoredNormalMatrix``), ended once it stalls, then policy iteration
-   from its best iterate (see :func:`pi_robust`).
+   interior point first, on the proximal LCP ``Q + 1e-10 D`` (which, unlike a dense
+   pile's own, has a strictly feasible point), its Newton systems solved over the degrees
+   of freedom through ``L = M^-1/2 G`` when fewer of them move than there are contacts
+   (``lcp_interior.FactoredNormalMatrix``), ended at its floor or a stall, then policy
+   iteration from its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
@@ -97,6 +98,17 @@ NAME = "pi-robust"
 # iterative-refinement steps of a policy block solved over the degrees of freedom
 # (lcp_interior.WoodburyFactor)
 BLOCK_REFINEMENTS = 1
+# the proximal weight of the interior point where it runs first (Jacobi-scaled units: Q~ has a
+# unit diagonal); its answer then misses the LCP by at most 1e-10 max(l~). Measured on dense
+# box piles and the large set's 40 x 40 grids against the plain interior point (which stalls
+# on the piles): 1e-8 and 1e-9 leave a floor above 1e-8 on the 10,000-box pile, 1e-11 and
+# 1e-12 converge slowly near the end (the matrix nearly singular again)
+INTERIOR_PROX = 1e-10
+# where the interior point runs first, its iterates are handed to policy iteration from this
+# residual on (or from the accuracy table's finish_below, when lower): from 1e-3 the tries
+# mostly fail there, each costing factorizations; with no tries before the floor the answers
+# are the interior point's own, and the grids and the 10,000-circle pile are slower
+FIRST_FINISH_BELOW = 1e-6
 
 
 class BlockSolver:
@@ -309,12 +321,18 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
     then the interior point. Sparse ones (above ``dense_limit`` contacts, where each policy
     solve is a sparse factorization of a block of contacts) from a cold start: the interior
     point first (its Newton matrix over the degrees of freedom when fewer of them move than
-    there are contacts, :func:`_normal_matrix`), ended once it stalls, then policy iteration
-    from its best iterate. Measured against policy iteration first on problems the compiled
-    path declines (best of two solves at 1e-8, all converged either way): dense piles of
-    1,000 and 10,000 boxes 1.94 s -> 0.31 s and 177 s -> 11.5 s (the 1,000-box pile's next
-    two steps 1.07 and 1.61 s -> 0.64 and 0.79 s), a pile of 10,000 circles 1.88 s -> 0.88 s,
-    the five 40 x 40 grids of the large set 0.26-0.51 s -> 0.14-0.20 s."""
+    there are contacts, :func:`_normal_matrix`), proximal (``INTERIOR_PROX``), ended at its
+    floor or a stall, then policy iteration from its best iterate. Measured against policy
+    iteration first on problems the compiled path declines (best of two solves at 1e-8, all
+    converged either way): dense piles of 1,000 and 10,000 boxes 1.94 s -> 0.31 s and
+    177 s -> 11.5 s (the 1,000-box pile's next two steps 1.07 and 1.61 s -> 0.64 and
+    0.79 s), a pile of 10,000 circles 1.88 s -> 0.88 s, the five 40 x 40 grids of the large
+    set 0.26-0.51 s -> 0.14-0.20 s. The plain interior point stalls on the dense box piles
+    (they have no strictly feasible point); the proximal one, with policy blocks over the
+    degrees of freedom, then took the 10,000-box pile's three steps from 11.5, about 67 and
+    125 s (the last 3.4e-8: inaccurate) to 4.1, 14.6 and 26.4 s (all below 1e-8), the
+    1,000-box pile's from 0.32, 0.61 and 0.75 s to 0.19, 0.37 and 0.37 s, the grids to
+    0.11-0.13 s and the circles to 0.80 s."""
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
@@ -330,14 +348,19 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         finishing_solves[0] += used
         return result if done else None
 
-    def interior(end_on_stall: bool) -> tuple[np.ndarray | None, bool, int, str, str]:
+    def interior(first: bool) -> tuple[np.ndarray | None, bool, int, str, str]:
         """(the interior point's l, None when a factorization failed; converged; its
-        iterations; the failure; what its Newton matrix runs over)."""
+        iterations; the failure; what its Newton matrix runs over). ``first`` (sparse, cold):
+        proximal (``INTERIOR_PROX``), finished from each iterate below
+        ``FIRST_FINISH_BELOW``, then from its floor or a stall; else plain, finished from
+        each iterate below ``finish_below``."""
         normal = _normal_matrix(lcp)
         try:
             impulses, converged, iterations, _ = interior_point(
-                lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish, finish_below,
-                end_on_stall)
+                lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish,
+                min(finish_below, FIRST_FINISH_BELOW) if first else finish_below,
+                end_on_stall=first,
+                prox=INTERIOR_PROX if first else 0.0)
         except np.linalg.LinAlgError as error:
             return None, False, 0, f"interior point failed: {error}", normal.over
         return impulses, converged, iterations, "", normal.over
@@ -348,10 +371,10 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         if converged:
             return first, True, "converged", solves, {
                 "path": "policy iteration", **blocks.counts()}
-        impulses, converged, iterations, failure, over = interior(end_on_stall=False)
+        impulses, converged, iterations, failure, over = interior(first=False)
         path = "interior point + policy iteration"
     else:
-        impulses, converged, iterations, failure, over = interior(end_on_stall=True)
+        impulses, converged, iterations, failure, over = interior(first=True)
         first = start if impulses is None else impulses
         status = "converged" if converged else "interior point stalled or out of iterations"
         path, solves = "interior point + policy iteration", 0
