@@ -67,7 +67,7 @@ def test_a_pile_counts_the_inner_solves_that_miss_the_accuracy_asked() -> None:
     assert row["success"] and row["inner_solves"] == 2 == row["inaccurate_solves"]
     assert 1e-8 < row["max_residual"] < 1e-3 and row["accuracy"] == 1e-8
     table = pile_markdown(pile_scaling(choose_nudged, sizes, steps=1), "nudged")
-    assert "| 1 of 1 |" in table
+    assert "| 1 of 1 |" in table and "the accuracy the simulator asks of it (1e-08)" in table
     row = pile_scaling(pi_robust, sizes, steps=2)["kinds"]["boxes"]["rows"][0]
     assert row["inner_solves"] == 2 and row["inaccurate_solves"] == 0
     assert row["max_residual"] <= 1e-8

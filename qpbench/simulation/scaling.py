@@ -302,6 +302,9 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
     budget = report.get("solve_budget_s", math.inf)
     budget_text = ("" if math.isinf(budget) else
                    f" (fewer when a pile's inner solves pass {budget:g} s; at least one)")
+    levels = sorted({row["accuracy"] for entry in report["kinds"].values()
+                     for row in entry["rows"] if "accuracy" in row})
+    asked = f" ({', '.join(f'{level:g}' for level in levels)})" if levels else ""
     lines = [
         "### Dense piles",
         "",
@@ -314,8 +317,8 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
         f"`{solver}`. The simulator's own cost (contact detection, assembly of the impact "
         "problem, integration and the rest of the step) is per body per step; the inner "
         "solves are beside it with their own growth. Every inner solve is judged by qpbench's "
-        "residual against the accuracy the simulator asks of it; an inaccurate one (above "
-        "that accuracy, yet usable) is counted, and the step goes on with its answer.",
+        f"residual against the accuracy the simulator asks of it{asked}; an inaccurate one "
+        "(above that accuracy, yet usable) is counted, and the step goes on with its answer.",
         "",
         "| pile | bodies | steps | contacts per body | contacts (us) | assembly (us) "
         "| integration (us) | own cost per body per step (us) | inner solves (us) "
