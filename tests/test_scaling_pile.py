@@ -50,17 +50,20 @@ def test_a_pile_counts_the_inner_solves_that_miss_the_accuracy_asked() -> None:
     (usable, far above 1e-8) are counted inaccurate, with their largest residual, and the
     table says so; pi-robust's own answers count none (clarabel/dual's miss 1e-8 on this
     pile)."""
+    from qpbench.inner_solvers import chosen
+    from qpbench.problem.impact import ImpactProblem
     from qpbench.simulation.operators import ChosenSolve, SolvedImpulses
+    from qpbench.solvers.registry import get
 
-    pi_robust = choose_by_name("pi-robust/lcp")
-    exact = pi_robust(None)
+    exact = chosen(get("pi-robust/lcp"))
 
-    def nudged(problem, accuracy, warm_start):  # noqa: ANN001, ANN202 (an ImpactSolve)
+    def nudged(problem: ImpactProblem, accuracy: float, warm_start: np.ndarray | None
+               ) -> SolvedImpulses:
         answer = exact.solve(problem, accuracy, warm_start)
         return SolvedImpulses((1.0 + 1e-5) * answer.impulses, answer.time_s, answer.status)
 
-    def choose_nudged(operator):  # noqa: ANN001, ANN202 (a ChooseSolve)
-        return ChosenSolve("nudged clarabel/dual", nudged)
+    def choose_nudged(operator: object) -> ChosenSolve:
+        return ChosenSolve("nudged pi-robust/lcp", nudged)
 
     sizes = {"boxes": (20,)}
     row = pile_scaling(choose_nudged, sizes, steps=2)["kinds"]["boxes"]["rows"][0]
@@ -68,7 +71,7 @@ def test_a_pile_counts_the_inner_solves_that_miss_the_accuracy_asked() -> None:
     assert 1e-8 < row["max_residual"] < 1e-3 and row["accuracy"] == 1e-8
     table = pile_markdown(pile_scaling(choose_nudged, sizes, steps=1), "nudged")
     assert "| 1 of 1 |" in table and "the accuracy the simulator asks of it (1e-08)" in table
-    row = pile_scaling(pi_robust, sizes, steps=2)["kinds"]["boxes"]["rows"][0]
+    row = pile_scaling(choose_by_name("pi-robust/lcp"), sizes, steps=2)["kinds"]["boxes"]["rows"][0]
     assert row["inner_solves"] == 2 and row["inaccurate_solves"] == 0
     assert row["max_residual"] <= 1e-8
 
