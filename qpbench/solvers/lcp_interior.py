@@ -95,8 +95,10 @@ class WoodburyFactor:
     ``log10(max(A^T A) / min(d))`` digits when d is small beside A^T A (policy blocks
     ``Q_FF + rho D_F`` with rho = 1e-5), and each step wins them back."""
 
-    def __init__(self, A: sp.csr_matrix, diagonal: np.ndarray, refinements: int = 0) -> None:
-        self.A, self.A_T = A, sp.csr_matrix(A.T)
+    def __init__(self, A: sp.csr_matrix, diagonal: np.ndarray, refinements: int = 0,
+                 A_T: sp.csr_matrix | None = None) -> None:
+        """``A_T``: A's transpose in CSR, when the caller keeps it across factorizations."""
+        self.A, self.A_T = A, sp.csr_matrix(A.T) if A_T is None else A_T
         self.diagonal, self.inverse = diagonal, 1.0 / diagonal
         self.refinements = refinements
         self.factor = symmetric_splu(sp.identity(A.shape[0], format="csc")
@@ -126,6 +128,7 @@ class FactoredNormalMatrix:
         """``rows``: the rows of L with an entry (:meth:`when_smaller` selects them)."""
         self.lcp, self.root = lcp, root
         self.A = sp.csr_matrix(rows @ sp.diags(root))
+        self.A_T = sp.csr_matrix(self.A.T)  # formed once, for every iteration's factor
         self.factor: WoodburyFactor | None = None
 
     @classmethod
@@ -137,7 +140,7 @@ class FactoredNormalMatrix:
         return cls(lcp, root, rows) if rows.shape[0] < lcp.n else None
 
     def factorize(self, diagonal: np.ndarray) -> None:
-        self.factor = WoodburyFactor(self.A, diagonal)
+        self.factor = WoodburyFactor(self.A, diagonal, A_T=self.A_T)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         return self.factor.solve(rhs)
