@@ -4,6 +4,7 @@ each set's speedup is the fastest external SGM over pi-robust's. Correctness onl
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -144,6 +145,16 @@ def test_a_missing_folder_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
     assert not (tmp_path / "h.json").exists()
 
 
+@pytest.mark.parametrize("limit", ["0.5", "nan"])
+def test_an_out_of_running_limit_below_one_is_one_line(tmp_path: Path, limit: str,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    code = main(["head-to-head", str(tmp_path), "--results", "x.parquet",
+                 "--out-of-running", limit, "-o", str(tmp_path / "h.json")])
+    err = capsys.readouterr().err
+    assert code != 0 and "--out-of-running must be at least 1" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "h.json").exists()
+
+
 def test_a_table_without_times_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture
                                            ) -> None:
     folder = tmp_path / "problems"
@@ -205,3 +216,74 @@ def test_the_table_keeps_each_problems_fastest_pass_and_every_pass_must_meet_the
     # a pass without the external pair gives no speedup (NaN), and the target fails with it
     [entry] = head_to_head.summarize([one for one in rows if one["pass"] == 0 or one["own"]])
     assert entry["speedup"] == pytest.approx(4.0) and not entry["target_met"]
+
+
+def test_a_pair_far_slower_than_the_fastest_external_one_leaves_the_set() -> None:
+    """After two problems daqp has taken 31x osqp's time: it is measured no further on the set,
+    and the set's figures compare the pairs that ran on all of it."""
+    running = head_to_head.Running(limit=30.0)
+    rows = [row("pi-robust/lcp", True, "a", 1e-5), row("osqp/dual", False, "a", 1e-3),
+            row("daqp/dual", False, "a", 2e-2)]
+    running.update(rows, "box packings")
+    assert running.running("box packings", "daqp/dual")  # 20x: still in the running
+    rows += [row("pi-robust/lcp", True, "b", 1e-5), row("osqp/dual", False, "b", 1e-3),
+             row("daqp/dual", False, "b", 4.2e-2)]
+    running.update(rows, "box packings")
+    assert not running.running("box packings", "daqp/dual")
+    assert running.running("box packings", "osqp/dual")
+    assert running.running("fork 5x5 grid dumps", "daqp/dual")  # another set: still in it
+    assert running.out["box packings"]["daqp/dual"] == {
+        "problems": 2, "slower": pytest.approx(31.0), "than": "osqp/dual"}
+    [entry] = head_to_head.summarize(rows, running.out)
+    assert [pair["solver"] for pair in entry["pairs"]] == ["pi-robust/lcp", "osqp/dual"]
+    assert entry["out_of_running"] == [{"solver": "daqp/dual", "problems": 2,
+                                        "slower": pytest.approx(31.0), "than": "osqp/dual"}]
+    text = head_to_head.markdown([entry], 5)
+    assert "`daqp/dual` measured no further after 2 problems (31x `osqp/dual`'s time there)" \
+        in text
+    assert "more than 30 times the fastest external pair's there" in text
+
+
+def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> None:
+    """A pair that fails fast sets no pace: daqp stays however slow it is against it; once
+    daqp is the only one to have solved every problem, the failing pair is measured against
+    daqp instead (and is not slower)."""
+    running = head_to_head.Running(limit=30.0)
+    rows = [row("osqp/dual", False, "a", 1e-5, success=False), row("daqp/dual", False, "a", 1e-5,
+                                                                   success=False)]
+    running.update(rows, "box packings")
+    rows += [row("osqp/dual", False, "b", 1e-5, success=False), row("daqp/dual", False, "b", 1.0)]
+    running.update(rows, "box packings")
+    assert running.out == {}
+
+
+def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,
+                                                            tmp_path: Path) -> None:
+    """The measuring loop asks the field before every solve: the slow pair's rows stop after
+    the problem where it left, in this pass and the next, while its rivals run on."""
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    for name in ("grid5_itr_0", "grid5_itr_1", "ok_itr_0"):
+        files.save(import_dump(ROOT / f"problems/dumps/{name}.out"), folder / f"{name}.npz")
+    bench = pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])
+                         + bench_rows("osqp", "osqp", "dump", [2e-4]))
+    seconds = {"pi-robust/lcp": 1e-5, "daqp/dual": 1e-4, "osqp/dual": 1e-2}
+
+    def timed(spec, problem, repeats, accuracy=1e-8, pass_number=0):  # noqa: ANN001, ANN202
+        return {"problem": problem.name, "set": head_to_head.set_of(problem),
+                "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
+                "contacts": problem.n_contacts, "status": "solved", "success": True,
+                "residual": 0.0, "iterations": 1, "outer_iterations": None,
+                "time_s": seconds[spec.key]}
+
+    monkeypatch.setattr(head_to_head, "measure", timed)
+    result = head_to_head.head_to_head(folder, bench, repeats=1, passes=2)
+    measured = sorted((one["solver"], one["pass"]) for one in result["rows"])
+    assert measured.count(("osqp/dual", 0)) == 1 and ("osqp/dual", 1) not in measured
+    assert measured.count(("daqp/dual", 0)) == measured.count(("daqp/dual", 1)) == 3
+    [entry] = result["summary"]
+    assert entry["external"]["solver"] == "daqp/dual"
+    assert entry["out_of_running"][0]["solver"] == "osqp/dual"
+    everything = head_to_head.head_to_head(folder, bench, repeats=1, passes=1,
+                                           out_of_running=math.inf)
+    assert sum(one["solver"] == "osqp/dual" for one in everything["rows"]) == 3

@@ -14,6 +14,12 @@ problems the fastest external ``staggered`` and ``ccp`` pairs there, so that the
 made by measurement, not by hand. pi-robust's own pairs are ``pi-robust/lcp`` (impact) and
 ``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
 
+An external pair whose times on a set's problems so far, summed, are more than
+``out_of_running`` times those of the fastest external pair there is measured no further on
+that set (:class:`Running`): it cannot be the fastest, and on the large box packings a dense
+solver's minute-long solves were most of the benchmark's time. The report names every such
+pair, after how many problems it left and how much slower it was.
+
 Every solve goes through the one stopwatch (``call_solver``), the fastest of ``repeats``
 (``qpbench.bench.repeats``), and the whole measurement runs ``passes`` times, one pass after
 another: the machine's speed drifts over minutes (a shared host), and the pairs of a problem
@@ -38,6 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +54,7 @@ import pandas as pd
 from qpbench.bench import stats
 from qpbench.bench.defaults import (
     HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
     TARGET_SPEEDUP,
@@ -156,6 +164,43 @@ def measure(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, repeat
             "outer_iterations": row["outer_iterations"], "time_s": fastest.time_s}
 
 
+@dataclass
+class Running:
+    """Which external pairs are still in the running on each set. After each problem,
+    :meth:`update` sums each running external pair's ``time_s`` over the set's rows so far (the
+    same problems for all of them: a problem's pairs run back to back) and takes out every pair
+    whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
+    one of those problems; ``out[set][pair]`` keeps after how many problems it left, how many
+    times slower it was and than which pair. No pair leaves while none has solved them all."""
+
+    limit: float
+    out: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
+
+    def running(self, set_name: str | None, solver: str) -> bool:
+        return solver not in self.out.get(str(set_name), {})
+
+    def update(self, rows: Sequence[dict[str, Any]], set_name: str) -> None:
+        totals: dict[str, float] = {}
+        solved_all: dict[str, bool] = {}
+        problems: dict[str, set[str]] = {}
+        for one in rows:
+            solver = one["solver"]
+            if one["set"] != set_name or one["own"] or not self.running(set_name, solver):
+                continue
+            totals[solver] = totals.get(solver, 0.0) + one["time_s"]
+            solved_all[solver] = solved_all.get(solver, True) and bool(one["success"])
+            problems.setdefault(solver, set()).add(one["problem"])
+        finishers = [solver for solver in totals if solved_all[solver]]
+        if not finishers:
+            return
+        fastest = min(finishers, key=totals.__getitem__)
+        for solver, total in totals.items():
+            if total > self.limit * totals[fastest]:
+                self.out.setdefault(set_name, {})[solver] = {
+                    "problems": len(problems[solver]), "slower": total / totals[fastest],
+                    "than": fastest}
+
+
 def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
     """Each (problem, pair)'s row with the smallest ``time_s`` over all passes, as
     ``fastest_solve`` keeps the fastest of its repeats."""
@@ -165,12 +210,16 @@ def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
     return fastest.reset_index(drop=True)
 
 
-def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+def summarize(rows: Sequence[dict[str, Any]],
+              out: dict[str, dict[str, dict[str, Any]]] | None = None) -> list[dict[str, Any]]:
     """Per set: every pair's success and SGM (module docstring) on each problem's fastest row
     over the passes, pi-robust's best pair, the fastest external pair and the speedup; with
     more than one pass, ``pass_speedups``: the same speedup from each pass's rows alone (NaN
-    where a pass lacks one of the two kinds of pair, which then fails the target)."""
-    frame = pd.DataFrame(rows)
+    where a pass lacks one of the two kinds of pair, which then fails the target). The pairs
+    that left a set (``out``: :attr:`Running.out`) are left out of its figures, since they were
+    measured on part of it only, and listed as ``out_of_running``."""
+    out = out or {}
+    frame = pd.DataFrame([one for one in rows if one["solver"] not in out.get(one["set"], {})])
     frame = frame[frame["status"] != NO_SOLUTION]  # charged to no solver (see judge)
     passes = sorted(set(frame["pass"])) if "pass" in frame else []
     summary = []
@@ -183,6 +232,9 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 for number in passes]
             entry["target_met"] = entry["target_met"] and all(
                 speedup >= TARGET_SPEEDUP for speedup in entry["pass_speedups"])
+        if name in out:
+            entry["out_of_running"] = [{"solver": solver, **left}
+                                       for solver, left in sorted(out[name].items())]
         summary.append(entry)
     return summary
 
@@ -233,7 +285,8 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
     return float(ratios.median()) if len(ratios) else float("nan")
 
 
-def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1) -> str:
+def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
+             out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING) -> str:
     lines = [
         "## Head to head, cold: pi-robust against the fastest external pairs per set\n",
         f"Accuracy {ACCURACY:g}; `time_s` of the one stopwatch, the fastest of {repeats} "
@@ -247,7 +300,10 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1) -
         "a failed solve is charged the set's largest time; SGM shifted on the set's "
         "own time scale. External pairs: the fastest of the main benchmark "
         "(`bench.parquet`) on the grid, dump and box families and per frictional "
-        "formulation. speedup = SGM of the fastest external pair / SGM of pi-robust's best "
+        "formulation; one whose times on a set's problems so far, summed, are more than "
+        f"{out_of_running:g} times the fastest external pair's there is measured no further "
+        "on that set (it cannot be the fastest; named below). "
+        "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
         + (" in the table and in every pass" if passes > 1 else "")
         + ", with pi-robust solving every problem the external pair solves); per problem = "
@@ -291,7 +347,10 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1) -
     for entry in summary:
         lines.append(f"- {entry['set']}: " + ", ".join(
             f"`{pair['solver']}` {1e3 * pair['sgm_s']:.3f} ({100 * pair['success_rate']:.0f}%)"
-            for pair in entry["pairs"]))
+            for pair in entry["pairs"]) + "".join(
+            f"; `{left['solver']}` measured no further after {left['problems']} "
+            f"problem{'s' if left['problems'] > 1 else ''} ({left['slower']:.0f}x "
+            f"`{left['than']}`'s time there)" for left in entry.get("out_of_running", [])))
     return "\n".join(lines) + "\n"
 
 
@@ -317,9 +376,11 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
 def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO_HEAD_REPEATS,
                  candidates: int = HEAD_TO_HEAD_CANDIDATES,
                  progress: Callable[[str], None] | None = None,
-                 passes: int = HEAD_TO_HEAD_PASSES) -> dict[str, Any]:
+                 passes: int = HEAD_TO_HEAD_PASSES,
+                 out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING) -> dict[str, Any]:
     """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary,
-    ``markdown``."""
+    ``markdown``; external pairs leave a set as :class:`Running` says, with ``limit =
+    out_of_running`` (infinite: every pair runs on every problem)."""
     from qpbench.solvers.registry import get
 
     chosen = fastest_external(bench, candidates)
@@ -328,7 +389,8 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     specs = {"impact": [get(key) for key in (*OWN_IMPACT, *chosen["impact"])],
              "frictional": [get(key, "frictional")
                             for key in (*OWN_FRICTIONAL, *chosen["frictional"])]}
-    rows = []
+    rows: list[dict[str, Any]] = []
+    running = Running(out_of_running)
     with accuracy_table.overridden("staggered", max_outer=STAGGERED_MAX_OUTER):
         for pass_number in range(passes):
             for number, problem in enumerate(problems):
@@ -336,12 +398,16 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                 if progress is not None:
                     progress(f"pass {pass_number + 1}/{passes} [{number + 1}/{len(problems)}] "
                              f"{problem.name}")
-                rows += [measure(spec, problem, repeats, pass_number=pass_number)
-                         for spec in specs[kind] if spec.solve is not None]
-    summary = summarize(rows)
+                measured = [measure(spec, problem, repeats, pass_number=pass_number)
+                            for spec in specs[kind] if spec.solve is not None
+                            and running.running(set_of(problem, spec.formulation), spec.key)]
+                rows += measured
+                for set_name in {one["set"] for one in measured}:
+                    running.update(rows, set_name)
+    summary = summarize(rows, running.out)
     return {"accuracy": ACCURACY, "repeats": repeats, "passes": passes, "candidates": chosen,
-            "staggered_max_outer": STAGGERED_MAX_OUTER,
+            "staggered_max_outer": STAGGERED_MAX_OUTER, "out_of_running": out_of_running,
             "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
-            "markdown": markdown(summary, repeats, passes) if rows else "",
+            "markdown": markdown(summary, repeats, passes, out_of_running) if rows else "",
             "problems": len(problems),
             "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}

@@ -1,8 +1,8 @@
 """``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 20] [--passes 3]
-[--candidates 6] -o results/head_to_head.json``: pi-robust against the fastest external pairs
-of the main benchmark, cold, per set of ``problems/head_to_head.toml`` (built into FOLDER by
-``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with single-threaded BLAS, in a
-child process unless this one already has it."""
+[--candidates 6] [--out-of-running 30] -o results/head_to_head.json``: pi-robust against the
+fastest external pairs of the main benchmark, cold, per set of ``problems/head_to_head.toml``
+(built into FOLDER by ``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with
+single-threaded BLAS, in a child process unless this one already has it."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from pathlib import Path
 
 from qpbench.bench.defaults import (
     HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
 )
@@ -34,6 +35,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--candidates", type=int, default=HEAD_TO_HEAD_CANDIDATES,
                         help="fastest external impact pairs compared, and each candidate "
                              f"family's fastest besides ({HEAD_TO_HEAD_CANDIDATES})")
+    parser.add_argument("--out-of-running", type=float, default=HEAD_TO_HEAD_OUT_OF_RUNNING,
+                        help="an external pair whose times on a set's problems so far, summed, "
+                             "are more than this many times the fastest external pair's is "
+                             "measured no further on that set; inf: every pair on every "
+                             f"problem ({HEAD_TO_HEAD_OUT_OF_RUNNING:g})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
@@ -41,13 +47,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1 or args.passes < 1 or args.candidates < 1:
         raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
+    if not args.out_of_running >= 1:  # NaN too
+        raise QpbenchError("--out-of-running must be at least 1 (inf: never)")
     if not Path(args.folder).is_dir():
         raise InputError(args.folder, "no such problem folder")
     output = writable_output(args.output)
     child = single_threaded_rerun(
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
          "--passes", str(args.passes), "--candidates", str(args.candidates),
-         "-o", str(args.output)])
+         "--out-of-running", repr(args.out_of_running), "-o", str(args.output)])
     if child is not None:
         return child
     from qpbench.bench.head_to_head import BENCH_COLUMNS, head_to_head
@@ -62,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
                              "main benchmark")
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
                           progress=lambda text: print(text, file=sys.stderr),
-                          passes=args.passes)
+                          passes=args.passes, out_of_running=args.out_of_running)
     if not report["rows"]:
         raise InputError(args.folder, "no problem of a head-to-head set")
     write_json(output, report)
