@@ -69,6 +69,14 @@ def test_generate_box_scene_writes_a_scene_that_simulates(tmp_path: Path) -> Non
          "--workers must be at least 1, got 0"),
         (("speed", "--seed", "-1", "-o", "x.json"), "--seed must be at least 0, got -1"),
         (("scaling", "--seed", "-1", "-o", "x.json"), "--seed must be at least 0, got -1"),
+        # what argparse itself refuses: one line too, the usage left to -h
+        (("solve",), "qpbench solve: the following arguments are required: problem, --solver "
+                     "(usage: qpbench solve -h)"),
+        (("run", "missing.npz", "--repeats", "two", "-o", "x.parquet"),
+         "qpbench run: argument --repeats: invalid int value: 'two'"),
+        (("solve", "missing.npz", "--solver", "osqp", "--bogus"),
+         "qpbench: unrecognized arguments: --bogus"),
+        (("nope",), "qpbench: argument COMMAND: invalid choice: 'nope'"),
     ],
 )
 def test_bad_input_is_one_line_and_nonzero(args: tuple[str, ...], message: str) -> None:

@@ -13,6 +13,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from qpbench import SINGLE_THREAD_ENV, __version__
 from qpbench.errors import QpbenchError
@@ -44,6 +45,16 @@ EXIT_INPUT_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors (a missing argument, a value of the wrong type, an
+    unknown option or command) are one line on stderr like every other input error, pointing
+    to ``-h`` for the usage instead of printing it. Its subcommands' parsers are of this class
+    too (argparse makes them of their parent's class)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_INPUT_ERROR, f"{self.prog}: {message} (usage: {self.prog} -h)\n")
+
+
 def _module_name(command: str) -> str:
     return command.replace("-", "_")
 
@@ -51,7 +62,7 @@ def _module_name(command: str) -> str:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The argument parser; with ``only``, just that subcommand's module is imported (the
     solver backends, pandas and matplotlib load only for the commands that use them)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="qpbench",
         description="Formulations and solvers for the impulses of simultaneous 2D ball impacts.",
     )
