@@ -239,7 +239,7 @@ def test_a_pair_far_slower_than_the_fastest_external_one_leaves_the_set() -> Non
     assert entry["out_of_running"] == [{"solver": "daqp/dual", "problems": 2,
                                         "slower": pytest.approx(31.0), "than": "osqp/dual"}]
     text = head_to_head.markdown([entry], 5)
-    assert "`daqp/dual` measured no further after 2 problems (31x `osqp/dual`'s time there)" \
+    assert "`daqp/dual` measured no further after 2 problems (31.0x `osqp/dual`'s time there)" \
         in text
     assert "more than 30 times the fastest external pair's there" in text
 
@@ -255,6 +255,14 @@ def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> Non
     rows += [row("osqp/dual", False, "b", 1e-5, success=False), row("daqp/dual", False, "b", 1.0)]
     running.update(rows, "box packings")
     assert running.out == {}
+    # a problem without a solution is solved by no pair and counts for none
+    frictional = [{**row("daqp/ccp", False, name, 1e-5), "set": "frictional (ccp)"}
+                  for name in "ab"] + [{**row("piqp/ccp", False, name, 1e-3),
+                                        "set": "frictional (ccp)"} for name in "ab"]
+    for one in frictional[::2]:
+        one.update(status=head_to_head.NO_SOLUTION, success=False)
+    running.update(frictional, "frictional (ccp)")
+    assert running.out["frictional (ccp)"]["piqp/ccp"]["problems"] == 1
 
 
 def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,

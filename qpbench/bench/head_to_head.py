@@ -170,8 +170,9 @@ class Running:
     :meth:`update` sums each running external pair's ``time_s`` over the set's rows so far (the
     same problems for all of them: a problem's pairs run back to back) and takes out every pair
     whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
-    one of those problems; ``out[set][pair]`` keeps after how many problems it left, how many
-    times slower it was and than which pair. No pair leaves while none has solved them all."""
+    one of those problems (those without a solution, which the figures leave out, aside);
+    ``out[set][pair]`` keeps after how many problems it left, how many times slower it was and
+    than which pair. No pair leaves while none has solved them all."""
 
     limit: float
     out: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
@@ -185,7 +186,8 @@ class Running:
         problems: dict[str, set[str]] = {}
         for one in rows:
             solver = one["solver"]
-            if one["set"] != set_name or one["own"] or not self.running(set_name, solver):
+            if one["set"] != set_name or one["own"] or not self.running(set_name, solver) \
+                    or one["status"] == NO_SOLUTION:
                 continue
             totals[solver] = totals.get(solver, 0.0) + one["time_s"]
             solved_all[solver] = solved_all.get(solver, True) and bool(one["success"])
@@ -349,7 +351,7 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"`{pair['solver']}` {1e3 * pair['sgm_s']:.3f} ({100 * pair['success_rate']:.0f}%)"
             for pair in entry["pairs"]) + "".join(
             f"; `{left['solver']}` measured no further after {left['problems']} "
-            f"problem{'s' if left['problems'] > 1 else ''} ({left['slower']:.0f}x "
+            f"problem{'s' if left['problems'] > 1 else ''} ({left['slower']:.1f}x "
             f"`{left['than']}`'s time there)" for left in entry.get("out_of_running", [])))
     return "\n".join(lines) + "\n"
 
