@@ -3,6 +3,10 @@ qpbench's own metrics on the hard families and on known answers."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -339,6 +343,39 @@ def test_pi_robust_start_sweeps_run_before_the_envelope_is_measured(
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] is True and output.info["path"] == "start sweeps"
     assert output.info["factorizations"] == 0 and output.iterations == 0
+
+
+# run in a fresh process with an empty numba cache: numba loads a cached kernel whole, and
+# only a compilation types (and so lists the signatures of) every function it calls
+UNCOUNTED_RETURN_TYPES = """
+import json
+from numba.core import types
+from qpbench.solvers import pi_robust_envelope as kernel
+kernel.warm_up()
+returned = {}
+for name, function in vars(kernel).items():
+    if getattr(function, "targetoptions", {}).get("_nrt") is False:
+        returned[name] = []
+        for signature in function.signatures:
+            result = function.overloads[signature].signature.return_type
+            parts = result.types if isinstance(result, types.BaseTuple) else (result,)
+            returned[name] += [isinstance(part, types.Array) for part in parts]
+print(json.dumps(returned))
+"""
+
+
+@pytest.mark.slow
+def test_the_kernels_functions_without_reference_counts_return_no_array(tmp_path: Path) -> None:
+    """A function compiled without numba's reference counting may take arrays but not return
+    one: nothing would own it, and the caller would free it while it is in use. Every such
+    function of the kernel, as compiled for a solve, returns scalars and flags only."""
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    printed = subprocess.run([sys.executable, "-c", UNCOUNTED_RETURN_TYPES], env=environment,
+                             capture_output=True, text=True, check=True).stdout
+    returned = json.loads(printed)
+    assert {"_block_solve", "_inner_lcp", "_prox_policy_iteration"} <= set(returned)
+    for name, is_array in returned.items():
+        assert is_array and not any(is_array), name
 
 
 def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None:

@@ -74,9 +74,12 @@ in reverse Cuthill-McKee order) each factor costs about 22k multiply-adds (17 us
 13 iterations at about 30 us each: 652 us against this kernel's 585 us (geometric means, same
 run), and its factors and solves alone already cost about 290 us.
 
-Arguments travel in tuples (zero-cost in nopython mode): a CSC matrix as ``(indptr, indices,
-data)``, the ordered problem as :class:`OrderedLcp`, the problem as posed as :class:`Posed`,
-the options as :class:`Options` and :class:`Prox`, the kept factors as :class:`FactorCache`.
+Arguments travel in tuples: a CSC matrix as ``(indptr, indices, data)``, the ordered problem
+as :class:`OrderedLcp`, the problem as posed as :class:`Posed`, the options as
+:class:`Options` and :class:`Prox`, the kept factors as :class:`FactorCache`. Unpacking them
+is free where reference counting is off (``WITHOUT_REFCOUNTS``: every function of the policy
+iteration loop), which cut the kernel's time on the fork's 5x5 dumps by a fifth and on its
+7x7 scenes by 7% (hot, same solves).
 
 Compilation: ``cache=True`` (machine code cached next to this file); ``warm_up()`` compiles or
 loads it once per process, and pi-robust calls it in its set-up, outside the timed solve.
@@ -96,6 +99,12 @@ from qpbench.solvers import accuracy
 # inner products vectorise) and fused; NaN and infinity keep their meaning, so a failing pivot
 # is still caught
 REDUCTIONS = {"reassoc", "contract"}
+# the functions that policy iteration runs in every step are compiled without numba's
+# reference counting (its ``_nrt`` option): numba counts references to every array a function
+# binds, slices or passes on, an atomic increment and decrement each, which was a fifth of a
+# 5x5 dump's solve. Such a function cannot allocate (numba refuses to compile it) and must
+# not return an array (no count would own it; a test checks every one's return type)
+WITHOUT_REFCOUNTS = {"_nrt": False}
 # the contacts are put in reverse Cuthill-McKee order when the envelope in the posed order
 # costs more than WIDE_ENVELOPE_WORK multiply-adds to factor (below that, about 5 us, the
 # ordering costs more than it saves) and either there are more than ``order_above`` contacts
@@ -225,7 +234,8 @@ class Work(NamedTuple):
     block system's right side and then its solution, ``q`` a prox step's q, ``centre`` the prox
     centre, ``product`` a product ``Q x``, ``unpermuted`` an l in the posed order, ``free`` the
     policy's free contacts, ``infeasible`` the contacts to exchange, ``best_x`` the exchange
-    with the fewest infeasible contacts, ``feasible`` the active-set method's point."""
+    with the fewest infeasible contacts, ``feasible`` the active-set method's point, ``tol_l``
+    a prox run's tolerance on each impulse."""
 
     cache: FactorCache
     x: np.ndarray
@@ -238,6 +248,7 @@ class Work(NamedTuple):
     infeasible: np.ndarray
     best_x: np.ndarray
     feasible: np.ndarray
+    tol_l: np.ndarray
 
 
 @njit(cache=True)
@@ -246,7 +257,7 @@ def _work(n: int, capacity: int, product: np.ndarray, unpermuted: np.ndarray) ->
     entries (two kept factors), with the residual's ``product`` and ``unpermuted``."""
     return Work(_factor_cache(n, 2, capacity), np.zeros(n), np.empty(n), np.empty(n),
                 np.empty(n), product, unpermuted, np.empty(n, dtype=np.int64),
-                np.zeros(n, dtype=np.bool_), np.empty(n), np.empty(n))
+                np.zeros(n, dtype=np.bool_), np.empty(n), np.empty(n), np.empty(n))
 
 
 @njit(cache=True)
@@ -258,7 +269,7 @@ def natural_residual(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
     return _natural_residual_into(csc, b, diag, scale, impulses, np.empty(impulses.size))
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _natural_residual_into(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
                            impulses: np.ndarray, product: np.ndarray) -> float:
     """:func:`natural_residual`, with ``Q l`` formed in ``product`` (overwritten). The columns
@@ -294,7 +305,7 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
     return 2.0 * gamma * np.max(magnitude) / scale if impulses.size else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _original_residual(original: Posed, scale: float, impulses: np.ndarray,
                        product: np.ndarray, unpermuted: np.ndarray) -> float:
     """qpbench's residual of ``impulses`` given in the kernel's order, on the problem as posed
@@ -316,7 +327,7 @@ def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
     return product
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
     """``product = Q x`` over Q's CSC arrays (the columns of zero entries of x skipped)."""
     indptr, indices, data = csc
@@ -328,7 +339,7 @@ def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
                 product[indices[k]] += data[k] * value
 
 
-@njit(cache=True, fastmath=REDUCTIONS)
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
 def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
                        first_row: int) -> None:
     """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
@@ -372,7 +383,7 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
     return x
 
 
-@njit(cache=True, fastmath=REDUCTIONS)
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
 def _envelope_solve_in_place(values: np.ndarray, offsets: np.ndarray, size: int,
                              x: np.ndarray) -> None:
     """:func:`_envelope_solve` overwriting its right side ``x`` with the solution."""
@@ -396,7 +407,7 @@ def _envelope_solve_in_place(values: np.ndarray, offsets: np.ndarray, size: int,
             x[leading + k] -= values[row + k] * value
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _envelope_widths(A: Csc, offsets: np.ndarray) -> None:
     """Row offsets of the lower envelope of the whole symmetric Q: row c starts at the
     smallest row index of column c."""
@@ -429,7 +440,7 @@ def _upper(A: Csc) -> Csc:
     return starts, rows, values
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _envelope_pattern(upper: Csc, index: np.ndarray,
                       position: np.ndarray, offsets: np.ndarray, first_row: int) -> None:
     """Row offsets of the lower envelope of Q_II (``upper``: :func:`_upper` of Q; I = ``index``
@@ -448,7 +459,7 @@ def _envelope_pattern(upper: Csc, index: np.ndarray,
         offsets[a + 1] = offsets[a] + a - np.int64(row_first) + 1
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _fill(upper: Csc, index: np.ndarray,
           position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
           offsets: np.ndarray, first_row: int) -> None:
@@ -471,7 +482,7 @@ def _fill(upper: Csc, index: np.ndarray,
                     if scaled else data[k]
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
                  rho: float, rhs: np.ndarray, cache: FactorCache) -> None:
     """Overwrites ``rhs`` with x_F, (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's
@@ -507,26 +518,29 @@ def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: n
         for k in range(agreeing):
             kept += policy[k]
         if source != slot and kept > 0:
-            offsets[slot, :kept + 1] = offsets[source, :kept + 1]
-            factors[slot, :offsets[slot, kept]] = factors[source, :offsets[source, kept]]
+            for k in range(kept + 1):  # (a slice assignment would allocate)
+                offsets[slot, k] = offsets[source, k]
+            for k in range(offsets[source, kept]):
+                factors[slot, k] = factors[source, k]
     for a in range(size):
         position[index[a]] = a
     values, slot_offsets = factors[slot], offsets[slot]
     _envelope_pattern(upper, index, position, slot_offsets, kept)
-    _fill(upper, index, position, np.empty(0), values, slot_offsets, kept)
+    _fill(upper, index, position, safe_diag[:0], values, slot_offsets, kept)
     for a in range(size):
         position[index[a]] = -1
     for a in range(kept, size):
         values[slot_offsets[a + 1] - 1] += rho * safe_diag[index[a]]
     _envelope_cholesky(values, slot_offsets, size, kept)
     counters[0] += 1
-    policies[slot] = policy
+    for k in range(n):
+        policies[slot, k] = policy[k]
     rhos[slot] = rho
     ages[slot] = counters[1]
     _envelope_solve_in_place(values, slot_offsets, size, rhs)
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                   work: Work) -> None:
     """``work.x``: x_F with ``(Q_FF + rho D_F) x_F = -q_F`` on the policy's free contacts F,
@@ -545,7 +559,7 @@ def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray
             x[free[a]] = rhs[a]
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                tol_l: np.ndarray, tol_w: float, prox: Prox, budget: int, work: Work):
     """Block principal pivoting on LCP(Q + rho D, q), within ``budget`` linear solves:
@@ -578,7 +592,8 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
         if count < best or backup > 0:
             if count < best:
                 best, backup = count, backup_steps
-                work.best_x[:] = x
+                for i in range(n):
+                    work.best_x[i] = x[i]
             else:
                 backup -= 1
             for i in range(n):
@@ -596,7 +611,7 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     return solves, False
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _objective(A: Csc, rho: float, safe_diag: np.ndarray, q: np.ndarray, x: np.ndarray,
                product: np.ndarray) -> float:
     """``x^T (Q + rho D) x / 2 + q^T x``, with Q x formed in ``product``."""
@@ -607,7 +622,7 @@ def _objective(A: Csc, rho: float, safe_diag: np.ndarray, q: np.ndarray, x: np.n
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _clipped_curvature(A: Csc, rho: float, safe_diag: np.ndarray, solution: np.ndarray) -> float:
     """``d^T (Q + rho D) d / 2`` for ``d = max(-solution, 0)``, summed over the columns where
     d > 0 only (a few: the free contacts a policy solve sends below zero)."""
@@ -625,7 +640,7 @@ def _clipped_curvature(A: Csc, rho: float, safe_diag: np.ndarray, solution: np.n
     return 0.5 * total
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
                        tol_l: np.ndarray, tol_w: float, budget: int, work: Work):
     """LCP(H, q), H = Q + rho D positive definite, as the QP ``min f(x) = x^T H x / 2 + q^T x``,
@@ -708,26 +723,29 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
             solved = True
             break
         policy[entering] = True
-    solution[:] = feasible
+    for i in range(n):
+        solution[i] = feasible[i]
     return solves, solved
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
                            policy: np.ndarray, tol: float, rho: float, prox: Prox,
-                           budget: int, work: Work):
+                           budget: int, work: Work, best: np.ndarray):
     """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from the centre
     ``start`` (whose residual the caller has measured: ``start_residual``) and ``policy``
-    (changed in place) within ``budget`` solves: (best l, converged, status code, solves, best
-    residual)."""
+    (changed in place) within ``budget`` solves: (converged, status code, solves, best
+    residual), the best l written into ``best`` (not ``start``)."""
     original, b, safe_diag, scale = lcp.original, lcp.b, lcp.safe_diag, lcp.scale
-    centre, q, x = work.centre, work.q, work.x
+    centre, q, x, tol_l = work.centre, work.q, work.x, work.tol_l
     n = b.size
-    tol_l = 0.1 * tol * scale / safe_diag
+    for i in range(n):
+        tol_l[i] = 0.1 * tol * scale / safe_diag[i]
+        centre[i] = start[i]
+        best[i] = start[i]
     tol_w = 0.1 * tol * scale
-    centre[:] = start
     res = start_residual
-    best, best_res = start.copy(), res
+    best_res = res
     solves = 0
     stalls = 0
     status = PROX_BUDGET
@@ -741,12 +759,12 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
             centre[i] = np.maximum(x[i], 0.0)
         previous = res
         res = _original_residual(original, scale, centre, work.product, work.unpermuted)
-        if res < best_res:
-            best[:] = centre
-            best_res = res
+        if res < best_res or res <= tol:
+            for i in range(n):
+                best[i] = centre[i]
+            best_res = min(res, best_res)
         if res <= tol:
-            best[:] = centre
-            return best, True, PROX_CONVERGED, solves, res
+            return True, PROX_CONVERGED, solves, res
         if not solved:
             break
         stalls = stalls + 1 if res > prox.stall_ratio * previous else 0
@@ -756,7 +774,7 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
                 status = PROX_STALLED
                 break
             rho *= prox.rho_decrease
-    return best, False, status, solves, best_res
+    return False, status, solves, best_res
 
 
 @njit(cache=True)
@@ -781,7 +799,7 @@ def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
     return impulses
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     """The largest alpha <= 1 with value + alpha * change >= 0."""
     alpha = 1.0
@@ -805,9 +823,10 @@ def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, 
         return impulses, residual, 0
     w = _matvec(lcp.A, impulses) + lcp.b
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
-    polished, _, _, used, polished_residual = _prox_policy_iteration(
+    polished = np.empty(impulses.size)
+    _, _, used, polished_residual = _prox_policy_iteration(
         lcp, impulses, residual, w < lcp.diag * impulses, 0.1 * tol, rho, one_step,
-        np.int64(1), work)
+        np.int64(1), work, polished)
     return polished, polished_residual, used
 
 
@@ -817,10 +836,11 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
     """(l, done, solves, l's residual): proximal policy iteration from an interior-point
     iterate, with the policy {i : w_i < D_i l_i}; when it converges, :func:`_polish` on its
     answer."""
-    finished, done, _, used, finished_residual = _prox_policy_iteration(
+    finished = np.empty(start.size)
+    done, _, used, finished_residual = _prox_policy_iteration(
         lcp, start, _original_residual(lcp.original, lcp.scale, start, work.product,
                                        work.unpermuted),
-        start_w < lcp.diag * start, tol, rho, prox, finish_budget, work)
+        start_w < lcp.diag * start, tol, rho, prox, finish_budget, work, finished)
     if done:
         finished, finished_residual, polished = _polish(lcp, finished, finished_residual, tol,
                                                         rho, work)
@@ -849,8 +869,10 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     counters = work.cache.counters
     everything = np.arange(n)
     w = _matvec(A, start) + b
-    first, converged, _, solves, first_res = _prox_policy_iteration(
-        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, work)
+    first = np.empty(n)
+    converged, _, solves, first_res = _prox_policy_iteration(
+        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, work,
+        first)
     if converged:
         first, first_res, used = _polish(lcp, first, first_res, tol, rho, work)
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0], first_res
@@ -933,7 +955,7 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
         best_res
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _envelope_work(offsets: np.ndarray) -> float:
     """Multiply-adds of one envelope factorization, ``sum_i w_i^2 / 2`` over the row widths
     ``w_i = offsets[i + 1] - offsets[i]``."""
