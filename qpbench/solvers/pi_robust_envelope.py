@@ -811,6 +811,17 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     return alpha
 
 
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _policy_of(A: Csc, b: np.ndarray, diag: np.ndarray, impulses: np.ndarray,
+               product: np.ndarray, policy: np.ndarray, strict: bool) -> None:
+    """``policy``: the contacts with ``(Q l + b)_i < D_i l_i`` (``<=`` unless ``strict``), Q l
+    formed in ``product``."""
+    matvec_into(A, impulses, product)
+    for i in range(impulses.size):
+        w = product[i] + b[i]
+        policy[i] = w < diag[i] * impulses[i] if strict else w <= diag[i] * impulses[i]
+
+
 @njit(cache=True)
 def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
             work: Work):
@@ -821,12 +832,12 @@ def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, 
     without a second residual pass."""
     if residual <= 0.1 * tol:
         return impulses, residual, 0
-    w = _matvec(lcp.A, impulses) + lcp.b
+    policy = np.empty(impulses.size, dtype=np.bool_)
+    _policy_of(lcp.A, lcp.b, lcp.diag, impulses, work.product, policy, True)
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
     polished = np.empty(impulses.size)
     _, _, used, polished_residual = _prox_policy_iteration(
-        lcp, impulses, residual, w < lcp.diag * impulses, 0.1 * tol, rho, one_step,
-        np.int64(1), work, polished)
+        lcp, impulses, residual, policy, 0.1 * tol, rho, one_step, np.int64(1), work, polished)
     return polished, polished_residual, used
 
 
@@ -867,17 +878,17 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     product, unpermuted = np.empty(n), np.empty(n)
     work = _work(n, normal_first[n], product, unpermuted)
     counters = work.cache.counters
-    everything = np.arange(n)
-    w = _matvec(A, start) + b
+    policy = np.empty(n, dtype=np.bool_)
+    _policy_of(A, b, diag, start, product, policy, False)
     first = np.empty(n)
     converged, _, solves, first_res = _prox_policy_iteration(
-        lcp, start, start_residual, w <= diag * start, tol, rho, prox, options.pi_budget, work,
-        first)
+        lcp, start, start_residual, policy, tol, rho, prox, options.pi_budget, work, first)
     if converged:
         first, first_res, used = _polish(lcp, first, first_res, tol, rho, work)
         return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0], first_res
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
+    everything = np.arange(n)
     normal = np.empty(normal_first[n])
     scaled_b = b * root
     scaled_scale = max(np.max(np.abs(scaled_b)), 1e-300)
