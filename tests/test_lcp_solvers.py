@@ -374,8 +374,8 @@ def test_the_kernels_functions_without_reference_counts_return_no_array(tmp_path
                              capture_output=True, text=True, check=True).stdout
     returned = json.loads(printed)
     assert {"_block_solve", "_inner_lcp", "_prox_policy_iteration"} <= set(returned)
-    for name, is_array in returned.items():
-        assert is_array and not any(is_array), name
+    for name, array_parts in returned.items():
+        assert array_parts and not any(array_parts), name
 
 
 def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None:

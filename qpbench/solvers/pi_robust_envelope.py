@@ -735,7 +735,7 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
     """Prox steps ``z <- max(x, 0)``, x solving LCP(Q + rho D, b - rho D z), from the centre
     ``start`` (whose residual the caller has measured: ``start_residual``) and ``policy``
     (changed in place) within ``budget`` solves: (converged, status code, solves, best
-    residual), the best l written into ``best`` (not ``start``)."""
+    residual), the best l written into the caller's ``best`` (an array other than ``start``)."""
     original, b, safe_diag, scale = lcp.original, lcp.b, lcp.safe_diag, lcp.scale
     centre, q, x, tol_l = work.centre, work.q, work.x, work.tol_l
     n = b.size
