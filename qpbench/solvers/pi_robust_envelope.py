@@ -526,6 +526,7 @@ def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: n
         position[index[a]] = a
     values, slot_offsets = factors[slot], offsets[slot]
     _envelope_pattern(upper, index, position, slot_offsets, kept)
+    # an empty scale (S = I) as a view: this function may not allocate
     _fill(upper, index, position, safe_diag[:0], values, slot_offsets, kept)
     for a in range(size):
         position[index[a]] = -1
