@@ -543,9 +543,9 @@ def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: n
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
 def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
-                  work: Work) -> None:
+                  work: Work) -> int:
     """``work.x``: x_F with ``(Q_FF + rho D_F) x_F = -q_F`` on the policy's free contacts F,
-    zero elsewhere (by :func:`_block_solve`)."""
+    zero elsewhere (by :func:`_block_solve`); returns |F|."""
     x, rhs, free = work.x, work.rhs, work.free
     size = 0
     for i in range(q.size):  # written, then kept only when free: no branch on the policy
@@ -558,6 +558,31 @@ def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray
                      work.cache)
         for a in range(size):
             x[free[a]] = rhs[a]
+    return size
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _fixed_slacks_negative(A: Csc, policy: np.ndarray, x: np.ndarray, q: np.ndarray,
+                           tol_w: float, free_count: int, infeasible: np.ndarray,
+                           product: np.ndarray) -> None:
+    """``infeasible[i]`` for every fixed contact i (not ``policy[i]``): ``(Q x + q)_i < -tol_w``
+    for an x that is zero on the fixed contacts (so rho D x adds nothing there). Formed by
+    whichever visits fewer columns of Q: scattering the free columns into ``product``
+    (x is zero elsewhere), or gathering column i (Q is symmetric) for each fixed i."""
+    indptr, indices, data = A
+    n = q.size
+    if 2 * free_count <= n:
+        matvec_into(A, x, product)
+        for i in range(n):
+            if not policy[i]:
+                infeasible[i] = product[i] + q[i] < -tol_w
+        return
+    for i in range(n):
+        if not policy[i]:
+            total = q[i]
+            for k in range(indptr[i], indptr[i + 1]):
+                total += data[k] * x[indices[k]]
+            infeasible[i] = total < -tol_w
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -569,24 +594,22 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     ``y_i = (Q x + rho D x + q)_i < -tol_w``. Once ``prox.backup_steps`` exchanges in a row have
     not cut their number, :func:`_primal_active_set` goes on from the best exchange's x
     (``prox.active_set``), or it stops unsolved."""
-    A, safe_diag = lcp.A, lcp.safe_diag
+    A = lcp.A
     backup_steps, active_set = prox.backup_steps, prox.active_set
-    x, y, infeasible = work.x, work.product, work.infeasible
+    x, infeasible = work.x, work.infeasible
     n = q.size
     best = n + 1
     backup = backup_steps
     solves = 0
     x[:] = 0.0
     while solves < budget:
-        _policy_solve(lcp, policy, rho, q, work)
+        free_count = _policy_solve(lcp, policy, rho, q, work)
         solves += 1
-        matvec_into(A, x, y)
+        _fixed_slacks_negative(A, policy, x, q, tol_w, free_count, infeasible, work.product)
         count = 0
-        for i in range(n):  # y = Q x + rho D x + q, compared in place
+        for i in range(n):
             if policy[i]:
                 infeasible[i] = x[i] < -tol_l[i]
-            else:
-                infeasible[i] = y[i] + rho * safe_diag[i] * x[i] + q[i] < -tol_w
             count += infeasible[i]
         if count == 0:
             return solves, True
