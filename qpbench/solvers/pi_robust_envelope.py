@@ -218,16 +218,6 @@ class FactorCache(NamedTuple):
     position: np.ndarray
 
 
-@njit(cache=True)
-def _factor_cache(n: int, slots: int, capacity: int) -> FactorCache:
-    """An empty cache of ``slots`` factors of at most ``capacity`` entries each (the whole
-    matrix's envelope), for blocks of at most n contacts."""
-    return FactorCache(np.empty((slots, capacity)), np.zeros((slots, n + 1), dtype=np.int64),
-                       np.zeros((slots, n), dtype=np.bool_), np.full(slots, -1.0),
-                       np.zeros(slots, dtype=np.int64), np.zeros(2, dtype=np.int64),
-                       np.full(n, -1, dtype=np.int64))
-
-
 class Work(NamedTuple):
     """What one solve works in, allocated once so that no step of policy iteration allocates:
     ``cache`` the kept factors; n entries each: ``x`` block pivoting's iterate, ``rhs`` a
@@ -252,12 +242,33 @@ class Work(NamedTuple):
 
 
 @njit(cache=True)
-def _work(n: int, capacity: int, product: np.ndarray, unpermuted: np.ndarray) -> Work:
-    """The work arrays of a solve of n contacts whose whole envelope has ``capacity``
-    entries (two kept factors), with the residual's ``product`` and ``unpermuted``."""
-    return Work(_factor_cache(n, 2, capacity), np.zeros(n), np.empty(n), np.empty(n),
-                np.empty(n), product, unpermuted, np.empty(n, dtype=np.int64),
-                np.zeros(n, dtype=np.bool_), np.empty(n), np.empty(n), np.empty(n))
+def _work(n: int, capacity: int):
+    """(work, policy, first, polished): the :class:`Work` of a solve of n contacts whose whole
+    envelope has ``capacity`` entries (its :class:`FactorCache`: two empty slots), and n-entry
+    arrays for the start's policy, the first prox run's l and the polished l. Three allocations
+    (reals, integers, flags) sliced into all of them: an allocation for each of the 20 arrays
+    cost about 2% of a 5x5 dump's solve (hot)."""
+    slots = 2
+    reals = np.empty(slots * capacity + 11 * n + slots)
+    integers = np.empty(slots * (n + 1) + 2 * n + slots + 2, dtype=np.int64)
+    flags = np.zeros((slots + 2) * n, dtype=np.bool_)
+    vectors = reals[slots * capacity:slots * capacity + 11 * n].reshape((11, n))
+    rhos = reals[slots * capacity + 11 * n:]
+    rhos[:] = -1.0
+    vectors[0, :] = 0.0  # block pivoting's x starts at zero
+    integers[:] = 0
+    offsets = integers[:slots * (n + 1)].reshape((slots, n + 1))
+    at = slots * (n + 1)
+    position = integers[at:at + n]
+    position[:] = -1
+    cache = FactorCache(reals[:slots * capacity].reshape((slots, capacity)), offsets,
+                        flags[:slots * n].reshape((slots, n)), rhos,
+                        integers[at + 2 * n:at + 2 * n + slots],
+                        integers[at + 2 * n + slots:], position)
+    work = Work(cache, vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5],
+                integers[at + n:at + 2 * n], flags[slots * n:(slots + 1) * n], vectors[6],
+                vectors[7], vectors[8])
+    return work, flags[(slots + 1) * n:], vectors[9], vectors[10]
 
 
 @njit(cache=True)
@@ -292,8 +303,17 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
     with ``gamma = (m + 2) u / (1 - (m + 2) u)``, m the most entries in a column, u = 2^-53
     (Higham, "Accuracy and Stability of Numerical Algorithms", 2002, section 3.1). D l, min,
     abs, max and the division round identically in every implementation."""
+    return _rounding_bound_into(csc, b, scale, impulses, np.empty(b.size))
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _rounding_bound_into(csc: Csc, b: np.ndarray, scale: float, impulses: np.ndarray,
+                         magnitude: np.ndarray) -> float:
+    """:func:`residual_rounding_bound`, with ``sum_k |Q_ik l_k| + |b_i|`` formed in
+    ``magnitude`` (overwritten)."""
     indptr, indices, data = csc
-    magnitude = np.abs(b)
+    for i in range(b.size):
+        magnitude[i] = abs(b[i])
     longest = 0
     for column in range(impulses.size):
         value = abs(impulses[column])
@@ -302,7 +322,10 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
             magnitude[indices[k]] += abs(data[k]) * value
     unit = (longest + 2) * 2.0 ** -53
     gamma = unit / (1.0 - unit)
-    return 2.0 * gamma * np.max(magnitude) / scale if impulses.size else 0.0
+    largest = 0.0
+    for i in range(b.size):
+        largest = max(largest, magnitude[i])
+    return 2.0 * gamma * largest / scale
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -801,17 +824,16 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
     return False, status, solves, best_res
 
 
-@njit(cache=True)
-def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
-                  sweeps: int) -> np.ndarray:
-    """``sweeps`` projected Gauss-Seidel sweeps from ``start``: for i = 1..n in turn,
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, impulses: np.ndarray,
+                  inverse: np.ndarray, sweeps: int) -> None:
+    """In place on ``impulses``, ``sweeps`` projected Gauss-Seidel sweeps: for i = 1..n in turn,
     ``l_i <- max(0, l_i - (Q l + b)_i / D_i)`` (contacts with D_i = 0 left alone), with
     ``(Q l)_i`` from column i of the symmetric Q. A few sweeps cost a few products and put
     most contacts on the right side of the active set, so block pivoting from there needs
-    fewer factorizations."""
+    fewer factorizations. ``inverse`` (overwritten) holds 1 / D_i, 0 where D_i = 0 (left
+    alone): multiplied, not divided."""
     indptr, indices, data = A
-    impulses = start.copy()
-    inverse = np.empty(impulses.size)  # 1 / D_i (0: left alone): multiplied, not divided
     for i in range(impulses.size):
         inverse[i] = 1.0 / diag[i] if diag[i] > 0.0 else 0.0
     for _ in range(sweeps):
@@ -820,7 +842,6 @@ def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, start: np.ndarray,
             for k in range(indptr[i], indptr[i + 1]):
                 w += data[k] * impulses[indices[k]]
             impulses[i] = max(0.0, impulses[i] - w * inverse[i])
-    return impulses
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -836,33 +857,34 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
-def _policy_of(A: Csc, b: np.ndarray, diag: np.ndarray, impulses: np.ndarray,
-               product: np.ndarray, policy: np.ndarray, strict: bool) -> None:
-    """``policy``: the contacts with ``(Q l + b)_i < D_i l_i`` (``<=`` unless ``strict``), Q l
-    formed in ``product``."""
-    matvec_into(A, impulses, product)
+def _policy_from(lcp: OrderedLcp, impulses: np.ndarray, posed_product: np.ndarray,
+                 policy: np.ndarray, strict: bool) -> None:
+    """``policy``: the contacts with ``(Q l + b)_i < D_i l_i`` (``<=`` unless ``strict``), l in
+    the kernel's order, from the ``Q l`` that its residual formed on the problem as posed
+    (``posed_product``, in the posed order): no product of its own."""
+    order, b, diag = lcp.original.order, lcp.b, lcp.diag
     for i in range(impulses.size):
-        w = product[i] + b[i]
+        w = (posed_product[order[i]] if order.size else posed_product[i]) + b[i]
         policy[i] = w < diag[i] * impulses[i] if strict else w <= diag[i] * impulses[i]
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _polish(lcp: OrderedLcp, impulses: np.ndarray, residual: float, tol: float, rho: float,
-            work: Work):
-    """(l, its residual, solves): a converged l whose ``residual`` is above tol / 10 gets one
-    more prox step on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept factor:
-    two triangular solves), kept if it lowers the residual. A prox step ends at residual
+            work: Work, polished: np.ndarray, policy: np.ndarray):
+    """(moved, the answer's residual, solves): a converged l whose ``residual`` is above tol / 10
+    gets one more prox step on its own policy ``{i : (Q l + b)_i < D_i l_i}`` (usually the kept
+    factor: two triangular solves) into ``polished`` (moved: the answer is ``polished``, which is
+    l unless the step lowered the residual; else it is l). A prox step ends at residual
     ~ rho |D (l - z)|, about tol when rho = tol; the margin lets the caller certify the answer
-    without a second residual pass."""
+    without a second residual pass. ``work.product`` must hold the ``Q l`` of l's residual (as
+    :func:`_prox_policy_iteration` leaves it when it converges); ``policy`` is overwritten."""
     if residual <= 0.1 * tol:
-        return impulses, residual, 0
-    policy = np.empty(impulses.size, dtype=np.bool_)
-    _policy_of(lcp.A, lcp.b, lcp.diag, impulses, work.product, policy, True)
+        return False, residual, 0
+    _policy_from(lcp, impulses, work.product, policy, True)
     one_step = Prox(rho, 1.0, 0.5, 1, 0, False)
-    polished = np.empty(impulses.size)
     _, _, used, polished_residual = _prox_policy_iteration(
         lcp, impulses, residual, policy, 0.1 * tol, rho, one_step, np.int64(1), work, polished)
-    return polished, polished_residual, used
+    return True, polished_residual, used
 
 
 @njit(cache=True)
@@ -877,18 +899,23 @@ def _finish(lcp: OrderedLcp, start: np.ndarray, start_w: np.ndarray, tol: float,
                                        work.unpermuted),
         start_w < lcp.diag * start, tol, rho, prox, finish_budget, work, finished)
     if done:
-        finished, finished_residual, polished = _polish(lcp, finished, finished_residual, tol,
-                                                        rho, work)
-        used += polished
+        polished = np.empty(start.size)
+        moved, finished_residual, extra = _polish(lcp, finished, finished_residual, tol, rho,
+                                                  work, polished,
+                                                  np.empty(start.size, dtype=np.bool_))
+        used += extra
+        if moved:
+            finished = polished
     return finished, done, used, finished_residual
 
 
 @njit(cache=True)
 def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
-                   options: Options, normal_first: np.ndarray):
+                   start_product: np.ndarray, options: Options, normal_first: np.ndarray):
     """(l, converged by qpbench's residual formula, path code, linear solves, interior
     iterations, factorizations, l's residual) of pi-robust on the LCP (Q, b) from ``start``
-    (l >= 0, not converged: the caller has measured its residual, ``start_residual``).
+    (l >= 0, not converged: the caller has measured its residual, ``start_residual``, with the
+    ``Q l`` it formed in the posed order, ``start_product``).
 
     ``lcp`` and ``start`` and the answer are in the kernel's order; every residual is measured
     on ``lcp.original`` (a converged l's is qpbench's, summed as the caller would sum it);
@@ -899,17 +926,17 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     prox = options.prox
     finish_budget, finish_below = options.finish_budget, options.finish_below
     n = b.size
-    product, unpermuted = np.empty(n), np.empty(n)
-    work = _work(n, normal_first[n], product, unpermuted)
+    work, policy, first, polished = _work(n, normal_first[n])
+    product, unpermuted = work.product, work.unpermuted
     counters = work.cache.counters
-    policy = np.empty(n, dtype=np.bool_)
-    _policy_of(A, b, diag, start, product, policy, False)
-    first = np.empty(n)
+    _policy_from(lcp, start, start_product, policy, False)
     converged, _, solves, first_res = _prox_policy_iteration(
         lcp, start, start_residual, policy, tol, rho, prox, options.pi_budget, work, first)
     if converged:
-        first, first_res, used = _polish(lcp, first, first_res, tol, rho, work)
-        return first, True, PATH_POLICY_ITERATION, solves + used, 0, counters[0], first_res
+        moved, first_res, used = _polish(lcp, first, first_res, tol, rho, work, polished,
+                                         policy)
+        return polished if moved else first, True, PATH_POLICY_ITERATION, solves + used, 0, \
+            counters[0], first_res
     # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
     root = 1.0 / np.sqrt(safe_diag)
     everything = np.arange(n)
@@ -1068,12 +1095,13 @@ def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
     return np.maximum(warm_start, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _certified(csc: Csc, b: np.ndarray, scale: float, impulses: np.ndarray, residual: float,
-               tol: float) -> bool:
+               tol: float, magnitude: np.ndarray) -> bool:
     """``residual`` (qpbench's, summed in scipy's order) plus :func:`residual_rounding_bound`
-    is at most tol: no other summation order of ``Q l + b`` can put it above tol."""
-    return residual + residual_rounding_bound(csc, b, scale, impulses) <= tol
+    (formed in ``magnitude``, n entries, overwritten) is at most tol: no other summation order
+    of ``Q l + b`` can put it above tol."""
+    return residual + _rounding_bound_into(csc, b, scale, impulses, magnitude) <= tol
 
 
 @njit(cache=True)
@@ -1098,19 +1126,23 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     n = b.size
     scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
     A_posed = (indptr, indices, data)
-    start = clean_start(warm_start, n)
-    start_residual = natural_residual(A_posed, b, diag, scale, start)
+    start = clean_start(warm_start, n)  # (a new array: the sweeps change it in place)
+    # n-entry work of the posed order: the start's Q l, the sweeps' 1 / D, the rounding bound's
+    # magnitudes
+    posed_work = np.empty((3, n))
+    start_product, inverse, magnitude = posed_work[0], posed_work[1], posed_work[2]
+    start_residual = _natural_residual_into(A_posed, b, diag, scale, start, start_product)
     if start_residual <= options.tol:  # converged already: returned before any set-up
         return start, True, PATH_START, 0, 0, 0, _certified(
-            A_posed, b, scale, start, start_residual, options.tol)
+            A_posed, b, scale, start, start_residual, options.tol, magnitude)
     # the start sweeps, in the posed order: contacts that hardly interact (Q nearly diagonal)
     # are solved by the sweeps alone, before any set-up
     if options.start_sweeps > 0:
-        start = _gauss_seidel(A_posed, b, diag, start, options.start_sweeps)
-        start_residual = natural_residual(A_posed, b, diag, scale, start)
+        _gauss_seidel(A_posed, b, diag, start, inverse, options.start_sweeps)
+        start_residual = _natural_residual_into(A_posed, b, diag, scale, start, start_product)
         if start_residual <= options.tol:
             return start, True, PATH_SWEEPS, 0, 0, 0, _certified(
-                A_posed, b, scale, start, start_residual, options.tol)
+                A_posed, b, scale, start, start_residual, options.tol, magnitude)
     safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
     order = np.empty(0, dtype=np.int64)  # the posed order
     A = A_posed
@@ -1132,12 +1164,13 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     else:
         lcp = OrderedLcp(A, upper, Posed(A_posed, b, diag, order), b, diag, safe_diag, scale)
     answer, converged, path, solves, interior, factorizations, residual = _solve_ordered(
-        lcp, start, start_residual, options, widths)
+        lcp, start, start_residual, start_product, options, widths)
     impulses = answer
     if order.size:
         impulses = np.empty(n)
         impulses[order] = answer
-    certified = converged and _certified(A_posed, b, scale, impulses, residual, options.tol)
+    certified = converged and _certified(A_posed, b, scale, impulses, residual, options.tol,
+                                         magnitude)
     return impulses, converged, path, solves, interior, factorizations, certified
 
 
