@@ -448,11 +448,21 @@ def _upper(A: Csc) -> Csc:
     """CSC arrays of the upper triangle of the symmetric Q (its entries Q_rc with r <= c):
     column c holds row c of the lower triangle, all that an envelope row reads. Once per
     solve, O(nnz(Q)); it halves what every block's pattern and fill visit."""
+    n = A[0].size - 1
+    upper = (np.empty(n + 1, dtype=np.int64), np.empty(A[1].size, dtype=np.int64),
+             np.empty(A[1].size))
+    _upper_into(A, upper)
+    return upper
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _upper_into(A: Csc, upper: Csc) -> None:
+    """:func:`_upper` into ``upper``'s arrays (n + 1 starts, as many rows and values as Q has
+    entries; those past the upper triangle's are left as they are)."""
     indptr, indices, data = A
+    starts, rows, values = upper
     n = indptr.size - 1
-    starts = np.zeros(n + 1, dtype=np.int64)
-    rows = np.empty(indices.size, dtype=np.int64)  # (the upper triangle's entries at the front)
-    values = np.empty(indices.size)
+    starts[0] = 0
     end = 0
     for column in range(n):
         for k in range(indptr[column], indptr[column + 1]):
@@ -460,7 +470,6 @@ def _upper(A: Csc) -> Csc:
             rows[end], values[end] = indices[k], data[k]
             end += indices[k] <= column
         starts[column + 1] = end
-    return starts, rows, values
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -1121,16 +1130,28 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     it declines at once (path ``PATH_DECLINED``) and the caller's sparse path runs. ``certified``:
     converged, and :func:`_certified`. ``indptr`` and ``indices`` may be 32-bit (SciPy's, passed
     without a copy)."""
-    indptr, indices = indptr.astype(np.int64), indices.astype(np.int64)
     options = unpacked(packed_options)
-    n = b.size
-    scale = max(np.max(np.abs(b)), TINY) if n else TINY  # qpbench's metrics.scale
+    n, entries = b.size, indices.size
+    # the set-up's arrays, sliced from two allocations (an allocation for each of them cost
+    # about 4% of a 5x5 dump's solve, hot): integers = Q's indptr and indices as 64-bit, the
+    # envelope's row offsets, the upper triangle's starts and rows; reals = the start's Q l, the
+    # sweeps' 1 / D, the rounding bound's magnitudes, D with zeros replaced, the upper
+    # triangle's values
+    integers = np.empty(3 * (n + 1) + 2 * entries, dtype=np.int64)
+    reals = np.empty(4 * n + entries)
+    posed_indptr, posed_indices = integers[:n + 1], integers[n + 1:n + 1 + entries]
+    for i in range(n + 1):
+        posed_indptr[i] = indptr[i]
+    for k in range(entries):
+        posed_indices[k] = indices[k]
+    indptr, indices = posed_indptr, posed_indices
     A_posed = (indptr, indices, data)
+    scale = TINY  # qpbench's metrics.scale, max(max |b_i|, TINY) (NaN when b has one)
+    for i in range(n):
+        if abs(b[i]) > scale or b[i] != b[i]:
+            scale = abs(b[i])
     start = clean_start(warm_start, n)  # (a new array: the sweeps change it in place)
-    # n-entry work of the posed order: the start's Q l, the sweeps' 1 / D, the rounding bound's
-    # magnitudes
-    posed_work = np.empty((3, n))
-    start_product, inverse, magnitude = posed_work[0], posed_work[1], posed_work[2]
+    start_product, inverse, magnitude = reals[:n], reals[n:2 * n], reals[2 * n:3 * n]
     start_residual = _natural_residual_into(A_posed, b, diag, scale, start, start_product)
     if start_residual <= options.tol:  # converged already: returned before any set-up
         return start, True, PATH_START, 0, 0, 0, _certified(
@@ -1143,10 +1164,13 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         if start_residual <= options.tol:
             return start, True, PATH_SWEEPS, 0, 0, 0, _certified(
                 A_posed, b, scale, start, start_residual, options.tol, magnitude)
-    safe_diag = np.where(diag > 0.0, diag, 1.0)  # D with zeros replaced, for divisions
-    order = np.empty(0, dtype=np.int64)  # the posed order
+    safe_diag = reals[3 * n:4 * n]  # D with zeros replaced, for divisions
+    for i in range(n):
+        safe_diag[i] = diag[i] if diag[i] > 0.0 else 1.0
+    order = integers[:0]  # the posed order
     A = A_posed
-    widths = np.zeros(n + 1, dtype=np.int64)
+    at = n + 1 + entries
+    widths = integers[at:at + n + 1]
     _envelope_widths(A, widths)
     work = _envelope_work(widths)
     if work > WIDE_ENVELOPE_WORK and (n > order_above or work > WIDE_ENVELOPE * n ** 3 / 6.0):
@@ -1156,7 +1180,8 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
-    upper = _upper(A)
+    upper = (integers[at + n + 1:at + 2 * n + 2], integers[at + 2 * n + 2:], reals[4 * n:])
+    _upper_into(A, upper)
     if order.size:
         lcp = OrderedLcp(A, upper, Posed(A_posed, b, diag, order), b[order], diag[order],
                          safe_diag[order], scale)
