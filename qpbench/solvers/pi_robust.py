@@ -553,8 +553,10 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
     if path == envelope.PATH_INTERIOR:
         info["interior_iterations"] = interior
-    return SolverOutput(impulses=impulses, status="converged", claimed_success=True,
-                        iterations=solves, info=info)
+    # (impulses, status, claimed_success, iterations, backend_times, info): positional, as keyword
+    # arguments and the default factory cost about 1% of a 5x5 dump's time_s (measured through
+    # call_solver)
+    return SolverOutput(impulses, "converged", True, solves, {}, info)
 
 
 def _failed_in_full(answer: tuple) -> bool:
