@@ -378,28 +378,42 @@ def test_the_kernels_functions_without_reference_counts_return_no_array(tmp_path
         assert array_parts and not any(array_parts), name
 
 
-def test_a_blocks_envelope_from_the_upper_triangle_is_the_dense_blocks() -> None:
-    """For a free set I, the rows of Q_II's lower envelope start at each row's first nonzero,
-    and the fill writes exactly Q_II's entries there (zeros inside the envelope), read from Q's
-    upper triangle alone."""
-    from qpbench.solvers.pi_robust_envelope import _envelope_pattern, _fill, _upper
+def test_a_blocks_envelope_factor_from_the_upper_triangle_is_the_dense_blocks() -> None:
+    """For a free set I, the rows of the factor of Q_II + rho D_I start at each row's first
+    nonzero of Q_II, L L^T is Q_II + rho D_I, and the forward substitution made row by row
+    with it is L's: all read from Q's upper triangle alone, from a first row on as well (the
+    rows before it kept from an earlier factor)."""
+    from qpbench.solvers.pi_robust_envelope import _backward_substitution, _factor_rows, _upper
 
     Q = generate("grid", 10, seed=0)[0].Q
     upper = _upper((Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data))
+    diag, rho = Q.diagonal(), 1e-3
     rng = np.random.default_rng(3)
     for _ in range(5):
         free = np.flatnonzero(rng.uniform(size=Q.shape[0]) < 0.6)
         position = np.full(Q.shape[0], -1, dtype=np.int64)
         position[free] = np.arange(free.size)
+        block = Q[free][:, free].toarray() + rho * np.diag(diag[free])
         offsets = np.zeros(free.size + 1, dtype=np.int64)
-        _envelope_pattern(upper, free, position, offsets, 0)
-        values = np.empty(offsets[-1])
-        _fill(upper, free, position, np.empty(0), values, offsets, 0)
-        block = np.tril(Q[free][:, free].toarray())
+        values = np.empty(Q.nnz + free.size ** 2)
+        _factor_rows(upper, free, position, np.empty(0), rho, diag, values, offsets, 0,
+                     np.empty(0))
+        lower = np.zeros_like(block)
         for a in range(free.size):
             first = a + 1 - (offsets[a + 1] - offsets[a])
             assert first == np.flatnonzero(block[a])[0]
-            assert np.array_equal(values[offsets[a]:offsets[a + 1]], block[a, first:a + 1])
+            lower[a, first:a + 1] = values[offsets[a]:offsets[a + 1]]
+            lower[a, a] = 1.0 / lower[a, a]  # the diagonal is kept as its reciprocal
+        assert np.allclose(lower @ lower.T, block, rtol=1e-12, atol=1e-12 * diag.max())
+        # refactored from a middle row on (the rows before it kept), with a right side
+        kept = free.size // 2
+        rhs = rng.normal(size=free.size)
+        solution = rhs.copy()
+        values[offsets[kept]:] = np.nan  # must be written before being read
+        _factor_rows(upper, free, position, np.empty(0), rho, diag, values, offsets, kept,
+                     solution)
+        _backward_substitution(values, offsets, free.size, solution)
+        assert np.allclose(block @ solution, rhs, rtol=1e-10, atol=1e-10)
 
 
 def test_the_active_set_methods_objective_without_products_is_the_objective() -> None:

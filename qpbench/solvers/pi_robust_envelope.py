@@ -364,20 +364,56 @@ def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
 
 
 @njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
-def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
-                       first_row: int) -> None:
-    """In place: the lower envelope of a symmetric matrix becomes its Cholesky factor L, which
-    has the same envelope (Jennings, "A compact storage scheme for the solution of symmetric
-    linear simultaneous equations", Comput. J. 9(3), 1966). Row i is stored in
-    ``values[offsets[i]:offsets[i + 1]]``, its columns first(i) .. i (the diagonal last, kept
-    as its reciprocal 1 / L_ii: each entry ``L_ij = (A_ij - sum_k L_ik L_jk) / L_jj`` is then a
-    multiplication, whose latency is a third of a division's). Rows before ``first_row`` are
-    already L's (row i of L depends on the rows up to i of the matrix only). Raises LinAlgError
-    when a pivot is not positive."""
-    for i in range(first_row, size):
+def _factor_rows(upper: Csc, index: np.ndarray, position: np.ndarray, row_scale: np.ndarray,
+                 shift_scale: float, shift: np.ndarray, values: np.ndarray, offsets: np.ndarray,
+                 first_row: int, x: np.ndarray) -> None:
+    """The envelope Cholesky factor ``L L^T = S Q_II S + shift_scale diag(shift_I)`` (Jennings,
+    "A compact storage scheme for the solution of symmetric linear simultaneous equations",
+    Comput. J. 9(3), 1966) from row ``first_row`` on, the rows before it being L's already
+    (row i of L depends on the rows up to i of the matrix only), and, unless x is empty, the
+    forward substitution ``L y = x`` in place. S = diag(row_scale), S = I when row_scale is
+    empty; entries (r, c) scale as (Q_rc s_r) s_c. ``upper`` is :func:`_upper` of Q, I =
+    ``index`` in rising order, ``position[r]`` r's place in I or -1.
+
+    Row i of L has the envelope of row i of the matrix, stored in
+    ``values[offsets[i]:offsets[i + 1]]``: its columns first(i) .. i, first(i) the first place
+    in I among the rows of column ``index[i]`` of the upper triangle, the diagonal last, kept
+    as its reciprocal 1 / L_ii (each entry ``L_ij = (A_ij - sum_k L_ik L_jk) / L_jj`` is then a
+    multiplication, whose latency is a third of a division's). Each row's pattern, entries,
+    factor and substitution are formed in turn while it is in cache: one pass over the rows
+    where four were made before (measured hot, same solves: 5x5 dumps 1-2% faster, box
+    packings 8%, 7x7 scenes and grid captures within 0.3%). Raises LinAlgError when a pivot
+    is not positive."""
+    starts, rows, data = upper
+    scaled = row_scale.size > 0
+    if x.size:
+        _forward_rows(values, offsets, 0, first_row, x)
+    if first_row == 0:
+        offsets[0] = 0
+    for i in range(first_row, index.size):
+        column = index[i]
+        row_first = np.uint64(i)
+        for k in range(starts[column], starts[column + 1]):
+            # unsigned: a row outside I (-1) compares above every place, without a branch
+            row_first = min(row_first, np.uint64(position[rows[k]]))
+        first_i = np.int64(row_first)
         base_i = offsets[i]
-        end_i = offsets[i + 1]
-        first_i = i + 1 - (end_i - base_i)
+        end_i = base_i + i - first_i + 1
+        offsets[i + 1] = end_i
+        for k in range(np.uint64(base_i), np.uint64(end_i)):
+            values[k] = 0.0
+        if scaled:  # (two loops: a test inside the loop cost about 1%)
+            for k in range(starts[column], starts[column + 1]):
+                place = position[rows[k]]
+                if place >= 0:
+                    values[base_i + place - first_i] = \
+                        (data[k] * row_scale[rows[k]]) * row_scale[column]
+        else:
+            for k in range(starts[column], starts[column + 1]):
+                place = position[rows[k]]
+                if place >= 0:
+                    values[base_i + place - first_i] = data[k]
+        values[end_i - 1] += shift_scale * shift[column]
         for j in range(first_i, i):
             base_j = offsets[j]
             end_j = offsets[j + 1]
@@ -395,12 +431,17 @@ def _envelope_cholesky(values: np.ndarray, offsets: np.ndarray, size: int,
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
         values[end_i - 1] = 1.0 / np.sqrt(total)
+        if x.size:  # row i of the forward substitution, as in _forward_rows
+            total = x[i]
+            for k in range(np.uint64(i - first_i)):
+                total -= values[np.uint64(base_i) + k] * x[np.uint64(first_i) + k]
+            x[i] = total * values[end_i - 1]
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
 def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
                     rhs: np.ndarray) -> np.ndarray:
-    """x with L L^T x = rhs for an envelope factor L stored as in ``_envelope_cholesky`` (its
+    """x with L L^T x = rhs for an envelope factor L stored as in :func:`_factor_rows` (its
     diagonal as reciprocals)."""
     x = rhs.copy()
     _envelope_solve_in_place(values, offsets, size, x)
@@ -411,15 +452,31 @@ def _envelope_solve(values: np.ndarray, offsets: np.ndarray, size: int,
 def _envelope_solve_in_place(values: np.ndarray, offsets: np.ndarray, size: int,
                              x: np.ndarray) -> None:
     """:func:`_envelope_solve` overwriting its right side ``x`` with the solution."""
-    for i in range(size):
+    _forward_rows(values, offsets, 0, size, x)
+    _backward_substitution(values, offsets, size, x)
+
+
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
+def _forward_rows(values: np.ndarray, offsets: np.ndarray, start: int, stop: int,
+                  x: np.ndarray) -> None:
+    """Rows start .. stop - 1 of the forward substitution ``L y = x`` in place (the entries of
+    x before ``start`` are y's already): ``x_i <- (x_i - sum_k L_ik x_k) / L_ii``."""
+    for i in range(start, stop):
         base = offsets[i]
         end = offsets[i + 1]
         first = i + 1 - (end - base)
-        row, leading = np.uint64(base), np.uint64(first)  # unsigned: the loops vectorise
+        row, leading = np.uint64(base), np.uint64(first)  # unsigned: the loop vectorises
         total = x[i]
         for k in range(np.uint64(i - first)):
             total -= values[row + k] * x[leading + k]
         x[i] = total * values[end - 1]
+
+
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
+def _backward_substitution(values: np.ndarray, offsets: np.ndarray, size: int,
+                           x: np.ndarray) -> None:
+    """``L^T x = y`` in place (y in ``x``), row by row of L from the last: ``x_i <- x_i / L_ii``,
+    then ``x_k -= L_ik x_i`` for the columns k of row i."""
     for i in range(size - 1, -1, -1):
         base = offsets[i]
         end = offsets[i + 1]
@@ -474,48 +531,6 @@ def _upper_into(A: Csc, upper: Csc) -> None:
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
-def _envelope_pattern(upper: Csc, index: np.ndarray,
-                      position: np.ndarray, offsets: np.ndarray, first_row: int) -> None:
-    """Row offsets of the lower envelope of Q_II (``upper``: :func:`_upper` of Q; I = ``index``
-    in rising order; ``position[r]`` = r's place in I, or -1), from row ``first_row`` on
-    (``offsets[:first_row + 1]`` are kept): row a starts at the first place in I among the
-    rows of column ``index[a]`` of the upper triangle."""
-    starts, rows, _ = upper
-    if first_row == 0:
-        offsets[0] = 0
-    for a in range(first_row, index.size):
-        column = index[a]
-        row_first = np.uint64(a)
-        for k in range(starts[column], starts[column + 1]):
-            # unsigned: a row outside I (-1) compares above every place, without a branch
-            row_first = min(row_first, np.uint64(position[rows[k]]))
-        offsets[a + 1] = offsets[a] + a - np.int64(row_first) + 1
-
-
-@njit(cache=True, **WITHOUT_REFCOUNTS)
-def _fill(upper: Csc, index: np.ndarray,
-          position: np.ndarray, row_scale: np.ndarray, values: np.ndarray,
-          offsets: np.ndarray, first_row: int) -> None:
-    """Writes the lower envelope of ``S Q_II S`` (S = diag(row_scale); S = I when row_scale is
-    empty) into ``values``, rows ``first_row`` on, from ``upper`` (:func:`_upper` of Q; I and
-    ``position`` as in :func:`_envelope_pattern`); entries (r, c) scale as (Q_rc s_r) s_c."""
-    starts, rows, data = upper
-    size = index.size
-    scaled = row_scale.size > 0
-    values[offsets[first_row]:offsets[size]] = 0.0
-    for a in range(first_row, size):
-        column = index[a]
-        base = offsets[a]
-        first = a + 1 - (offsets[a + 1] - base)
-        for k in range(starts[column], starts[column + 1]):
-            row = rows[k]
-            p = position[row]
-            if p >= 0:
-                values[base + p - first] = (data[k] * row_scale[row]) * row_scale[column] \
-                    if scaled else data[k]
-
-
-@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
                  rho: float, rhs: np.ndarray, cache: FactorCache) -> None:
     """Overwrites ``rhs`` with x_F, (Q_FF + rho D_F) x_F = rhs (F = ``index``, the policy's
@@ -558,20 +573,17 @@ def _block_solve(upper: Csc, safe_diag: np.ndarray, policy: np.ndarray, index: n
     for a in range(size):
         position[index[a]] = a
     values, slot_offsets = factors[slot], offsets[slot]
-    _envelope_pattern(upper, index, position, slot_offsets, kept)
     # an empty scale (S = I) as a view: this function may not allocate
-    _fill(upper, index, position, safe_diag[:0], values, slot_offsets, kept)
+    _factor_rows(upper, index, position, safe_diag[:0], rho, safe_diag, values, slot_offsets,
+                 kept, rhs)
     for a in range(size):
         position[index[a]] = -1
-    for a in range(kept, size):
-        values[slot_offsets[a + 1] - 1] += rho * safe_diag[index[a]]
-    _envelope_cholesky(values, slot_offsets, size, kept)
     counters[0] += 1
     for k in range(n):
         policies[slot, k] = policy[k]
     rhos[slot] = rho
     ages[slot] = counters[1]
-    _envelope_solve_in_place(values, slot_offsets, size, rhs)
+    _backward_substitution(values, slot_offsets, size, rhs)
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -998,11 +1010,9 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
             if done:
                 return finished, True, PATH_INTERIOR, solves + iterations, iterations, \
                     counters[0], finished_res
-        _fill(upper, everything, everything, root, normal, normal_first, np.int64(0))
-        ratio = slack / impulses
-        for i in range(n):
-            normal[normal_first[i + 1] - 1] += max(ratio[i], floor)
-        _envelope_cholesky(normal, normal_first, n, np.int64(0))
+        _factor_rows(upper, everything, everything, root, 1.0,
+                     np.maximum(slack / impulses, floor), normal, normal_first, np.int64(0),
+                     root[:0])
         counters[0] += 1
         dl = _envelope_solve(normal, normal_first, n, -slack - infeasibility)
         dw = root * _matvec(A, root * dl) + infeasibility
