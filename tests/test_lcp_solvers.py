@@ -195,10 +195,15 @@ def test_pi_robust_compiled_path_matches_qpbench_and_the_python_path(
 def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
     """The kernel sums Q l column by column like scipy's CSC product (skipping the columns of
     zero impulses, whose terms are zeros), so its residual is qpbench's exactly, even on masses
-    over 1e-6 .. 1e6; the rounding bound covers any order."""
+    over 1e-6 .. 1e6; the rounding bound covers any order, and the loose bound that is tried
+    first is never below it."""
     from qpbench.solvers.lcp import Lcp
     from qpbench.solvers.pi_robust import csc_arrays
-    from qpbench.solvers.pi_robust_envelope import natural_residual, residual_rounding_bound
+    from qpbench.solvers.pi_robust_envelope import (
+        _loose_rounding_bound,
+        natural_residual,
+        residual_rounding_bound,
+    )
 
     rng = np.random.default_rng(7)
     for problem in [generate("mass-ratio", 10, seed=3)[0], generate("grid", 7, seed=0)[0],
@@ -213,6 +218,7 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
             dense_order = lcp.residual_of(impulses, lcp.op @ impulses + lcp.b)
             bound = residual_rounding_bound(csc, lcp.b, lcp.scale, impulses)
             assert bound > 0.0 and abs(dense_order - ours) <= bound
+            assert _loose_rounding_bound(csc, lcp.b, lcp.scale, impulses) >= bound
 
 
 def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor() -> None:
