@@ -387,12 +387,30 @@ def test_the_kernels_functions_without_reference_counts_return_no_array(tmp_path
 def test_a_blocks_envelope_factor_from_the_upper_triangle_is_the_dense_blocks() -> None:
     """For a free set I, the rows of the factor of Q_II + rho D_I start at each row's first
     nonzero of Q_II, L L^T is Q_II + rho D_I, and the forward substitution made row by row
-    with it is L's: all read from Q's upper triangle alone, from a first row on as well (the
-    rows before it kept from an earlier factor)."""
-    from qpbench.solvers.pi_robust_envelope import _backward_substitution, _factor_rows, _upper
+    with it is L's: all read from Q's upper triangle alone (a copy, or Q's own sorted columns'
+    leading entries), from a first row on as well (the rows before it kept from an earlier
+    factor)."""
+    from qpbench.solvers.pi_robust_envelope import (
+        _backward_substitution,
+        _factor_rows,
+        _leading_upper,
+        _upper,
+    )
 
     Q = generate("grid", 10, seed=0)[0].Q
-    upper = _upper((Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data))
+    csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    upper = _upper(csc)
+    # Q's own arrays, rows sorted in each column, serve as the upper triangle: same entries
+    ends = np.empty(Q.shape[0], dtype=np.int64)
+    assert _leading_upper(csc, ends)
+    for column in range(Q.shape[0]):
+        copied = slice(upper[0][column], upper[1][column])
+        leading = slice(Q.indptr[column], ends[column])
+        assert np.array_equal(upper[2][copied], Q.indices[leading])
+        assert np.array_equal(upper[3][copied], Q.data[leading])
+    unsorted = (csc[0], csc[1].copy(), csc[2])
+    unsorted[1][[0, 1]] = unsorted[1][[1, 0]]  # the first column's first two rows swapped
+    assert not _leading_upper(unsorted, ends)
     diag, rho = Q.diagonal(), 1e-3
     rng = np.random.default_rng(3)
     for _ in range(5):
