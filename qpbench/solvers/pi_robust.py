@@ -624,7 +624,8 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
     settings = settings_for(eps)
-    compiled = 0 < problem.n_contacts <= settings.compiled_limit
+    # b's size is the number of contacts (b is posed; n_contacts reads G's shape, 0.1 us)
+    compiled = 0 < problem.b.size <= settings.compiled_limit
     if compiled:
         answer = _compiled(problem, settings, warm_start)
         if answer is not None:
