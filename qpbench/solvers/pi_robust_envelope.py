@@ -1170,9 +1170,10 @@ def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
 @njit(cache=True, **WITHOUT_REFCOUNTS)
 def _certified(csc: Csc, b: np.ndarray, scale: float, impulses: np.ndarray, residual: float,
                tol: float, magnitude: np.ndarray) -> bool:
-    """``residual`` (qpbench's, summed in scipy's order) plus :func:`residual_rounding_bound`
-    (formed in ``magnitude``, n entries, overwritten) is at most tol: no other summation order
-    of ``Q l + b`` can put it above tol."""
+    """``residual`` (qpbench's, summed in scipy's order) plus a rounding bound is at most tol:
+    no other summation order of ``Q l + b`` can put it above tol. The bound is
+    :func:`_loose_rounding_bound` first (no product), and :func:`residual_rounding_bound`
+    (formed in ``magnitude``, n entries, overwritten) only when that one does not certify."""
     return residual + _loose_rounding_bound(csc, b, scale, impulses) <= tol or \
         residual + _rounding_bound_into(csc, b, scale, impulses, magnitude) <= tol
 
@@ -1198,9 +1199,9 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     n, entries = b.size, indices.size
     # the set-up's arrays, sliced from two allocations (an allocation for each of them cost
     # about 4% of a 5x5 dump's solve, hot): integers = Q's indptr and indices as 64-bit, the
-    # envelope's row offsets, the upper triangle's starts and rows; reals = the start's Q l, the
-    # sweeps' 1 / D, the rounding bound's magnitudes, D with zeros replaced, the upper
-    # triangle's values
+    # envelope's row offsets, the upper triangle's starts (or its ends, when Q's own arrays
+    # serve as it: _leading_upper) and rows; reals = the start's Q l, the sweeps' 1 / D, the
+    # rounding bound's magnitudes, D with zeros replaced, the upper triangle's values
     integers = np.empty(3 * (n + 1) + 2 * entries, dtype=np.int64)
     reals = np.empty(4 * n + entries)
     posed_indptr, posed_indices = integers[:n + 1], integers[n + 1:n + 1 + entries]
