@@ -204,7 +204,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
               "cg_max_iters": 2_000, "seed": 0},
     "pi-robust": {"tol": _relative, "rho": 1e-5, "rho_min": 1e-14, "rho_decrease": 0.01,
                   "stall_ratio": 0.5, "stall_steps": 3, "backup_steps": 0,
-                  "active_set": True, "pi_budget": 100, "finish_budget": 3,
+                  "active_set": True, "drift_steps": 3, "pi_budget": 100, "finish_budget": 3,
                   "finish_below": 1e-3, "ipm_iters": 80, "start_sweeps": 5,
                   "dense_limit": 300, "lemke_limit": 400, "compiled_limit": 50_000,
                   "compiled_work_limit": 1e7},

@@ -13,7 +13,12 @@ and adds published safeguards:
    ``rho ||D (l - z)||_inf / scale`` on the active contacts. The null space of Q
    (where l is not unique and v+ does not change) is left alone. rho falls by
    ``rho_decrease`` when ``stall_steps`` prox steps in a row fail to cut the
-   residual by ``stall_ratio``.
+   residual by ``stall_ratio``. A prox step that keeps its policy and does not
+   halve the residual instead moves the centre along its drift to the first free
+   contact that reaches zero (at most ``drift_steps`` times a run: a wrong policy
+   on a singular Q_FF drifts along its null space by about ``D^-1 r / rho`` a
+   step, r the part of -b_F outside its range; see
+   ``pi_robust_envelope._extrapolate_drift``).
 2. Block principal pivoting with a backup rule (Judice and Pires, Comput. Oper.
    Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011) for each
    prox LCP: the policy-iteration exchange of every infeasible contact while
@@ -95,6 +100,11 @@ from qpbench.solvers.lcp_interior import (
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
+# a settled prox step's change of l is taken for a drift along Q_FF's null space, and followed
+# to the first free contact that reaches zero (_drifted), when it is at least this fraction of
+# the step before's (a drift keeps its length; a slow contraction shrinks it, by about 1% a
+# step on large mass ratios)
+DRIFT_RATIO = 0.999
 # iterative-refinement steps of a policy block solved over the degrees of freedom
 # (lcp_interior.WoodburyFactor)
 BLOCK_REFINEMENTS = 1
@@ -269,7 +279,7 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
 def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
                            policy: np.ndarray, tol: float, rho: float, rho_min: float,
                            rho_decrease: float, stall_ratio: float, stall_steps: int,
-                           backup_steps: int, active_set: bool, budget: int
+                           backup_steps: int, active_set: bool, drift_steps: int, budget: int
                            ) -> tuple[np.ndarray, bool, str, int, float]:
     """Prox steps from ``centre`` and ``policy`` within ``budget`` linear solves:
     (best l, converged, status, solves, best residual)."""
@@ -277,7 +287,8 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
     tol_w = 0.1 * tol * lcp.scale
     res = lcp.residual(centre)
     best, best_res = centre, res
-    solves = stalls = 0
+    solves = stalls = drifts = 0
+    drift = np.zeros(lcp.n)
     status = f"policy iteration budget ({budget} solves) spent"
     while solves < budget:
         q = lcp.b - rho * lcp.safe_diag * centre
@@ -292,6 +303,8 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
                 break
             continue
         solves += used
+        settled = used == 1 and drifts < drift_steps  # the step kept its policy
+        drift, previous_drift = x - centre, drift
         centre = np.maximum(x, 0.0)
         w = lcp.w(centre)
         previous, res = res, lcp.residual_of(centre, w)
@@ -302,6 +315,11 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
         if not solved:
             break
         stalls = stalls + 1 if res > stall_ratio * previous else 0
+        if settled and stalls > 0:
+            drifted = _drifted(centre, drift, previous_drift, policy)
+            if drifted is not None:
+                centre, drifts, stalls = drifted, drifts + 1, 0
+                continue
         if stalls >= stall_steps:
             stalls = 0
             if rho * rho_decrease < rho_min:
@@ -311,9 +329,37 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
     return best, False, status, solves, best_res
 
 
+def _drifted(centre: np.ndarray, drift: np.ndarray, previous_drift: np.ndarray,
+             policy: np.ndarray) -> np.ndarray | None:
+    """The centre moved along a settled prox step's drift d when it is a drift (its ratio
+    ``g = d_F . d'_F / d'_F . d'_F`` to the step before's d' at least ``DRIFT_RATIO``):
+    ``max(z_F + t d_F, 0)``, t the step to the first free contact that reaches zero (set to
+    exactly 0) or ``g / (1 - g)`` when smaller; None when it does not move (as
+    ``pi_robust_envelope._extrapolate_drift``)."""
+    along = float(drift[policy] @ previous_drift[policy])
+    before = float(previous_drift[policy] @ previous_drift[policy])
+    if not along >= DRIFT_RATIO * before or before == 0.0:
+        return None
+    falling = policy & (drift < 0.0) & (centre > 0.0)
+    reach = np.full(centre.size, np.inf)
+    reach[falling] = centre[falling] / -drift[falling]
+    step = along / (before - along) if along < before else np.inf
+    blocking = -1
+    if falling.any() and reach.min() <= step:
+        blocking = int(np.argmin(reach))
+        step = reach[blocking]
+    if step == np.inf:
+        return None
+    moved = np.where(policy, np.maximum(centre + step * drift, 0.0), centre)
+    if blocking >= 0:
+        moved[blocking] = 0.0
+    return moved
+
+
 def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               tol: float, rho: float, rho_min: float, rho_decrease: float, stall_ratio: float,
-              stall_steps: int, backup_steps: int, active_set: bool, pi_budget: int,
+              stall_steps: int, backup_steps: int, active_set: bool, drift_steps: int,
+              pi_budget: int,
               finish_budget: int,
               finish_below: float, ipm_iters: int, lemke_limit: int,
               lemke_answer: LemkeAnswer | None = None
@@ -342,7 +388,8 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         return start, True, "converged", 0, {"path": "start"}
     settings = {"tol": tol, "rho": rho, "rho_min": rho_min, "rho_decrease": rho_decrease,
                 "stall_ratio": stall_ratio, "stall_steps": stall_steps,
-                "backup_steps": backup_steps, "active_set": active_set}
+                "backup_steps": backup_steps, "active_set": active_set,
+                "drift_steps": drift_steps}
     finishing_solves = [0]
 
     def finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
