@@ -915,7 +915,7 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
         tol_l[i] = 0.1 * tol * scale / safe_diag[i]
         centre[i] = start[i]
         best[i] = start[i]
-        drift[i] = 0.0
+        drift[i] = 0.0  # (no step before the first)
     tol_w = 0.1 * tol * scale
     res = start_residual
     best_res = res
@@ -930,8 +930,8 @@ def _prox_policy_iteration(lcp: OrderedLcp, start: np.ndarray, start_residual: f
                                   work)
         solves += used
         settled = used == 1 and drifts < prox.drift_steps  # the step kept its policy
+        drift, previous_drift = previous_drift, drift  # (swapped, not copied)
         for i in range(n):
-            previous_drift[i] = drift[i]
             drift[i] = x[i] - centre[i]
             centre[i] = np.maximum(x[i], 0.0)
         previous = res
