@@ -14,11 +14,12 @@ and adds published safeguards:
    (where l is not unique and v+ does not change) is left alone. rho falls by
    ``rho_decrease`` when ``stall_steps`` prox steps in a row fail to cut the
    residual by ``stall_ratio``. A prox step that keeps its policy and does not
-   halve the residual instead moves the centre along its drift to the first free
-   contact that reaches zero (at most ``drift_steps`` times a run: a wrong policy
-   on a singular Q_FF drifts along its null space by about ``D^-1 r / rho`` a
-   step, r the part of -b_F outside its range; see
-   ``pi_robust_envelope._extrapolate_drift``).
+   cut the residual so, and whose change of l is as long as the step before's
+   (a drift, not a contraction: ``DRIFT_RATIO``), instead moves the centre along
+   that change to the first free contact that reaches zero (at most
+   ``drift_steps`` times a run: a wrong policy on a singular Q_FF drifts along
+   its null space by about ``D^-1 r / rho`` a step, r the part of -b_F outside
+   its range; see ``pi_robust_envelope._extrapolate_drift``).
 2. Block principal pivoting with a backup rule (Judice and Pires, Comput. Oper.
    Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011) for each
    prox LCP: the policy-iteration exchange of every infeasible contact while
