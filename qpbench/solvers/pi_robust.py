@@ -345,10 +345,11 @@ def _drifted(centre: np.ndarray, drift: np.ndarray, previous_drift: np.ndarray,
     reach = np.full(centre.size, np.inf)
     reach[falling] = centre[falling] / -drift[falling]
     step = along / (before - along) if along < before else np.inf
-    blocking = -1
-    if falling.any() and reach.min() <= step:
-        blocking = int(np.argmin(reach))
+    blocking = int(np.argmin(reach))
+    if falling[blocking] and reach[blocking] <= step:
         step = reach[blocking]
+    else:
+        blocking = -1
     if step == np.inf:
         return None
     moved = np.where(policy, np.maximum(centre + step * drift, 0.0), centre)
