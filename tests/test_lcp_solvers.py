@@ -440,6 +440,36 @@ def test_a_blocks_envelope_factor_from_the_upper_triangle_is_the_dense_blocks() 
         assert np.allclose(block @ solution, rhs, rtol=1e-10, atol=1e-10)
 
 
+def test_an_envelope_factor_of_random_patterns_is_numpys_cholesky() -> None:
+    """Rows whose envelopes start anywhere (at the row itself, one or two columns before it,
+    or far back) and of every parity of width: the envelope factor's entries, formed two at a
+    time with each row's newest entries subtracted last, are those of numpy's Cholesky factor."""
+    import scipy.sparse as sp
+
+    from qpbench.solvers.pi_robust_envelope import _factor_rows, _upper
+
+    rng = np.random.default_rng(11)
+    for size, density in ((1, 1.0), (2, 1.0), (7, 0.3), (30, 0.1), (61, 0.05), (61, 0.5)):
+        pattern = sp.random(size, size, density=density, random_state=rng, format="csc")
+        symmetric = (pattern + pattern.T).tocsc()
+        matrix = symmetric + sp.diags(abs(symmetric).sum(axis=1).A1 + 1.0)
+        Q = sp.csc_matrix(matrix)
+        Q.sort_indices()
+        upper = _upper((Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data))
+        everything = np.arange(size)
+        offsets = np.zeros(size + 1, dtype=np.int64)
+        values = np.full(size * size, np.nan)
+        _factor_rows(upper, everything, everything, np.empty(0), 0.0, np.zeros(size), values,
+                     offsets, 0, np.empty(0))
+        expected = np.linalg.cholesky(Q.toarray())
+        for row in range(size):
+            first = row + 1 - (offsets[row + 1] - offsets[row])
+            stored = values[offsets[row]:offsets[row + 1]].copy()
+            stored[-1] = 1.0 / stored[-1]  # the diagonal is kept as its reciprocal
+            assert np.allclose(stored, expected[row, first:row + 1], rtol=1e-12, atol=1e-12)
+            assert not expected[row, :first].any()
+
+
 def test_the_active_set_methods_objective_without_products_is_the_objective() -> None:
     """At s minimizing f(x) = x^T H x / 2 + q^T x (H = Q + rho D) on a free set F, zero off F:
     f(s) = q^T s / 2, f(max(s, 0)) = f(s) + d^T H d / 2 with d = max(-s, 0), and for x zero

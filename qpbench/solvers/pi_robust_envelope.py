@@ -424,8 +424,12 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
     multiplication, whose latency is a third of a division's). Each row's pattern, entries,
     factor and substitution are formed in turn while it is in cache: one pass over the rows
     where four were made before (measured hot, same solves: 5x5 dumps 1-2% faster, box
-    packings 8%, 7x7 scenes and grid captures within 0.3%). Raises LinAlgError when a pivot
-    is not positive."""
+    packings 8%, 7x7 scenes and grid captures within 0.3%). A row's entries are formed two at
+    a time, the newest entries of the row kept out of the long inner products, which so run
+    ahead while the entry before them is formed (measured hot, same solves, against one entry
+    at a time with each inner product over all its columns: the 7x7 scenes and grid captures
+    2.4% faster, the 5x5 dumps 1.3%, box packings 0.9%; one 7x7 block alone, 16%). Raises
+    LinAlgError when a pivot is not positive."""
     starts, ends, rows, data = upper
     scaled = row_scale.size > 0
     if x.size:
@@ -456,17 +460,46 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
                 if place >= 0:
                     values[base_i + place - first_i] = data[k]
         values[end_i - 1] += shift_scale * shift[column]
-        for j in range(first_i, i):
+        # the entries two at a time (j, j + 1), each inner product over the columns before
+        # j - 1 first and the row's newest entries (L_i,j-1, then L_ij) subtracted last, so that
+        # the long inner products never wait for the entry computed just before them
+        j = first_i
+        latest = 0.0  # L_i,j-1
+        while j < i:
             base_j = offsets[j]
             end_j = offsets[j + 1]
             first_j = j + 1 - (end_j - base_j)
             lo = max(first_i, first_j)
-            # unsigned offsets: no negative-index wraparound, so the inner products vectorise
-            left, right = np.uint64(base_i + lo - first_i), np.uint64(base_j + lo - first_j)
             total = values[base_i + j - first_i]
-            for k in range(np.uint64(j - lo)):
-                total -= values[left + k] * values[right + k]
-            values[base_i + j - first_i] = total * values[end_j - 1]
+            if lo < j:  # (then row j holds column j - 1, at end_j - 2)
+                # unsigned offsets: no negative-index wraparound, so the inner products vectorise
+                left, right = np.uint64(base_i + lo - first_i), np.uint64(base_j + lo - first_j)
+                for k in range(np.uint64(j - 1 - lo)):
+                    total -= values[left + k] * values[right + k]
+                total -= latest * values[end_j - 2]
+            if j + 1 < i:
+                base_next = offsets[j + 1]
+                end_next = offsets[j + 2]
+                first_next = j + 2 - (end_next - base_next)
+                lo_next = max(first_i, first_next)
+                total_next = values[base_i + j + 1 - first_i]
+                if lo_next < j:  # (then row j + 1 holds columns j - 1 and j)
+                    left = np.uint64(base_i + lo_next - first_i)
+                    right = np.uint64(base_next + lo_next - first_next)
+                    for k in range(np.uint64(j - 1 - lo_next)):
+                        total_next -= values[left + k] * values[right + k]
+                    total_next -= latest * values[end_next - 3]
+                entry = total * values[end_j - 1]
+                values[base_i + j - first_i] = entry
+                if first_next <= j:
+                    total_next -= entry * values[end_next - 2]
+                latest = total_next * values[end_next - 1]
+                values[base_i + j + 1 - first_i] = latest
+                j += 2
+            else:
+                latest = total * values[end_j - 1]
+                values[base_i + j - first_i] = latest
+                j += 1
         total = values[end_i - 1]
         for k in range(np.uint64(base_i), np.uint64(end_i - 1)):
             total -= values[k] * values[k]
