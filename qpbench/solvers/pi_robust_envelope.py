@@ -830,7 +830,7 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
     A step's passes run over F alone (``work.free``, as :func:`_policy_solve` leaves it), since
     s and x are zero off it; the contacts where s < 0 are listed in the pass that finds the
     blocking one (measured hot, same solves: where each step made three passes over all
-    contacts, the fork's 7x7 scenes took 3.5% longer, its 5x5 dumps 2%)."""
+    contacts, the fork's 7x7 scenes took 3.2-3.5% longer, its 5x5 dumps 1-2%)."""
     A, safe_diag = lcp.A, lcp.safe_diag
     solution, y, feasible = work.x, work.product, work.feasible
     free, listed = work.free, work.listed
