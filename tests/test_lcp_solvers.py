@@ -470,6 +470,29 @@ def test_an_envelope_factor_of_random_patterns_is_numpys_cholesky() -> None:
             assert not expected[row, :first].any()
 
 
+def test_a_block_factor_counts_its_dependent_contacts() -> None:
+    """Two contacts with the same column of G make Q_FF singular: the second one's pivot is
+    only its share of rho D (L_ii^2 < DEPENDENT_PIVOT rho D_i), so the factor counts one
+    dependent contact, which block pivoting reads to fix first; independent contacts count
+    none, and a solve from the kept factor reports its count again."""
+    import scipy.sparse as sp
+
+    from qpbench.solvers.pi_robust_envelope import _block_solve, _upper, _work
+
+    G = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 1.0]])  # contacts 1 and 2 are one contact twice
+    for Q, expected in ((G.T @ G, 1), (np.diag([2.0, 1.0, 3.0]), 0)):
+        csc = sp.csc_matrix(Q)
+        csc.sort_indices()
+        A = (csc.indptr.astype(np.int64), csc.indices.astype(np.int64), csc.data)
+        work = _work(3, 6)[0]
+        policy = np.ones(3, dtype=np.bool_)
+        for _ in range(2):  # factored, then solved from the kept factor
+            _block_solve(_upper(A), Q.diagonal().copy(), policy, np.arange(3), 1e-5,
+                         np.ones(3), work.cache)
+            assert work.cache.counters[2] == expected
+        assert work.cache.counters[0] == 1
+
+
 def test_the_active_set_methods_objective_without_products_is_the_objective() -> None:
     """At s minimizing f(x) = x^T H x / 2 + q^T x (H = Q + rho D) on a free set F, zero off F:
     f(s) = q^T s / 2, f(max(s, 0)) = f(s) + d^T H d / 2 with d = max(-s, 0), and for x zero
