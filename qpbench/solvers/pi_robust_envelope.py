@@ -756,9 +756,9 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     (fixed). Measured hot against exchanging all of them: the fork's 7x7 scenes 35.28 -> 32.96
     solves a problem and 5.5-7% faster, its 5x5 dumps 8.12 -> 7.84 solves and 0.6-1.6% faster,
     grid captures and box packings the same solves, and 54 generated hard-family problems
-    878 -> 868 solves in all (grid 7 seed 1 8 -> 14, grid 10 seed 1 31 -> 26). Fixing first on
-    any dependent block saved more on the 7x7 scenes (7.5-8%) but cost the 5x5 dumps 2-3% and
-    the generated problems 2.5%."""
+    878 -> 868 solves in all (grid 7 seed 1 8 -> 14, grid 10 seed 1 31 -> 26). Without the
+    test that most of the exchange is negative, the generated problems took 900 solves; with
+    one dependent contact enough, the 7x7 scenes saved 7.5-8% but the 5x5 dumps lost 2-3%."""
     A = lcp.A
     backup_steps, active_set = prox.backup_steps, prox.active_set
     x, infeasible = work.x, work.infeasible
