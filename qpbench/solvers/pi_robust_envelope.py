@@ -417,6 +417,19 @@ def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
 
 
 @njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
+def _subtract_products(total: float, values: np.ndarray, left: int, right: int,
+                       length: int) -> float:
+    """``total - sum_k values[left + k] values[right + k]`` over k < length, subtracted in
+    order; offsets taken unsigned (no negative-index wraparound), so that the loop vectorises.
+    The two inner products of :func:`_factor_rows`'s entry pairs (measured hot: as fast as the
+    loop written out in each, same solves)."""
+    left_start, right_start = np.uint64(left), np.uint64(right)
+    for k in range(np.uint64(length)):
+        total -= values[left_start + k] * values[right_start + k]
+    return total
+
+
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
 def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scale: np.ndarray,
                  shift_scale: float, shift: np.ndarray, values: np.ndarray, offsets: np.ndarray,
                  first_row: int, x: np.ndarray) -> None:
@@ -483,10 +496,8 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
             lo = max(first_i, first_j)
             total = values[base_i + j - first_i]
             if lo < j:  # (then row j holds column j - 1, at end_j - 2)
-                # unsigned offsets: no negative-index wraparound, so the inner products vectorise
-                left, right = np.uint64(base_i + lo - first_i), np.uint64(base_j + lo - first_j)
-                for k in range(np.uint64(j - 1 - lo)):
-                    total -= values[left + k] * values[right + k]
+                total = _subtract_products(total, values, base_i + lo - first_i,
+                                           base_j + lo - first_j, j - 1 - lo)
                 total -= latest * values[end_j - 2]
             if j + 1 < i:
                 base_next = offsets[j + 1]
@@ -495,10 +506,10 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
                 lo_next = max(first_i, first_next)
                 total_next = values[base_i + j + 1 - first_i]
                 if lo_next < j:  # (then row j + 1 holds columns j - 1 and j)
-                    left = np.uint64(base_i + lo_next - first_i)
-                    right = np.uint64(base_next + lo_next - first_next)
-                    for k in range(np.uint64(j - 1 - lo_next)):
-                        total_next -= values[left + k] * values[right + k]
+                    total_next = _subtract_products(total_next, values,
+                                                    base_i + lo_next - first_i,
+                                                    base_next + lo_next - first_next,
+                                                    j - 1 - lo_next)
                     total_next -= latest * values[end_next - 3]
                 entry = total * values[end_j - 1]
                 values[base_i + j - first_i] = entry
