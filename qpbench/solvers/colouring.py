@@ -14,6 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
+from qpbench.solvers.counting_sort import stable_order
+
 
 @njit(cache=True)
 def greedy_colours(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -37,19 +39,8 @@ def greedy_colours(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def colour_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
     """The contacts class by class of :func:`greedy_colours`, in index order within a class
-    (``np.argsort(colours, kind="stable")``, by a counting sort)."""
-    colours = greedy_colours(indptr, indices)
-    n = colours.size
-    starts = np.zeros(n + 1, dtype=np.int64)
-    for i in range(n):
-        starts[colours[i] + 1] += 1
-    for colour in range(n):
-        starts[colour + 1] += starts[colour]
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[starts[colours[i]]] = i
-        starts[colours[i]] += 1
-    return order
+    (``np.argsort(colours, kind="stable")``, by :func:`stable_order`)."""
+    return stable_order(greedy_colours(indptr, indices))
 
 
 def colours_of(pattern: sp.spmatrix) -> np.ndarray:

@@ -96,6 +96,7 @@ from numba import njit
 
 from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy
+from qpbench.solvers.counting_sort import stable_order
 from qpbench.solvers.pi_robust import DRIFT_RATIO
 
 # floating-point freedoms of the factor and its solves: sums may be reordered (so that their
@@ -1251,13 +1252,14 @@ def _envelope_work(offsets: np.ndarray) -> float:
 def reverse_cuthill_mckee(indptr: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
     """A reverse Cuthill-McKee order of the graph of a symmetric CSC pattern (Cuthill and
     McKee, "Reducing the bandwidth of sparse symmetric matrices", ACM 1969; George 1971):
-    breadth-first from a least-degree node of each component, neighbours by rising degree,
+    breadth-first from a least-degree node of each component (the seeds in a stable order by
+    degree, :func:`~qpbench.solvers.counting_sort.stable_order`), neighbours by rising degree,
     the whole order reversed."""
     degree = indptr[1:] - indptr[:-1]
     order = np.empty(n, dtype=np.int64)
     visited = np.zeros(n, dtype=np.bool_)
     head = tail = 0
-    for seed in np.argsort(degree, kind="mergesort"):
+    for seed in stable_order(degree):
         if visited[seed]:
             continue
         visited[seed] = True

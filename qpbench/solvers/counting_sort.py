@@ -1,0 +1,30 @@
+"""A stable counting sort of small non-negative integer keys, compiled (numba): the order of
+contacts by colour (``colouring``) and by degree (``pi_robust_envelope``'s reverse
+Cuthill-McKee seeds). O(n + largest key) where ``np.argsort(kind="stable")`` is a merge
+sort, O(n log n): on a 4,000-ball packing that sort was most of the ordering's time."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def stable_order(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` for keys in 0 .. n (n = keys.size): the indices
+    by rising key, by index among equal keys. Counts per key, their running sums as each
+    key's first place, then each index put at its key's next place."""
+    n = keys.size
+    largest = 0
+    for key in keys:
+        largest = max(largest, key)
+    starts = np.zeros(largest + 2, dtype=np.int64)
+    for key in keys:
+        starts[key + 1] += 1
+    for key in range(largest + 1):
+        starts[key + 1] += starts[key]
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[starts[keys[i]]] = i
+        starts[keys[i]] += 1
+    return order
