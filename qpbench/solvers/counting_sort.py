@@ -11,9 +11,9 @@ from numba import njit
 
 @njit(cache=True)
 def stable_order(keys: np.ndarray) -> np.ndarray:
-    """``np.argsort(keys, kind="stable")`` for keys in 0 .. n (n = keys.size): the indices
-    by rising key, by index among equal keys. Counts per key, their running sums as each
-    key's first place, then each index put at its key's next place."""
+    """``np.argsort(keys, kind="stable")`` for non-negative integer keys: the indices by
+    rising key, by index among equal keys. Counts per key, their running sums as each key's
+    first place, then each index put at its key's next place (O(n + largest key))."""
     n = keys.size
     largest = 0
     for key in keys:
