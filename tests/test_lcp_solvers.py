@@ -531,24 +531,58 @@ def test_the_active_set_methods_objective_without_products_is_the_objective() ->
                 <= 1e-9 * (abs(f(x)) + scale)
 
 
-def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
-    from qpbench.solvers.pi_robust_envelope import (
-        _envelope_widths,
-        _permuted,
-        reverse_cuthill_mckee,
-    )
+ThreeArrays = tuple[np.ndarray, np.ndarray, np.ndarray]  # CSC (indptr, indices, data) and alike
 
-    Q = generate("grid", 10, seed=0)[0].Q
-    indptr, indices = Q.indptr.astype(np.int64), Q.indices.astype(np.int64)
-    order = reverse_cuthill_mckee(indptr, indices, Q.shape[0])
+
+def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, ThreeArrays, np.ndarray,
+                                                ThreeArrays, np.ndarray, ThreeArrays]:
+    """A generated grid's Q, its 64-bit CSC arrays, its reverse Cuthill-McKee order, and
+    _permuted's arrays for that order: (Q, (indptr, indices, data), order, permuted CSC,
+    envelope offsets, upper triangle)."""
+    from qpbench.solvers.pi_robust_envelope import _permuted, reverse_cuthill_mckee
+
+    Q = generate("grid", size, seed=seed)[0].Q
+    n = Q.shape[0]
+    posed = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    order = reverse_cuthill_mckee(posed[0], posed[1], n)
+    widths = np.zeros(n + 1, dtype=np.int64)
+    upper = (np.zeros(n + 1, dtype=np.int64), np.zeros(Q.nnz, dtype=np.int64), np.zeros(Q.nnz))
+    permuted = _permuted(*posed, order, widths, upper)
+    return Q, posed, order, permuted, widths, upper
+
+
+def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
+    from qpbench.solvers.pi_robust_envelope import _envelope_widths
+
+    Q, posed, order, _, ordered, _ = ordered_grid(10, seed=0)
     assert sorted(order) == list(range(Q.shape[0]))
-    widths = {}
-    for name, arrays in (("natural", (indptr, indices, Q.data)),
-                         ("rcm", _permuted(indptr, indices, Q.data, order))):
-        offsets = np.zeros(Q.shape[0] + 1, dtype=np.int64)
-        _envelope_widths(arrays, offsets)
-        widths[name] = int(offsets[-1])
-    assert widths["rcm"] < widths["natural"]
+    natural = np.zeros(Q.shape[0] + 1, dtype=np.int64)
+    _envelope_widths(posed, natural)
+    assert ordered[-1] < natural[-1]
+
+
+def test_the_permutation_copies_its_upper_triangle_and_envelope_in_the_same_pass() -> None:
+    """_permuted fills the permuted matrix's upper triangle and envelope offsets as
+    _upper_into and _envelope_widths would from its CSC arrays."""
+    from qpbench.solvers.pi_robust_envelope import _envelope_widths, _upper_into
+
+    Q, _, order, permuted, widths, upper = ordered_grid(7, seed=1)
+    n = Q.shape[0]
+    new_indptr, new_indices, new_data = permuted
+    np.testing.assert_array_equal(
+        sp.csc_matrix((new_data, new_indices, new_indptr), shape=(n, n)).toarray(),
+        Q.toarray()[np.ix_(order, order)])
+    expected_widths = np.zeros(n + 1, dtype=np.int64)
+    _envelope_widths(permuted, expected_widths)
+    np.testing.assert_array_equal(widths, expected_widths)
+    expected = (np.zeros(n + 1, dtype=np.int64), np.zeros(Q.nnz, dtype=np.int64),
+                np.zeros(Q.nnz))
+    _upper_into(permuted, expected)
+    entries = int(expected[0][-1])
+    assert 0 < entries < Q.nnz
+    np.testing.assert_array_equal(upper[0], expected[0])
+    np.testing.assert_array_equal(upper[1][:entries], expected[1][:entries])
+    np.testing.assert_array_equal(upper[2][:entries], expected[2][:entries])
 
 
 def test_the_kernels_packed_options_unpack_to_the_accuracy_table_row() -> None:

@@ -1301,9 +1301,16 @@ def reverse_cuthill_mckee(indptr: np.ndarray, indices: np.ndarray, n: int) -> np
 
 
 @njit(cache=True)
-def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: np.ndarray):
-    """CSC arrays of Q[order][:, order] (row indices within a column left unsorted)."""
+def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: np.ndarray,
+              widths: np.ndarray, upper: Csc):
+    """CSC arrays of Q[order][:, order] (row indices within a column left unsorted), and in
+    the same pass over its entries the permuted matrix's upper triangle into ``upper``
+    (``(starts, rows, values)``, as :func:`_upper_into` copies it) and its envelope's row
+    offsets into ``widths`` (as :func:`_envelope_widths`: column c's smallest row is where row
+    c starts, and every column holds its diagonal). One pass where three were made (measured
+    hot, same solves: box packings 8% faster, the fork's 7x7 scenes 0.6-1.8%)."""
     n = order.size
+    starts, rows, values = upper
     inverse = np.empty(n, dtype=np.int64)
     inverse[order] = np.arange(n)
     new_indptr = np.zeros(n + 1, dtype=np.int64)
@@ -1311,12 +1318,22 @@ def _permuted(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, order: 
         new_indptr[j + 1] = new_indptr[j] + indptr[order[j] + 1] - indptr[order[j]]
     new_indices = np.empty(new_indptr[n], dtype=np.int64)
     new_data = np.empty(new_indptr[n])
+    starts[0] = widths[0] = 0
+    end = 0
     for j in range(n):
         position = new_indptr[j]
+        row_first = j
         for k in range(indptr[order[j]], indptr[order[j] + 1]):
-            new_indices[position] = inverse[indices[k]]
+            row = inverse[indices[k]]
+            new_indices[position] = row
             new_data[position] = data[k]
             position += 1
+            # written, then kept only when in the upper triangle (row <= j): no branch on it
+            rows[end], values[end] = row, data[k]
+            end += row <= j
+            row_first = min(row_first, row)
+        starts[j + 1] = end
+        widths[j + 1] = widths[j] + j - row_first + 1
     return new_indptr, new_indices, new_data
 
 
@@ -1401,20 +1418,21 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     A = A_posed
     at = n + 1 + entries
     widths = integers[at:at + n + 1]
+    starts, rows, values = integers[at + n + 1:at + 2 * n + 2], integers[at + 2 * n + 2:], \
+        reals[4 * n:]
     _envelope_widths(A, widths)
     work = _envelope_work(widths)
     if work > WIDE_ENVELOPE_WORK and (n > order_above or work > WIDE_ENVELOPE * n ** 3 / 6.0):
         order = reverse_cuthill_mckee(indptr, indices, n)
-        A = _permuted(indptr, indices, data, order)
-        _envelope_widths(A, widths)
+        A = _permuted(indptr, indices, data, order, widths, (starts, rows, values))
         work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
-    starts = integers[at + n + 1:at + 2 * n + 2]
-    if order.size == 0 and _leading_upper(A, starts[:n]):
+    if order.size:  # (_permuted has copied its upper triangle)
+        upper = (starts, starts[1:], rows, values)
+    elif _leading_upper(A, starts[:n]):
         upper = (indptr, starts[:n], indices, data)
     else:
-        rows, values = integers[at + 2 * n + 2:], reals[4 * n:]
         _upper_into(A, (starts, rows, values))
         upper = (starts, starts[1:], rows, values)
     if order.size:
