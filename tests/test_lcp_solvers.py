@@ -9,6 +9,7 @@ import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -23,6 +24,9 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
+
+if TYPE_CHECKING:  # (the kernel's module is imported inside each test that runs it)
+    from qpbench.solvers.pi_robust_envelope import Csc
 
 
 @pytest.fixture
@@ -531,11 +535,14 @@ def test_the_active_set_methods_objective_without_products_is_the_objective() ->
                 <= 1e-9 * (abs(f(x)) + scale)
 
 
-ThreeArrays = tuple[np.ndarray, np.ndarray, np.ndarray]  # CSC (indptr, indices, data) and alike
+def empty_upper(n: int, entries: int) -> Csc:
+    """Zeroed arrays for an upper triangle of n columns: (starts, rows, values), room for
+    ``entries`` entries."""
+    return np.zeros(n + 1, dtype=np.int64), np.zeros(entries, dtype=np.int64), np.zeros(entries)
 
 
-def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, ThreeArrays, np.ndarray,
-                                                ThreeArrays, np.ndarray, ThreeArrays]:
+def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, Csc, np.ndarray, Csc,
+                                                np.ndarray, Csc]:
     """A generated grid's Q, its 64-bit CSC arrays, its reverse Cuthill-McKee order, and
     _permuted's arrays for that order: (Q, (indptr, indices, data), order, permuted CSC,
     envelope offsets, upper triangle)."""
@@ -546,7 +553,7 @@ def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, ThreeArrays, np.n
     posed = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
     order = reverse_cuthill_mckee(posed[0], posed[1], n)
     widths = np.zeros(n + 1, dtype=np.int64)
-    upper = (np.zeros(n + 1, dtype=np.int64), np.zeros(Q.nnz, dtype=np.int64), np.zeros(Q.nnz))
+    upper = empty_upper(n, Q.nnz)
     permuted = _permuted(*posed, order, widths, upper)
     return Q, posed, order, permuted, widths, upper
 
@@ -575,8 +582,7 @@ def test_the_permutation_copies_its_upper_triangle_and_envelope_in_the_same_pass
     expected_widths = np.zeros(n + 1, dtype=np.int64)
     _envelope_widths(permuted, expected_widths)
     np.testing.assert_array_equal(widths, expected_widths)
-    expected = (np.zeros(n + 1, dtype=np.int64), np.zeros(Q.nnz, dtype=np.int64),
-                np.zeros(Q.nnz))
+    expected = empty_upper(n, Q.nnz)
     _upper_into(permuted, expected)
     entries = int(expected[0][-1])
     assert 0 < entries < Q.nnz
