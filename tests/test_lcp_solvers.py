@@ -535,6 +535,46 @@ def test_the_active_set_methods_objective_without_products_is_the_objective() ->
                 <= 1e-9 * (abs(f(x)) + scale)
 
 
+@pytest.mark.parametrize("all_of_them, freed", [(True, [1, 2]), (False, [1])])
+def test_the_active_set_method_frees_violators_not_coupled_to_one_freed_before(
+        all_of_them: bool, freed: list[int]) -> None:
+    """Contacts 0, 1 and 2 violate (slacks -2, -3, -1; contact 3's is +1). Contact 1, the
+    most negative, is freed first; contact 0 is coupled to it (Q_01 = 0.5 sqrt(D_0 D_1),
+    above COUPLED), so freeing 1 raises 0's slack and 0 waits; contact 2 is coupled to 0 only
+    (and weakly): freed. When f has not fallen since the last freeing, only contact 1 is.
+    The kernel and the Python path free the same contacts."""
+    from qpbench.solvers.lcp import Lcp
+    from qpbench.solvers.pi_robust import _violators_to_free
+    from qpbench.solvers.pi_robust_envelope import _free_violators
+
+    Q = sp.csc_matrix(np.array([[1.0, 0.5, 0.01, 0.0], [0.5, 1.0, 0.0, 0.0],
+                                [0.01, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]))
+    csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    slack = np.array([-2.0, -3.0, -1.0, 1.0])
+    diag = Q.diagonal()
+    policy = np.zeros(4, dtype=bool)
+    assert _free_violators(csc, diag, policy, np.zeros(4), slack, 1e-12, all_of_them,
+                           np.zeros(4, dtype=np.int64), np.zeros(4))
+    assert np.flatnonzero(policy).tolist() == freed
+
+    lcp = Lcp(Q=Q.tocsr(), b=slack, diag=diag, scale=1.0)
+    chosen = _violators_to_free(lcp, slack < 0.0, slack, all_of_them=all_of_them)
+    assert np.flatnonzero(chosen).tolist() == freed
+
+
+def test_the_active_set_method_frees_nothing_without_a_violator() -> None:
+    """No fixed contact's slack below -tol_w: nothing is freed, and the method is told the
+    point is the solution."""
+    from qpbench.solvers.pi_robust_envelope import _free_violators
+
+    Q = sp.identity(3, format="csc")
+    csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    policy = np.array([True, False, False])
+    assert not _free_violators(csc, np.ones(3), policy, np.zeros(3), np.array([-5.0, 0.0, -1e-13]),
+                               1e-12, True, np.zeros(3, dtype=np.int64), np.zeros(3))
+    assert policy.tolist() == [True, False, False]
+
+
 def empty_upper(n: int, entries: int) -> Csc:
     """Zeroed arrays for an upper triangle of n columns: (starts, rows, values), room for
     ``entries`` entries."""

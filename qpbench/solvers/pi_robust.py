@@ -106,6 +106,11 @@ NAME = "pi-robust"
 # the step before's (a drift keeps its length; a slow contraction shrinks it, by about 1% a
 # step on large mass ratios)
 DRIFT_RATIO = 0.999
+# the active-set method frees every violating contact at once except those coupled to one
+# freed before them: Q_ij above this fraction of sqrt(D_i D_j) (the cosine between the two
+# contacts' rows of J M^-1/2; on the fork's grids and the grid captures the positive
+# couplings are about 0.35, or below 0.02 for nearly perpendicular contacts)
+COUPLED = 0.1
 # iterative-refinement steps of a policy block solved over the degrees of freedom
 # (lcp_interior.WoodburyFactor)
 BLOCK_REFINEMENTS = 1
@@ -227,6 +232,32 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
     return x, policy, solves, False
 
 
+def _violators_to_free(lcp: Lcp, violated: np.ndarray, gradient: np.ndarray,
+                       all_of_them: bool) -> np.ndarray:
+    """The violating fixed contacts that the active-set method frees (the kernel's
+    ``_free_violators``): in order of the most negative ``gradient_i / sqrt(D_i)``, the first
+    only unless ``all_of_them``, else each one with no ``Q_ij > COUPLED sqrt(D_i D_j)`` to a
+    contact i freed before it."""
+    scaled = gradient / np.sqrt(lcp.safe_diag)
+    candidates = np.flatnonzero(violated)
+    candidates = candidates[np.argsort(scaled[candidates], kind="stable")]
+    chosen = np.zeros(lcp.n, dtype=bool)
+    if not all_of_them:
+        chosen[candidates[:1]] = True
+        return chosen
+    coupled = np.zeros(lcp.n, dtype=bool)
+    Q = lcp.Q
+    for i in candidates:
+        if coupled[i]:
+            continue
+        chosen[i] = True
+        columns = Q.indices[Q.indptr[i]:Q.indptr[i + 1]]
+        couplings = Q.data[Q.indptr[i]:Q.indptr[i + 1]]
+        coupled[columns[couplings > COUPLED * np.sqrt(lcp.safe_diag[i]
+                                                      * lcp.safe_diag[columns])]] = True
+    return chosen
+
+
 def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
                        feasible: np.ndarray, tol_l: np.ndarray, tol_w: float, budget: int
                        ) -> tuple[np.ndarray, np.ndarray, int, bool]:
@@ -268,11 +299,8 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
         violated = ~free & (gradient < -tol_w)
         if not violated.any():
             return feasible, free, solves, True
-        if value_now < value_at_last_freeing:
-            free = free | violated
-        else:
-            scaled = np.where(violated, gradient / np.sqrt(lcp.safe_diag), np.inf)
-            free[int(np.argmin(scaled))] = True
+        free = free | _violators_to_free(lcp, violated, gradient,
+                                         all_of_them=value_now < value_at_last_freeing)
         value_at_last_freeing = value_now
     return feasible, free, solves, False
 
