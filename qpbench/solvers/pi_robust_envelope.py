@@ -860,7 +860,8 @@ def _free_violators(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, product: 
     not coupled to one freed before it, ``Q_ij > COUPLED sqrt(D_i D_j)`` (freeing i then
     raises j's slack by ``Q_ji x_i``: its violation is j's share of what i will carry).
     Whether any contact violated. ``listed`` and ``scaled`` (n entries, overwritten) hold the
-    violators and their scaled slacks (0 once freed or coupled)."""
+    violators, sorted, and their scaled slacks (0 once coupled to a freed one; the other
+    entries of ``scaled`` are scratch)."""
     indptr, indices, data = A
     count = 0
     for i in range(q.size):
@@ -870,21 +871,25 @@ def _free_violators(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, product: 
                 listed[count] = i
                 scaled[i] = value / np.sqrt(safe_diag[i])
                 count += 1
-    while True:
-        chosen, worst = -1, 0.0
-        for c in range(count):
-            if scaled[listed[c]] < worst:
-                chosen, worst = listed[c], scaled[listed[c]]
-        if chosen < 0:
-            return count > 0
-        policy[chosen] = True
-        if not all_of_them:
-            return True
-        scaled[chosen] = 0.0
-        for k in range(indptr[chosen], indptr[chosen + 1]):
-            coupled = indices[k]
-            if data[k] > COUPLED * np.sqrt(safe_diag[chosen] * safe_diag[coupled]):
-                scaled[coupled] = 0.0
+    for c in range(1, count):  # most negative first (an insertion sort: a few violators)
+        violator, place = listed[c], c
+        while place > 0 and scaled[listed[place - 1]] > scaled[violator]:
+            listed[place] = listed[place - 1]
+            place -= 1
+        listed[place] = violator
+    if count and not all_of_them:
+        policy[listed[0]] = True
+        return True
+    for c in range(count):
+        chosen = listed[c]
+        if scaled[chosen] < 0.0:  # (0: coupled to one freed before it)
+            policy[chosen] = True
+            for k in range(indptr[chosen], indptr[chosen + 1]):
+                coupled = indices[k]
+                if scaled[coupled] < 0.0 and \
+                        data[k] > COUPLED * np.sqrt(safe_diag[chosen] * safe_diag[coupled]):
+                    scaled[coupled] = 0.0
+    return count > 0
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
