@@ -497,6 +497,123 @@ def test_a_block_factor_counts_its_dependent_contacts() -> None:
         assert work.cache.counters[0] == 1
 
 
+def dense_factor(values: np.ndarray, offsets: np.ndarray, size: int) -> np.ndarray:
+    """The dense L of an envelope factor stored as the kernel stores it (row i in
+    ``values[offsets[i]:offsets[i + 1]]``, its diagonal last, kept as its reciprocal)."""
+    lower = np.zeros((size, size))
+    for row in range(size):
+        first = row + 1 - (offsets[row + 1] - offsets[row])
+        lower[row, first:row + 1] = values[offsets[row]:offsets[row + 1]]
+        lower[row, row] = 1.0 / lower[row, row]
+    return lower
+
+
+def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_block() -> None:
+    """A free set of a reverse Cuthill-McKee-ordered grid, factored: deleting the row and
+    column of its first, a middle or its last contact (copied into another array, or in
+    place, to the same numbers) leaves a lower-triangular L' with positive diagonal and
+    ``L' L'^T = H`` without that row and column (H = Q_II + rho D_I); deleting a second contact
+    from that, in place, the same for H without both."""
+    from qpbench.solvers.pi_robust_envelope import _delete_contact, _factor_rows
+
+    _, _, _, _, _, upper_csc = ordered_grid(7, 0)
+    starts, rows, data = upper_csc
+    upper = (starts, starts[1:], rows, data)
+    n = starts.size - 1
+    dense = np.zeros((n, n))
+    for column in range(n):
+        for k in range(starts[column], starts[column + 1]):
+            dense[rows[k], column] = dense[column, rows[k]] = data[k]
+    diag, rho = dense.diagonal().copy(), 1e-5
+    rng = np.random.default_rng(7)
+    free = np.flatnonzero(rng.uniform(size=n) < 0.5)
+    block = dense[np.ix_(free, free)] + rho * np.diag(diag[free])
+    position = np.full(n, -1, dtype=np.int64)
+    position[free] = np.arange(free.size)
+    values = np.full(data.size + n * n, np.nan)
+    offsets = np.zeros(free.size + 1, dtype=np.int64)
+    _factor_rows(upper, free, position, np.empty(0), rho, diag, values, offsets, 0, np.empty(0))
+    cosines, sines = np.empty(free.size), np.empty(free.size)
+
+    def check(factor: np.ndarray, factor_offsets: np.ndarray, kept: np.ndarray) -> None:
+        lower = dense_factor(factor, factor_offsets, kept.size)
+        assert np.array_equal(lower, np.tril(lower)) and np.all(np.diag(lower) > 0.0)
+        assert np.allclose(lower @ lower.T, block[np.ix_(kept, kept)], rtol=1e-12,
+                           atol=1e-12 * diag.max())
+
+    everything = np.arange(free.size)
+    for place in (0, free.size // 2, free.size - 1):
+        target, target_offsets = np.full_like(values, np.nan), np.zeros_like(offsets)
+        _delete_contact(values, offsets, free.size, place, target, target_offsets, cosines,
+                        sines, False)
+        kept = np.delete(everything, place)
+        check(target, target_offsets, kept)
+        in_place, in_place_offsets = values.copy(), offsets.copy()
+        _delete_contact(in_place, in_place_offsets, free.size, place, in_place,
+                        in_place_offsets, cosines, sines, True)
+        assert np.array_equal(in_place_offsets[:free.size], target_offsets[:free.size])
+        used = target_offsets[free.size - 1]
+        assert np.array_equal(in_place[:used], target[:used])
+        second = place // 2
+        _delete_contact(target, target_offsets, free.size - 1, second, target,
+                        target_offsets, cosines, sines, True)
+        check(target, target_offsets, np.delete(kept, second))
+
+
+def test_a_policy_that_fixes_contacts_of_the_last_one_is_solved_by_deleting_their_rows() -> None:
+    """After a policy's block is factored and solved, the policy with two of its contacts
+    fixed is solved from that factor with their rows deleted, with no factorization: x_F
+    solves ``(Q_FF + rho D_F) x_F = -q_F`` and is zero off F; the updated factor is kept for
+    that policy, so solving it again takes it from the cache, to the same x."""
+    from qpbench.solvers.pi_robust_envelope import (
+        OrderedLcp,
+        Posed,
+        _policy_solve,
+        _upper,
+        _work,
+    )
+
+    Q = generate("grid", 7, seed=1)[0].Q.tocsc()
+    Q.sort_indices()
+    n, rho = Q.shape[0], 1e-5
+    A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    diag = Q.diagonal()
+    lcp = OrderedLcp(A, _upper(A), Posed(A, np.zeros(n), diag, np.empty(0, dtype=np.int64)),
+                     np.zeros(n), diag, diag, 1.0)
+    rng = np.random.default_rng(2)
+    q = rng.normal(size=n)
+    policy = rng.uniform(size=n) < 0.5
+    capacity = n * (n + 1) // 2
+    work = _work(n, capacity)[0]
+    refactor = np.empty(0, dtype=np.int64)  # no places of fixed contacts: factor or cache
+    size = _policy_solve(lcp, policy, rho, q, work, refactor)
+    free = np.flatnonzero(policy)
+    assert size == free.size and work.cache.counters[0] == 1
+    places = np.array([3, free.size - 5], dtype=np.int64)
+    policy[free[places]] = False
+    assert _policy_solve(lcp, policy, rho, q, work, places) == free.size - 2
+    assert work.cache.counters[0] == 1  # no factorization
+    kept = np.flatnonzero(policy)
+    H = Q[kept][:, kept].toarray() + rho * np.diag(diag[kept])
+    expected = np.zeros(n)
+    expected[kept] = np.linalg.solve(H, -q[kept])
+    assert np.allclose(work.x, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    updated = work.x.copy()
+    _policy_solve(lcp, policy, rho, q, work, refactor)
+    assert work.cache.counters[0] == 1  # the updated factor, from the cache
+    assert np.array_equal(work.x, updated)
+
+
+def test_the_diagonal_spread_that_gates_row_updates_ignores_contacts_that_move_nothing() -> None:
+    """max D_i / min D_i over D_i > 0: a contact with D_i = 0 moves nothing and does not count;
+    with none left the spread is 1."""
+    from qpbench.solvers.pi_robust_envelope import _diagonal_spread
+
+    assert _diagonal_spread(np.array([0.0, 2.0, 1e-7, 5.0])) == pytest.approx(5e7)
+    assert _diagonal_spread(np.array([3.0, 3.0])) == 1.0
+    assert _diagonal_spread(np.zeros(2)) == 1.0
+
+
 def test_the_active_set_methods_objective_without_products_is_the_objective() -> None:
     """At s minimizing f(x) = x^T H x / 2 + q^T x (H = Q + rho D) on a free set F, zero off F:
     f(s) = q^T s / 2, f(max(s, 0)) = f(s) + d^T H d / 2 with d = max(-s, 0), and for x zero

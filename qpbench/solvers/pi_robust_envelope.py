@@ -45,33 +45,30 @@ iterate is handed to the finishing policy iteration too; and a converged answer 
 is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it is
 certified without a second residual pass.
 
-Why blocks are refactored rather than updated (measured on the fork's 7x7 grid scenes and 5x5
-dumps, hot, against this kernel): keeping the factor L of the active-set method's last block
-and fixing contacts D by a Schur complement (U = L^-1 E_D, (U^T U) mu = U^T y,
-x = L^-T (y - U mu)) cut the 7x7 factorizations from 1,725 to 719 with the same solves, yet
-the 7x7 kernel was only about 5% faster and the 5x5 kernel 4% slower. Each fixed contact costs
-a forward substitution from its place and each step a backward one; on envelopes about 15 wide
-these cost nearly what refactoring from the first changed row costs, since the kept leading
-rows already make that cheap. Handling freed contacts the same way (a quasi-definite Schur
-matrix) made the 7x7 kernel 9% slower. Nor by plane rotations (same problems, fair A/B): when
-a policy only fixes contacts of a kept factor's block, deleting their rows and columns from
-it (the rows after each become the factor of ``L22 L22^T + x x^T``, x the deleted column)
-cut the 7x7 factorizations from 34.5 to 14.6 a problem with the same solves, yet the 7x7
-kernel was 5% faster and the 5x5 kernel 4% slower: each rotated entry is a chain of
-dependent multiplications, about what a refactored row's inner products cost. Measured again
-against the kernel of the fix-first rule (up to 4 contacts deleted, rows moved up and rotated
-in one pass, 2.8x cheaper than refactoring from the same row on one 7x7 block): 29 -> 12.9
-factorizations a problem, 7x7 3-4% faster, but the 5x5 dumps 3-4% and the grid captures 7%
-slower, and on 54 generated hard-family problems 868 -> 997 solves, one more of them handed
-to the Python path (the updated factors' rounding changes the pivoting on large mass ratios);
-allowed only on blocks without dependent contacts it gained nothing. Nor by a dense
-factor in the active-set method, where most 7x7 solves are (29 of 38.5 a problem): keeping
-``U^T U = H_MM`` dense (loaded from the envelope factor at the method's first step, a joining
-contact appended by a forward substitution, a leaving one removed by a rank-one update with
-plane rotations) cut the 7x7 factorizations from 34.5 to 7.8 with the same solves, yet the
-kernel was 6% slower: at about 74 free contacts a dense solve (k^2 multiply-adds), an append
-(k^2 / 2) and a removal cost about 7, 3 and 2 thousand cycles, together about what the
-envelope refactor from the first changed row and its solves cost.
+Where blocks are updated rather than refactored: only where the active-set method fixes at
+most ``UPDATE_FIXED`` contacts of the block it solved last (its steps to a blocking contact and
+its projections), on problems whose D_i span at most ``UPDATE_SPREAD``: their rows are deleted
+from that factor by plane rotations (:func:`_delete_contact`, :func:`_block_solve_fixing`).
+Measured hot against refactoring from the first changed row (same solves everywhere): the
+fork's 7x7 scenes 6-7% faster (at most 1, 2, 4 or 8 deleted contacts: 5.2, 5.8, 6.2 and 5.8%),
+its 5x5 dumps, the grid captures and the box packings within 1%. Without the spread gate the
+generated mass-ratio-10 problems (D spanning 1e10-2e11) took 6455 -> 6616 solves over 60
+seeds (6 worse, 2 better, one more handed to the Python path): the updated factors round
+otherwise, and the pivoting there follows the rounding; every other generated family took
+the same solves. Earlier, deleting rows wherever ``_block_solve`` found a kept factor whose
+policy held the new one (a scan of both slots' policies at every solve) cost the 5x5 dumps
+3-4% and the grid captures 7%: the scan, not the deletions. Not updated elsewhere:
+
+- Fixing contacts by a Schur complement instead (U = L^-1 E_D, (U^T U) mu = U^T y,
+  x = L^-T (y - U mu)) cut the 7x7 factorizations from 1,725 to 719 with the same solves,
+  yet the 7x7 kernel was only about 5% faster and the 5x5 kernel 4% slower (each fixed
+  contact costs a forward substitution from its place and each step a backward one), and
+  freed contacts the same way (a quasi-definite Schur matrix) 9% slower.
+- A dense factor in the active-set method (``U^T U = H_MM``, a joining contact appended by a
+  forward substitution, a leaving one removed by rotations) cut the 7x7 factorizations from
+  34.5 to 7.8 with the same solves, yet the kernel was 6% slower: at about 74 free contacts
+  a dense solve (k^2 multiply-adds), an append (k^2 / 2) and a removal cost about 7, 3 and 2
+  thousand cycles, together about what the envelope refactor and its solves cost.
 
 Why the interior point is a fallback and not the first phase (same problems): on Q alone it
 needs about 12 iterations, but each factors all of Q's envelope (about 124k multiply-adds on
@@ -129,6 +126,12 @@ WIDE_ENVELOPE_WORK = 1e4
 # fixed contact into that block in this step (see _inner_lcp)
 DEPENDENT_PIVOT = 100.0
 DEPENDENT_CONTACTS = 4
+# the active-set method's steps that only fix contacts, at most UPDATE_FIXED of them, delete
+# their rows from the factor solved last instead of refactoring (_block_solve_fixing), on
+# problems whose D_i > 0 span at most UPDATE_SPREAD (wider, on extreme mass ratios, the
+# updates' rounding changed the method's pivots and cost solves; see _primal_active_set)
+UPDATE_FIXED = 4
+UPDATE_SPREAD = 1e6
 # status codes of a prox run
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # paths of a whole solve
@@ -244,13 +247,16 @@ class FactorCache(NamedTuple):
 class Work(NamedTuple):
     """What one solve works in, allocated once so that no step of policy iteration allocates:
     ``cache`` the kept factors; n entries each: ``x`` block pivoting's iterate, ``rhs`` a
-    block system's right side and then its solution, ``q`` a prox step's q, ``centre`` the prox
-    centre, ``product`` a product ``Q x``, ``unpermuted`` an l in the posed order, ``free`` the
+    block system's right side and then its solution (and the violators' scaled slacks when the
+    active-set method frees contacts), ``q`` a prox step's q, ``centre`` the prox centre,
+    ``product`` a product ``Q x``, ``unpermuted`` an l in the posed order, ``free`` the
     policy's free contacts, ``infeasible`` the contacts to exchange, ``best_x`` the exchange
     with the fewest infeasible contacts, ``feasible`` the active-set method's point, ``tol_l``
     a prox run's tolerance on each impulse, ``drift`` and ``previous_drift`` the change of l in
     a prox step and in the one before, ``listed`` the free contacts that a solve of the
-    active-set method sends below zero."""
+    active-set method sends below zero (and then the places in its block of the contacts it
+    fixes), ``cosines`` and ``sines`` the rotations of a row deletion
+    (:func:`_delete_contact`)."""
 
     cache: FactorCache
     x: np.ndarray
@@ -267,6 +273,8 @@ class Work(NamedTuple):
     drift: np.ndarray
     previous_drift: np.ndarray
     listed: np.ndarray
+    cosines: np.ndarray
+    sines: np.ndarray
 
 
 @njit(cache=True)
@@ -276,13 +284,13 @@ def _work(n: int, capacity: int):
     arrays for the start's policy, the first prox run's l and the polished l. Three allocations
     (reals, integers, flags) sliced into all of them: an allocation for each array (21 then)
     cost about 2% of a 5x5 dump's solve (hot). An l returned as it is (the posed order kept)
-    is a view of ``reals`` and keeps it alive: two envelopes and 13 n numbers."""
+    is a view of ``reals`` and keeps it alive: two envelopes and 15 n numbers."""
     slots = 2
-    reals = np.empty(slots * capacity + 13 * n + slots)
+    reals = np.empty(slots * capacity + 15 * n + slots)
     integers = np.empty(slots * (n + 1) + 3 * n + 2 * slots + 3, dtype=np.int64)
     flags = np.zeros((slots + 2) * n, dtype=np.bool_)
-    vectors = reals[slots * capacity:slots * capacity + 13 * n].reshape((13, n))
-    rhos = reals[slots * capacity + 13 * n:]
+    vectors = reals[slots * capacity:slots * capacity + 15 * n].reshape((15, n))
+    rhos = reals[slots * capacity + 15 * n:]
     rhos[:] = -1.0
     vectors[0, :] = 0.0  # block pivoting's x starts at zero
     integers[:] = 0
@@ -298,7 +306,7 @@ def _work(n: int, capacity: int):
     work = Work(cache, vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5],
                 integers[at + n:at + 2 * n], flags[slots * n:(slots + 1) * n], vectors[6],
                 vectors[7], vectors[8], vectors[11], vectors[12],
-                integers[at + 2 * n + 2 * slots + 3:])
+                integers[at + 2 * n + 2 * slots + 3:], vectors[13], vectors[14])
     return work, flags[(slots + 1) * n:], vectors[9], vectors[10]
 
 
@@ -703,11 +711,8 @@ def _block_solve(upper: Upper, safe_diag: np.ndarray, policy: np.ndarray, index:
     for a in range(size):
         position[index[a]] = -1
     counters[0] += 1
-    dependent = 0
-    for a in range(size):  # L_aa^2 < DEPENDENT_PIVOT rho D_a, L_aa kept as its reciprocal
-        reciprocal = values[slot_offsets[a + 1] - 1]
-        dependent += DEPENDENT_PIVOT * rho * safe_diag[index[a]] * reciprocal * reciprocal > 1.0
-    dependents[slot] = counters[2] = dependent
+    dependents[slot] = counters[2] = _count_dependents(values, slot_offsets, index, rho,
+                                                       safe_diag)
     for k in range(n):
         policies[slot, k] = policy[k]
     rhos[slot] = rho
@@ -715,11 +720,103 @@ def _block_solve(upper: Upper, safe_diag: np.ndarray, policy: np.ndarray, index:
     _backward_substitution(values, slot_offsets, size, rhs)
 
 
+@njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
+def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, place: int,
+                    target: np.ndarray, target_offsets: np.ndarray, cosines: np.ndarray,
+                    sines: np.ndarray, in_place: bool) -> None:
+    """The envelope factor (stored as in :func:`_factor_rows`) of a block without its row and
+    column ``place``, from the factor L of the block (``size`` rows) in ``source``, into
+    ``target`` (``source`` itself, or another slot). With the block's rows split at the
+    deleted one, L = [L11; l21^T l22; L31 l32 L33], the new factor is [L11; L31 L33'] where
+    ``L33' L33'^T = L33 L33^T + l32 l32^T``: a rank-one update, made by plane rotations row by
+    row (Gill, Golub, Murray and Saunders, "Methods for modifying matrix factorizations",
+    Math. Comp. 28, 1974). Row i after the deleted one keeps its columns before it, then, with
+    w = L_i,place, each later column c turns ``(L_ic, w) <- (cos_c L_ic + sin_c w,
+    cos_c w - sin_c L_ic)`` and the diagonal becomes ``r = sqrt(L_ii^2 + w^2)``, whose
+    ``cos = L_ii / r``, ``sin = w / r`` turn that column in the rows below. A row's envelope
+    keeps its first column (so it may hold a few zeros a new factor would not store). Rows
+    only move up, so ``target`` may be ``source`` (``in_place``: the rows before ``place``
+    are not copied)."""
+    if not in_place:
+        for k in range(source_offsets[place]):
+            target[k] = source[k]
+        for i in range(place + 1):
+            target_offsets[i] = source_offsets[i]
+    write = source_offsets[place]
+    for i in range(place + 1, size):
+        base = source_offsets[i]
+        end = source_offsets[i + 1]
+        first = i + 1 - (end - base)
+        w = 0.0
+        turned = first
+        if first <= place:
+            for c in range(first, place):
+                target[write] = source[base + c - first]
+                write += 1
+            w = source[base + place - first]
+            turned = place + 1
+        for c in range(turned, i):  # column c of L is column c - 1 of the new factor
+            value = source[base + c - first]
+            target[write] = cosines[c - 1] * value + sines[c - 1] * w
+            w = cosines[c - 1] * w - sines[c - 1] * value
+            write += 1
+        diagonal = 1.0 / source[end - 1]
+        r = np.sqrt(diagonal * diagonal + w * w)
+        cosines[i - 1] = diagonal / r
+        sines[i - 1] = w / r
+        target[write] = 1.0 / r
+        write += 1
+        target_offsets[i] = write
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _count_dependents(values: np.ndarray, offsets: np.ndarray, index: np.ndarray, rho: float,
+                      safe_diag: np.ndarray) -> int:
+    """The factor's dependent contacts: ``L_aa^2 < DEPENDENT_PIVOT rho D_a`` (L_aa kept as its
+    reciprocal)."""
+    dependent = 0
+    for a in range(index.size):
+        reciprocal = values[offsets[a + 1] - 1]
+        dependent += DEPENDENT_PIVOT * rho * safe_diag[index[a]] * reciprocal * reciprocal > 1.0
+    return dependent
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _block_solve_fixing(safe_diag: np.ndarray, policy: np.ndarray, index: np.ndarray,
+                        rho: float, rhs: np.ndarray, work: Work, places: np.ndarray) -> None:
+    """:func:`_block_solve` for a policy that is the one solved last (its factor the cache's
+    most recently used) with the contacts at ``places`` of its block (rising) fixed: their
+    rows are deleted from that factor (:func:`_delete_contact`, from the last up, so that the
+    places before stay valid) into the other slot, which then holds the policy's factor."""
+    factors, offsets, policies, rhos, ages, counters, _, dependents = work.cache
+    size = index.size
+    counters[1] += 1
+    source = int(np.argmax(ages))
+    slot = 1 - source  # (two slots)
+    rhos[slot] = -1.0  # invalid until it holds the new factor
+    for d in range(places.size - 1, -1, -1):
+        first_deletion = d == places.size - 1
+        _delete_contact(factors[source] if first_deletion else factors[slot],
+                        offsets[source] if first_deletion else offsets[slot], size + d + 1,
+                        places[d], factors[slot], offsets[slot], work.cosines, work.sines,
+                        not first_deletion)
+    values, slot_offsets = factors[slot], offsets[slot]
+    dependents[slot] = counters[2] = _count_dependents(values, slot_offsets, index, rho,
+                                                       safe_diag)
+    for k in range(policy.size):
+        policies[slot, k] = policy[k]
+    rhos[slot] = rho
+    ages[slot] = counters[1]
+    _envelope_solve_in_place(values, slot_offsets, size, rhs)
+
+
 @njit(cache=True, **WITHOUT_REFCOUNTS)
 def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
-                  work: Work) -> int:
+                  work: Work, fixed_places: np.ndarray) -> int:
     """``work.x``: x_F with ``(Q_FF + rho D_F) x_F = -q_F`` on the policy's free contacts F,
-    zero elsewhere (by :func:`_block_solve`); returns |F|."""
+    zero elsewhere (by :func:`_block_solve`, or by :func:`_block_solve_fixing` when
+    ``fixed_places`` lists the places, in the block solved last, of the contacts this policy
+    fixes of it); returns |F|."""
     x, rhs, free = work.x, work.rhs, work.free
     size = 0
     for i in range(q.size):  # written, then kept only when free: no branch on the policy
@@ -727,11 +824,14 @@ def _policy_solve(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray
         free[size] = i
         rhs[size] = -q[i]
         size += policy[i]
-    if size:
+    if fixed_places.size:
+        _block_solve_fixing(lcp.safe_diag, policy, free[:size], rho, rhs[:size], work,
+                            fixed_places)
+    elif size:
         _block_solve(lcp.upper, lcp.safe_diag, policy, free[:size], rho, rhs[:size],
                      work.cache)
-        for a in range(size):
-            x[free[a]] = rhs[a]
+    for a in range(size):
+        x[free[a]] = rhs[a]
     return size
 
 
@@ -786,7 +886,7 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     solves = 0
     x[:] = 0.0
     while solves < budget:
-        free_count = _policy_solve(lcp, policy, rho, q, work)
+        free_count = _policy_solve(lcp, policy, rho, q, work, work.listed[:0])
         solves += 1
         _fixed_slacks_negative(A, policy, x, q, tol_w, free_count, infeasible, work.product)
         count = 0
@@ -848,6 +948,16 @@ def _clipped_curvature(A: Csc, rho: float, safe_diag: np.ndarray, solution: np.n
             inner += data[k] * max(-solution[indices[k]], 0.0)
         total += clipped * inner
     return 0.5 * total
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def _diagonal_spread(diag: np.ndarray) -> float:
+    """``max D_i / min D_i`` over the contacts with D_i > 0 (1 when there are none)."""
+    largest, smallest = 0.0, np.inf
+    for value in diag:
+        if value > 0.0:
+            largest, smallest = max(largest, value), min(smallest, value)
+    return largest / smallest if largest > 0.0 else 1.0
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -937,6 +1047,10 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
     blocking one (measured hot, same solves: where each step made three passes over all
     contacts, the fork's 7x7 scenes took 3.2-3.5% longer, its 5x5 dumps 1-2%).
 
+    The next solve after a step that fixed at most ``UPDATE_FIXED`` contacts deletes their
+    rows from the factor just used (:func:`_block_solve_fixing`) when the problem's D_i span
+    at most ``UPDATE_SPREAD`` (the module docstring says why and what it saves).
+
     Why the step stops at the first blocking contact: an exact projected search instead (the
     first local minimizer of f along ``max(x + t (s - x), 0)``, t in [0, 1], segment by
     segment between the contacts' breakpoints, f on each from the face's quadratic
@@ -953,8 +1067,13 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
     value_at_last_freeing = np.inf
     solves = 0
     solved = False
+    updates = _diagonal_spread(lcp.diag) <= UPDATE_SPREAD
+    fixed = 0  # contacts the last step fixed, their places in its block in listed[:fixed]
     while solves < budget:
-        size = _policy_solve(lcp, policy, rho, q, work)  # F = free[:size]
+        # F = free[:size]; the rows of the contacts the last step fixed deleted, or refactored
+        size = _policy_solve(lcp, policy, rho, q, work,
+                             listed[:fixed if fixed <= UPDATE_FIXED and updates else 0])
+        fixed = 0
         solves += 1
         # one pass over F (s and x are zero off it): the first free contact that s sends below
         # zero, f(s), and the free contacts with s_i < 0 listed
@@ -980,14 +1099,17 @@ def _primal_active_set(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.nd
                     i = free[a]
                     feasible[i] = max(solution[i], 0.0)
                     policy[i] = solution[i] > 0.0
+                    listed[fixed] = a  # (written, then kept only when fixed)
+                    fixed += not policy[i]
                 continue
+            feasible[blocking] = 0.0  # (then the step below leaves it at zero: fixed)
             for a in range(size):
                 i = free[a]
                 feasible[i] = max(feasible[i] + step * (solution[i] - feasible[i]), 0.0)
                 if solution[i] < 0.0 and feasible[i] == 0.0:
                     policy[i] = False
-            feasible[blocking] = 0.0
-            policy[blocking] = False
+                    listed[fixed] = a
+                    fixed += 1
             value_now = at_minimum + (1.0 - step) ** 2 * (value_now - at_minimum)
             continue
         for a in range(size):
