@@ -974,13 +974,12 @@ def _free_violators(A: Csc, safe_diag: np.ndarray, policy: np.ndarray, product: 
     entries of ``scaled`` are scratch)."""
     indptr, indices, data = A
     count = 0
-    for i in range(q.size):
-        if not policy[i]:
-            value = product[i] + q[i]
-            if value < -tol_w:
-                listed[count] = i
-                scaled[i] = value / np.sqrt(safe_diag[i])
-                count += 1
+    for i in range(q.size):  # (written, then kept only when violating: no branch)
+        listed[count] = i
+        count += (product[i] + q[i] < -tol_w) & ~policy[i]
+    for c in range(count):
+        violator = listed[c]
+        scaled[violator] = (product[violator] + q[violator]) / np.sqrt(safe_diag[violator])
     for c in range(1, count):  # most negative first (an insertion sort: a few violators)
         violator, place = listed[c], c
         while place > 0 and scaled[listed[place - 1]] > scaled[violator]:
