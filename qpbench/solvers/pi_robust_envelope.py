@@ -254,9 +254,9 @@ class Work(NamedTuple):
     with the fewest infeasible contacts, ``feasible`` the active-set method's point, ``tol_l``
     a prox run's tolerance on each impulse, ``drift`` and ``previous_drift`` the change of l in
     a prox step and in the one before, ``listed`` the free contacts that a solve of the
-    active-set method sends below zero (and then the places in its block of the contacts it
-    fixes), ``cosines`` and ``sines`` the rotations of a row deletion
-    (:func:`_delete_contact`)."""
+    active-set method sends below zero (then the places in its block of the contacts its step
+    fixes, or at a minimum the violators, :func:`_free_violators`), ``cosines`` and ``sines``
+    the rotations of a row deletion (:func:`_delete_contact`)."""
 
     cache: FactorCache
     x: np.ndarray
