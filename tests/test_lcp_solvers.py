@@ -426,12 +426,9 @@ def test_a_blocks_envelope_factor_from_the_upper_triangle_is_the_dense_blocks() 
         values = np.empty(Q.nnz + free.size ** 2)
         _factor_rows(upper, free, position, np.empty(0), rho, diag, values, offsets, 0,
                      np.empty(0))
-        lower = np.zeros_like(block)
         for a in range(free.size):
-            first = a + 1 - (offsets[a + 1] - offsets[a])
-            assert first == np.flatnonzero(block[a])[0]
-            lower[a, first:a + 1] = values[offsets[a]:offsets[a + 1]]
-            lower[a, a] = 1.0 / lower[a, a]  # the diagonal is kept as its reciprocal
+            assert a + 1 - (offsets[a + 1] - offsets[a]) == np.flatnonzero(block[a])[0]
+        lower = dense_factor(values, offsets, free.size)
         assert np.allclose(lower @ lower.T, block, rtol=1e-12, atol=1e-12 * diag.max())
         # refactored from a middle row on (the rows before it kept), with a right side
         kept = free.size // 2
@@ -516,14 +513,10 @@ def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_b
     from that, in place, the same for H without both."""
     from qpbench.solvers.pi_robust_envelope import _delete_contact, _factor_rows
 
-    _, _, _, _, _, upper_csc = ordered_grid(7, 0)
-    starts, rows, data = upper_csc
+    Q, _, order, _, _, (starts, rows, data) = ordered_grid(7, 0)
     upper = (starts, starts[1:], rows, data)
     n = starts.size - 1
-    dense = np.zeros((n, n))
-    for column in range(n):
-        for k in range(starts[column], starts[column + 1]):
-            dense[rows[k], column] = dense[column, rows[k]] = data[k]
+    dense = Q[order][:, order].toarray()
     diag, rho = dense.diagonal().copy(), 1e-5
     rng = np.random.default_rng(7)
     free = np.flatnonzero(rng.uniform(size=n) < 0.5)

@@ -711,12 +711,7 @@ def _block_solve(upper: Upper, safe_diag: np.ndarray, policy: np.ndarray, index:
     for a in range(size):
         position[index[a]] = -1
     counters[0] += 1
-    dependents[slot] = counters[2] = _count_dependents(values, slot_offsets, index, rho,
-                                                       safe_diag)
-    for k in range(n):
-        policies[slot, k] = policy[k]
-    rhos[slot] = rho
-    ages[slot] = counters[1]
+    _keep(cache, slot, policy, rho, index, safe_diag)
     _backward_substitution(values, slot_offsets, size, rhs)
 
 
@@ -770,15 +765,23 @@ def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, p
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
-def _count_dependents(values: np.ndarray, offsets: np.ndarray, index: np.ndarray, rho: float,
-                      safe_diag: np.ndarray) -> int:
-    """The factor's dependent contacts: ``L_aa^2 < DEPENDENT_PIVOT rho D_a`` (L_aa kept as its
-    reciprocal)."""
+def _keep(cache: FactorCache, slot: int, policy: np.ndarray, rho: float, index: np.ndarray,
+          safe_diag: np.ndarray) -> None:
+    """Marks ``slot``, which now holds the factor of the block of free contacts ``index``, as
+    the factor of (policy, rho), used now, with its dependent contacts
+    (``L_aa^2 < DEPENDENT_PIVOT rho D_a``, L_aa kept as its reciprocal) counted into the slot
+    and into ``counters[2]``."""
+    factors, offsets, policies, rhos, ages, counters, _, dependents = cache
+    values, slot_offsets = factors[slot], offsets[slot]
     dependent = 0
     for a in range(index.size):
-        reciprocal = values[offsets[a + 1] - 1]
+        reciprocal = values[slot_offsets[a + 1] - 1]
         dependent += DEPENDENT_PIVOT * rho * safe_diag[index[a]] * reciprocal * reciprocal > 1.0
-    return dependent
+    dependents[slot] = counters[2] = dependent
+    for k in range(policy.size):
+        policies[slot, k] = policy[k]
+    rhos[slot] = rho
+    ages[slot] = counters[1]
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -788,7 +791,7 @@ def _block_solve_fixing(safe_diag: np.ndarray, policy: np.ndarray, index: np.nda
     most recently used) with the contacts at ``places`` of its block (rising) fixed: their
     rows are deleted from that factor (:func:`_delete_contact`, from the last up, so that the
     places before stay valid) into the other slot, which then holds the policy's factor."""
-    factors, offsets, policies, rhos, ages, counters, _, dependents = work.cache
+    factors, offsets, _, rhos, ages, counters, _, _ = work.cache
     size = index.size
     counters[1] += 1
     source = int(np.argmax(ages))
@@ -800,14 +803,8 @@ def _block_solve_fixing(safe_diag: np.ndarray, policy: np.ndarray, index: np.nda
                         offsets[source] if first_deletion else offsets[slot], size + d + 1,
                         places[d], factors[slot], offsets[slot], work.cosines, work.sines,
                         not first_deletion)
-    values, slot_offsets = factors[slot], offsets[slot]
-    dependents[slot] = counters[2] = _count_dependents(values, slot_offsets, index, rho,
-                                                       safe_diag)
-    for k in range(policy.size):
-        policies[slot, k] = policy[k]
-    rhos[slot] = rho
-    ages[slot] = counters[1]
-    _envelope_solve_in_place(values, slot_offsets, size, rhs)
+    _keep(work.cache, slot, policy, rho, index, safe_diag)
+    _envelope_solve_in_place(factors[slot], offsets[slot], size, rhs)
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -1595,12 +1592,11 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
-    if order.size:  # (_permuted has copied its upper triangle)
-        upper = (starts, starts[1:], rows, values)
-    elif _leading_upper(A, starts[:n]):
+    if order.size == 0 and _leading_upper(A, starts[:n]):
         upper = (indptr, starts[:n], indices, data)
     else:
-        _upper_into(A, (starts, rows, values))
+        if order.size == 0:  # (else _permuted has copied its upper triangle)
+            _upper_into(A, (starts, rows, values))
         upper = (starts, starts[1:], rows, values)
     if order.size:
         lcp = OrderedLcp(A, upper, Posed(A_posed, b, diag, order), b[order], diag[order],
