@@ -246,6 +246,24 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
 
+def test_pi_robust_returns_a_certified_answer_as_confirmed_would() -> None:
+    """solve() returns the kernel's certified answer itself, without calling _confirmed: the
+    output is the one _confirmed gives that answer (same l, status, count and info)."""
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_envelope import envelope_pi_robust
+
+    settings = pi_robust.settings_for(1e-8)
+    for problem in [hard_problem("grid", 5, seed=0), generate("grid", 7, seed=0)[0]]:
+        answer = pi_robust.kernel_call(envelope_pi_robust, problem, settings, None)
+        assert answer[6], "the kernel certified its answer"
+        confirmed = pi_robust._confirmed(problem, settings, answer[0], answer)
+        returned = pi_robust.solve(problem, 1e-8)
+        assert np.array_equal(returned.impulses, confirmed.impulses)
+        assert (returned.status, returned.claimed_success, returned.iterations) == \
+            (confirmed.status, confirmed.claimed_success, confirmed.iterations)
+        assert returned.info == confirmed.info
+
+
 def test_pi_robust_ends_on_lemkes_ray_without_the_python_path_when_there_is_no_solution(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A jammed wedge's relaxed LCP has no solution: the kernel's policy iteration and

@@ -578,17 +578,11 @@ def settings_for(eps: float) -> Settings:
                     compiled_work_limit=float(limits["compiled_work_limit"]))
 
 
-def _compiled(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray | None
-              ) -> SolverOutput | None:
-    """The compiled path (``pi_robust_envelope``) straight from the posed problem: its answer
-    when a rounding bound or qpbench's residual confirms it; when it failed in full,
-    :func:`_after_kernel_failure`; else None (the caller then runs the Python path). One call
-    into compiled code; in Python only what it needs."""
-    try:
-        answer = kernel_call(_kernel_module().envelope_pi_robust, problem, settings,
-                             warm_start)
-    except np.linalg.LinAlgError:
-        return None
+def _unconfirmed(problem: ImpactProblem, settings: Settings, answer: tuple,
+                 warm_start: np.ndarray | None) -> SolverOutput | None:
+    """The output for the compiled kernel's ``answer`` that it did not certify itself: when
+    qpbench's residual confirms it, that answer; when it failed in full,
+    :func:`_after_kernel_failure`; else None (the caller then runs the Python path)."""
     confirmed = _confirmed(problem, settings, answer[0], answer)
     if confirmed is None and _failed_in_full(answer):
         return _after_kernel_failure(problem, settings, answer, warm_start)
@@ -602,13 +596,12 @@ def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: 
 
     Every solve runs this inside the stopwatch, straight after the posing has emptied the
     caches, so it touches as little Python as it can: Q is CSC by construction
-    (``ImpactProblem.Q``), b and diag(Q) float arrays, and only the index arrays are cast
-    (to the kernel's 32-bit integers; SciPy's own, so no copy)."""
+    (``ImpactProblem.Q``), b and diag(Q) float arrays, and Q's index arrays go as SciPy made
+    them (32-bit at these sizes, the type :func:`prepare` compiles the kernel for)."""
     Q = problem.Q
-    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
-    return kernel(Q.indptr.astype(np.int32, copy=False), Q.indices.astype(np.int32, copy=False),
-                  Q.data, problem.b, problem.diag_Q, start, *after_start, ORDERING_ABOVE,
-                  settings.compiled_work_limit, settings.kernel)
+    return kernel(Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
+                  NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
+                  *after_start, ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
 
 
 def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
@@ -617,7 +610,7 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
     path, solves, interior iterations, factorizations, certified), when the answer converged
     and the kernel's rounding bound or qpbench's residual of l on ``problem`` confirms it;
     else None."""
-    envelope = _kernel_module()
+    envelope = _kernel or _kernel_module()
     kernel_impulses, converged, path, solves, interior, factorizations, certified = answer
     if not converged:
         return None
@@ -700,13 +693,36 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
+    """pi-robust: the compiled path (``pi_robust_envelope``) straight from the posed problem,
+    up to the accuracy table's ``compiled_limit`` contacts, its answer returned when its
+    rounding bound certifies it (the usual case, here, with no further call: the layers of
+    calls this went through before cost about 1.5 us, 8% of a 5x5 dump's solve, measured
+    through ``call_solver`` after posing as the benchmark times it) or qpbench's residual
+    confirms it (:func:`_unconfirmed`); otherwise the Python path."""
     settings = settings_for(eps)
     # b's size is the number of contacts (b is posed; n_contacts reads G's shape, 0.1 us)
     compiled = 0 < problem.b.size <= settings.compiled_limit
     if compiled:
-        answer = _compiled(problem, settings, warm_start)
+        kernel = _kernel or _kernel_module()
+        Q = problem.Q
+        try:
+            answer = kernel.envelope_pi_robust(
+                Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
+                NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
+                ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
+        except np.linalg.LinAlgError:
+            answer = None
         if answer is not None:
-            return answer
+            if answer[6] and answer[2] != kernel.PATH_INTERIOR:  # (the usual answer)
+                # certified by the kernel's rounding bound: _confirmed's output, without the
+                # call
+                return SolverOutput(answer[0], "converged", True, answer[3], {},
+                                    {"path": kernel.PATH_NAMES[answer[2]], "compiled": True,
+                                     "factorizations": answer[5],
+                                     "confirmed_by": "rounding bound"})
+            confirmed = _unconfirmed(problem, settings, answer, warm_start)
+            if confirmed is not None:
+                return confirmed
     lcp = Lcp.of(problem, dense_limit=settings.dense_limit)
     impulses, converged, status, iterations, info = pi_robust(
         lcp, BlockSolver(lcp), lcp.start(warm_start), **settings.python)
