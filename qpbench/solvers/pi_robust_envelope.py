@@ -230,8 +230,9 @@ class FactorCache(NamedTuple):
     ``factors[s, offsets[s, i]:offsets[s, i + 1]]``), ``policies[s]`` and ``rhos[s]`` the key
     it belongs to (``rhos[s] = -1``: invalid), ``ages[s]`` its last use, ``dependents[s]`` its
     dependent contacts (:func:`_block_solve`); ``counters = [factorizations, uses, dependent
-    contacts of the factor used last]``; ``position`` a work array (all -1 between uses). The
-    least recently used slot is replaced. A block's envelope is never wider than the whole
+    contacts of the factor used last]``; ``position`` a work array (all -1 between uses). A
+    new factor replaces the least recently used slot; a row deletion updates the most recently
+    used one in place. A block's envelope is never wider than the whole
     matrix's in the same order, so each slot holds the whole envelope's size."""
 
     factors: np.ndarray
@@ -467,8 +468,14 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
     a time, the newest entries of the row kept out of the long inner products, which so run
     ahead while the entry before them is formed (measured hot, same solves, against one entry
     at a time with each inner product over all its columns: the 7x7 scenes and grid captures
-    2.4% faster, the 5x5 dumps 1.3%, box packings 0.9%; one 7x7 block alone, 16%). Raises
-    LinAlgError when a pivot is not positive."""
+    2.4% faster, the 5x5 dumps 1.3%, box packings 0.9%; one 7x7 block alone, 16%). The
+    diagonal's sum of squares ``sum_j L_ij^2`` and the row's forward substitution sum
+    ``sum_j L_ij y_j`` are taken as the entries are formed, not in two more loops over the row
+    (measured as the benchmark times, each solve after posing: the fork's 7x7 scenes 1.5-3%
+    faster, its 5x5 dumps the same; the sums round otherwise, so the generated mass-ratio
+    problems, whose pivoting follows the rounding, took other solves: 60 seeds of mass
+    ratio 5, 1695 -> 1545 solves, of mass ratio 10, 6455 -> 6591 with one more handed to the
+    Python path; grids the same solves). Raises LinAlgError when a pivot is not positive."""
     starts, ends, rows, data = upper
     scaled = row_scale.size > 0
     if x.size:
@@ -502,6 +509,9 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
         # the entries two at a time (j, j + 1), each inner product over the columns before
         # j - 1 first and the row's newest entries (L_i,j-1, then L_ij) subtracted last, so that
         # the long inner products never wait for the entry computed just before them
+        forward = x.size > 0
+        squares = 0.0
+        substituted = x[i] if forward else 0.0
         j = first_i
         latest = 0.0  # L_i,j-1
         while j < i:
@@ -532,22 +542,23 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
                     total_next -= entry * values[end_next - 2]
                 latest = total_next * values[end_next - 1]
                 values[base_i + j + 1 - first_i] = latest
+                squares += entry * entry + latest * latest
+                if forward:
+                    substituted -= entry * x[j] + latest * x[j + 1]
                 j += 2
             else:
                 latest = total * values[end_j - 1]
                 values[base_i + j - first_i] = latest
+                squares += latest * latest
+                if forward:
+                    substituted -= latest * x[j]
                 j += 1
-        total = values[end_i - 1]
-        for k in range(np.uint64(base_i), np.uint64(end_i - 1)):
-            total -= values[k] * values[k]
+        total = values[end_i - 1] - squares
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
         values[end_i - 1] = 1.0 / np.sqrt(total)
-        if x.size:  # row i of the forward substitution, as in _forward_rows
-            total = x[i]
-            for k in range(np.uint64(i - first_i)):
-                total -= values[np.uint64(base_i) + k] * x[np.uint64(first_i) + k]
-            x[i] = total * values[end_i - 1]
+        if forward:  # row i of the forward substitution, as in _forward_rows
+            x[i] = substituted * values[end_i - 1]
 
 
 @njit(cache=True, fastmath=REDUCTIONS)
@@ -718,7 +729,7 @@ def _block_solve(upper: Upper, safe_diag: np.ndarray, policy: np.ndarray, index:
 @njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
 def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, place: int,
                     target: np.ndarray, target_offsets: np.ndarray, cosines: np.ndarray,
-                    sines: np.ndarray, in_place: bool) -> None:
+                    sines: np.ndarray, in_place: bool, x: np.ndarray) -> None:
     """The envelope factor (stored as in :func:`_factor_rows`) of a block without its row and
     column ``place``, from the factor L of the block (``size`` rows) in ``source``, into
     ``target`` (``source`` itself, or another slot). With the block's rows split at the
@@ -731,12 +742,15 @@ def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, p
     ``cos = L_ii / r``, ``sin = w / r`` turn that column in the rows below. A row's envelope
     keeps its first column (so it may hold a few zeros a new factor would not store). Rows
     only move up, so ``target`` may be ``source`` (``in_place``: the rows before ``place``
-    are not copied)."""
+    are not copied). Unless ``x`` is empty, the forward substitution ``L' y = x`` in place, each
+    new row's as it is formed (as :func:`_factor_rows` does)."""
     if not in_place:
         for k in range(source_offsets[place]):
             target[k] = source[k]
         for i in range(place + 1):
             target_offsets[i] = source_offsets[i]
+    if x.size:
+        _forward_rows(target, target_offsets, 0, place, x)
     write = source_offsets[place]
     for i in range(place + 1, size):
         base = source_offsets[i]
@@ -762,6 +776,8 @@ def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, p
         target[write] = 1.0 / r
         write += 1
         target_offsets[i] = write
+        if x.size:  # the new row i - 1 of the forward substitution
+            _forward_rows(target, target_offsets, i - 1, i, x)
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -789,22 +805,22 @@ def _block_solve_fixing(safe_diag: np.ndarray, policy: np.ndarray, index: np.nda
                         rho: float, rhs: np.ndarray, work: Work, places: np.ndarray) -> None:
     """:func:`_block_solve` for a policy that is the one solved last (its factor the cache's
     most recently used) with the contacts at ``places`` of its block (rising) fixed: their
-    rows are deleted from that factor (:func:`_delete_contact`, from the last up, so that the
-    places before stay valid) into the other slot, which then holds the policy's factor."""
+    rows are deleted from that factor in its own slot (:func:`_delete_contact`, from the last
+    up, so that the places before stay valid; the other slot keeps the factor before), the
+    forward substitution made by the last deletion as it forms the rows (measured as the
+    benchmark times, same solves: the fork's 7x7 scenes about 1% faster than deleting into the
+    other slot and substituting after)."""
     factors, offsets, _, rhos, ages, counters, _, _ = work.cache
     size = index.size
     counters[1] += 1
-    source = int(np.argmax(ages))
-    slot = 1 - source  # (two slots)
+    slot = int(np.argmax(ages))
     rhos[slot] = -1.0  # invalid until it holds the new factor
     for d in range(places.size - 1, -1, -1):
-        first_deletion = d == places.size - 1
-        _delete_contact(factors[source] if first_deletion else factors[slot],
-                        offsets[source] if first_deletion else offsets[slot], size + d + 1,
+        _delete_contact(factors[slot], offsets[slot], size + d + 1,
                         places[d], factors[slot], offsets[slot], work.cosines, work.sines,
-                        not first_deletion)
+                        True, rhs if d == 0 else rhs[:0])
     _keep(work.cache, slot, policy, rho, index, safe_diag)
-    _envelope_solve_in_place(factors[slot], offsets[slot], size, rhs)
+    _backward_substitution(factors[slot], offsets[slot], size, rhs)
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
