@@ -594,10 +594,11 @@ def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: 
     """``kernel``'s answer from Q's CSC arrays, b, diag(Q), the start (empty: from zero),
     ``after_start``, the ordering threshold, the work limit and the packed options.
 
-    Every solve runs this inside the stopwatch, straight after the posing has emptied the
-    caches, so it touches as little Python as it can: Q is CSC by construction
-    (``ImpactProblem.Q``), b and diag(Q) float arrays, and Q's index arrays go as SciPy made
-    them (32-bit at these sizes, the type :func:`prepare` compiles the kernel for)."""
+    The relaxed solve runs this inside the stopwatch, straight after the posing has emptied
+    the caches, and :func:`solve` makes the same call itself, so it touches as little Python
+    as it can: Q is CSC by construction (``ImpactProblem.Q``), b and diag(Q) float arrays,
+    and Q's index arrays go as SciPy made them (32-bit at these sizes, the type
+    :func:`prepare` compiles the kernel for)."""
     Q = problem.Q
     return kernel(Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
                   NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
@@ -696,9 +697,10 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
     """pi-robust: the compiled path (``pi_robust_envelope``) straight from the posed problem,
     up to the accuracy table's ``compiled_limit`` contacts, its answer returned when its
     rounding bound certifies it (the usual case, here, with no further call: the layers of
-    calls this went through before cost about 1.5 us, 8% of a 5x5 dump's solve, measured
-    through ``call_solver`` after posing as the benchmark times it) or qpbench's residual
-    confirms it (:func:`_unconfirmed`); otherwise the Python path."""
+    calls this went through before, through :func:`kernel_call` and :func:`_confirmed`, cost
+    about 1 us, 5% of a 5x5 dump's solve, measured through ``call_solver`` after posing as the
+    benchmark times it) or qpbench's residual confirms it (:func:`_unconfirmed`); otherwise
+    the Python path."""
     settings = settings_for(eps)
     # b's size is the number of contacts (b is posed; n_contacts reads G's shape, 0.1 us)
     compiled = 0 < problem.b.size <= settings.compiled_limit
