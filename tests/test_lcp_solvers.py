@@ -525,11 +525,11 @@ def dense_factor(values: np.ndarray, offsets: np.ndarray, size: int) -> np.ndarr
 
 def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_block() -> None:
     """A free set of a reverse Cuthill-McKee-ordered grid, factored: deleting the row and
-    column of its first, a middle or its last contact (copied into another array, or in
-    place, to the same numbers, then with the forward substitution ``L' y = x`` made as the
-    rows are formed) leaves a lower-triangular L' with positive diagonal and ``L' L'^T = H``
-    without that row and column (H = Q_II + rho D_I); deleting a second contact from that, in
-    place, the same for H without both."""
+    column of its first, a middle or its last contact in place (without a right side, or with
+    one, to the same numbers and the forward substitution ``L' y = x`` made as the rows are
+    formed) leaves a lower-triangular L' with positive diagonal and ``L' L'^T = H`` without
+    that row and column (H = Q_II + rho D_I); deleting a second contact from that, the same
+    for H without both."""
     from qpbench.solvers.pi_robust_envelope import _delete_contact, _factor_rows
 
     Q, _, order, _, _, (starts, rows, data) = ordered_grid(7, 0)
@@ -555,25 +555,24 @@ def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_b
 
     everything = np.arange(free.size)
     for place in (0, free.size // 2, free.size - 1):
-        target, target_offsets = np.full_like(values, np.nan), np.zeros_like(offsets)
-        _delete_contact(values, offsets, free.size, place, target, target_offsets, cosines,
-                        sines, False, np.empty(0))
+        target, target_offsets = values.copy(), offsets.copy()
+        _delete_contact(target, target_offsets, free.size, place, cosines, sines, np.empty(0))
         kept = np.delete(everything, place)
         check(target, target_offsets, kept)
-        # in place, with a right side: the same numbers, and L' y = x solved as rows are formed
-        in_place, in_place_offsets = values.copy(), offsets.copy()
+        # with a right side: the same numbers, and L' y = x solved as the rows are formed
+        with_right, with_right_offsets = values.copy(), offsets.copy()
         right = rng.normal(size=free.size - 1)
         forward = right.copy()
-        _delete_contact(in_place, in_place_offsets, free.size, place, in_place,
-                        in_place_offsets, cosines, sines, True, forward)
-        assert np.array_equal(in_place_offsets[:free.size], target_offsets[:free.size])
+        _delete_contact(with_right, with_right_offsets, free.size, place, cosines, sines,
+                        forward)
+        assert np.array_equal(with_right_offsets[:free.size], target_offsets[:free.size])
         used = target_offsets[free.size - 1]
-        assert np.array_equal(in_place[:used], target[:used])
+        assert np.array_equal(with_right[:used], target[:used])
         lower = dense_factor(target, target_offsets, free.size - 1)
         assert np.allclose(lower @ forward, right, rtol=1e-12, atol=1e-12)
         second = place // 2
-        _delete_contact(target, target_offsets, free.size - 1, second, target,
-                        target_offsets, cosines, sines, True, np.empty(0))
+        _delete_contact(target, target_offsets, free.size - 1, second, cosines, sines,
+                        np.empty(0))
         check(target, target_offsets, np.delete(kept, second))
 
 

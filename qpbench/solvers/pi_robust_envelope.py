@@ -557,7 +557,7 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
         if not total > 0.0:
             raise np.linalg.LinAlgError("block is not positive definite")
         values[end_i - 1] = 1.0 / np.sqrt(total)
-        if forward:  # row i of the forward substitution, as in _forward_rows
+        if forward:  # row i of the forward substitution (its sum taken above)
             x[i] = substituted * values[end_i - 1]
 
 
@@ -727,13 +727,12 @@ def _block_solve(upper: Upper, safe_diag: np.ndarray, policy: np.ndarray, index:
 
 
 @njit(cache=True, fastmath=REDUCTIONS, **WITHOUT_REFCOUNTS)
-def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, place: int,
-                    target: np.ndarray, target_offsets: np.ndarray, cosines: np.ndarray,
-                    sines: np.ndarray, in_place: bool, x: np.ndarray) -> None:
-    """The envelope factor (stored as in :func:`_factor_rows`) of a block without its row and
-    column ``place``, from the factor L of the block (``size`` rows) in ``source``, into
-    ``target`` (``source`` itself, or another slot). With the block's rows split at the
-    deleted one, L = [L11; l21^T l22; L31 l32 L33], the new factor is [L11; L31 L33'] where
+def _delete_contact(values: np.ndarray, offsets: np.ndarray, size: int, place: int,
+                    cosines: np.ndarray, sines: np.ndarray, x: np.ndarray) -> None:
+    """In place, the envelope factor (stored as in :func:`_factor_rows`) of a block without its
+    row and column ``place``, from the factor L of the block (``size`` rows) in ``values``
+    and ``offsets``. With the block's rows split at the deleted one,
+    L = [L11; l21^T l22; L31 l32 L33], the new factor is [L11; L31 L33'] where
     ``L33' L33'^T = L33 L33^T + l32 l32^T``: a rank-one update, made by plane rotations row by
     row (Gill, Golub, Murray and Saunders, "Methods for modifying matrix factorizations",
     Math. Comp. 28, 1974). Row i after the deleted one keeps its columns before it, then, with
@@ -741,43 +740,37 @@ def _delete_contact(source: np.ndarray, source_offsets: np.ndarray, size: int, p
     cos_c w - sin_c L_ic)`` and the diagonal becomes ``r = sqrt(L_ii^2 + w^2)``, whose
     ``cos = L_ii / r``, ``sin = w / r`` turn that column in the rows below. A row's envelope
     keeps its first column (so it may hold a few zeros a new factor would not store). Rows
-    only move up, so ``target`` may be ``source`` (``in_place``: the rows before ``place``
-    are not copied). Unless ``x`` is empty, the forward substitution ``L' y = x`` in place, each
-    new row's as it is formed (as :func:`_factor_rows` does)."""
-    if not in_place:
-        for k in range(source_offsets[place]):
-            target[k] = source[k]
-        for i in range(place + 1):
-            target_offsets[i] = source_offsets[i]
+    only move up, and each row is read before it is overwritten. Unless ``x`` is empty, the
+    forward substitution ``L' y = x`` in place, each new row's as it is formed."""
     if x.size:
-        _forward_rows(target, target_offsets, 0, place, x)
-    write = source_offsets[place]
+        _forward_rows(values, offsets, 0, place, x)
+    write = offsets[place]
     for i in range(place + 1, size):
-        base = source_offsets[i]
-        end = source_offsets[i + 1]
+        base = offsets[i]
+        end = offsets[i + 1]
         first = i + 1 - (end - base)
         w = 0.0
         turned = first
         if first <= place:
             for c in range(first, place):
-                target[write] = source[base + c - first]
+                values[write] = values[base + c - first]
                 write += 1
-            w = source[base + place - first]
+            w = values[base + place - first]
             turned = place + 1
         for c in range(turned, i):  # column c of L is column c - 1 of the new factor
-            value = source[base + c - first]
-            target[write] = cosines[c - 1] * value + sines[c - 1] * w
+            value = values[base + c - first]
+            values[write] = cosines[c - 1] * value + sines[c - 1] * w
             w = cosines[c - 1] * w - sines[c - 1] * value
             write += 1
-        diagonal = 1.0 / source[end - 1]
+        diagonal = 1.0 / values[end - 1]
         r = np.sqrt(diagonal * diagonal + w * w)
         cosines[i - 1] = diagonal / r
         sines[i - 1] = w / r
-        target[write] = 1.0 / r
+        values[write] = 1.0 / r
         write += 1
-        target_offsets[i] = write
+        offsets[i] = write  # (row i's start, read above; row i + 1's is read next)
         if x.size:  # the new row i - 1 of the forward substitution
-            _forward_rows(target, target_offsets, i - 1, i, x)
+            _forward_rows(values, offsets, i - 1, i, x)
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -816,9 +809,8 @@ def _block_solve_fixing(safe_diag: np.ndarray, policy: np.ndarray, index: np.nda
     slot = int(np.argmax(ages))
     rhos[slot] = -1.0  # invalid until it holds the new factor
     for d in range(places.size - 1, -1, -1):
-        _delete_contact(factors[slot], offsets[slot], size + d + 1,
-                        places[d], factors[slot], offsets[slot], work.cosines, work.sines,
-                        True, rhs if d == 0 else rhs[:0])
+        _delete_contact(factors[slot], offsets[slot], size + d + 1, places[d], work.cosines,
+                        work.sines, rhs if d == 0 else rhs[:0])
     _keep(work.cache, slot, policy, rho, index, safe_diag)
     _backward_substitution(factors[slot], offsets[slot], size, rhs)
 
