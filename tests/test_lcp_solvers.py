@@ -492,8 +492,9 @@ def test_an_envelope_factor_of_random_patterns_is_numpys_cholesky() -> None:
 def test_a_block_factor_counts_its_dependent_contacts() -> None:
     """Two contacts with the same column of G make Q_FF singular: the second one's pivot is
     only its share of rho D (L_ii^2 < DEPENDENT_PIVOT rho D_i), so the factor counts one
-    dependent contact, which block pivoting reads to fix first; independent contacts count
-    none, and a solve from the kept factor reports its count again."""
+    dependent contact, which block pivoting reads (a nearly singular block goes to the
+    active-set method); independent contacts count none, and a solve from the kept factor
+    reports its count again."""
     import scipy.sparse as sp
 
     from qpbench.solvers.pi_robust_envelope import _block_solve, _upper, _work
@@ -618,6 +619,53 @@ def test_a_policy_that_fixes_contacts_of_the_last_one_is_solved_by_deleting_thei
     _policy_solve(lcp, policy, rho, q, work, refactor)
     assert work.cache.counters[0] == 1  # the updated factor, from the cache
     assert np.array_equal(work.x, updated)
+
+
+def test_block_pivoting_hands_a_nearly_singular_block_to_the_active_set_method() -> None:
+    """On the first prox step of this fork dump (from the start sweeps' policy) the first
+    block solved has dependent contacts and leaves mostly negative free contacts: block
+    pivoting hands over to the active-set method right after that solve, so that with no solve
+    left x is the method's feasible start max(x, 0), where block pivoting alone (no
+    active-set method) would exchange them next and stops at its x, with negative entries.
+    Given the solves it needs, the active-set method solves the prox LCP."""
+    from qpbench.solvers.pi_robust_envelope import (
+        OrderedLcp,
+        Posed,
+        Prox,
+        _gauss_seidel,
+        _inner_lcp,
+        _upper,
+        _work,
+    )
+
+    problem = import_dump(CYCLING_DUMP)
+    Q = problem.Q.tocsc()
+    Q.sort_indices()
+    n, rho, b = Q.shape[0], 1e-5, problem.b
+    A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    diag = Q.diagonal()
+    lcp = OrderedLcp(A, _upper(A), Posed(A, b, diag, np.empty(0, dtype=np.int64)), b, diag,
+                     diag, 1.0)
+    tol_w = 1e-9 * np.abs(b).max()
+    tol_l = tol_w / diag
+    centre = np.zeros(n)
+    _gauss_seidel(A, b, diag, centre, np.empty(n), 5)
+    q = b - rho * diag * centre
+
+    def inner(active_set: bool, budget: int) -> tuple[np.ndarray, np.ndarray, bool]:
+        work = _work(n, n * (n + 1) // 2)[0]
+        policy = Q @ centre + b <= diag * centre
+        _, solved = _inner_lcp(lcp, policy, rho, q, tol_l, tol_w,
+                               Prox(1e-14, 0.01, 0.5, 3, 0, active_set, 0), budget, work)
+        return work.x.copy(), policy, solved
+
+    handed_over, _, _ = inner(True, 1)
+    pivoted, _, _ = inner(False, 1)
+    assert np.all(handed_over >= 0.0) and np.any(pivoted < 0.0)
+    x, free, solved = inner(True, 10 * n)
+    w = Q @ x + rho * diag * x + q
+    assert solved and np.all(x >= 0.0) and np.all(x[~free] == 0.0)
+    assert np.all(w[~free] >= -tol_w) and np.all(np.abs(w[free]) <= 1e-6 * np.abs(b).max())
 
 
 def test_the_diagonal_spread_that_gates_row_updates_ignores_contacts_that_move_nothing() -> None:

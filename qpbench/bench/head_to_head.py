@@ -78,14 +78,16 @@ TUNED_ON = {
     "fork 5x5 grid dumps": "rho, start_sweeps, backup_steps and pi_budget were swept on "
                            "these dumps; backup_steps (0) and pi_budget (100) were chosen "
                            "here and on the 7x7 scenes, with the other sets checked; so was "
-                           "the fix-first rule's gate (4 dependent contacts, most of the "
-                           "exchange negative), with the generated hard families checked",
+                           "the gate of the nearly-singular rule (4 dependent contacts, most "
+                           "of the exchange negative), with the generated hard families "
+                           "checked",
     "fork 7x7 grid scenes": "backup_steps (0) and pi_budget (100) were chosen here and on the "
                             "5x5 dumps (rho swept here too: every value within noise of the "
                             "table's); the drift rule (drift_steps 3, its ratio 0.999) was "
                             "designed on these scenes, the ratio set apart from the "
-                            "contraction seen on the mass-ratio family; the fix-first rule "
-                            "(block pivoting on nearly singular blocks) was designed on these "
+                            "contraction seen on the mass-ratio family; the nearly-singular "
+                            "rule (block pivoting on nearly singular blocks: first fixing "
+                            "first, now the active-set method at once) was designed on these "
                             "scenes, its gate chosen here and on the 5x5 dumps",
 }
 # the main benchmark's families whose fastest external pairs are the impact candidates

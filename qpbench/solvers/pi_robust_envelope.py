@@ -37,9 +37,9 @@ A factor that fails raises ``np.linalg.LinAlgError``; the caller then runs the P
 Every residual is qpbench's formula summed over the problem's own CSC Q in scipy's order. A
 claimed convergence is certified by the residual the solve measured on its answer plus a
 rounding bound (no second pass), or else by the caller with qpbench's own metric, before it is
-reported. Additions to the Python path: block pivoting fixes first on nearly singular
-blocks (:func:`_inner_lcp`; the Python path's factors, dense or over the degrees of freedom,
-report no pivots per contact); when the interior point stalls (its residual
+reported. Additions to the Python path: on nearly singular blocks block pivoting hands over
+to the active-set method at once (:func:`_inner_lcp`; the Python path's factors, dense or over
+the degrees of freedom, report no pivots per contact); when the interior point stalls (its residual
 not cut by 10% in five iterations, as rounding makes it on extreme mass ratios) its best
 iterate is handed to the finishing policy iteration too; and a converged answer whose residual
 is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it is
@@ -119,11 +119,12 @@ WITHOUT_REFCOUNTS = {"_nrt": False}
 # relaxation puts the columns n + mu t and n - mu t of one contact n apart)
 WIDE_ENVELOPE = 0.5
 WIDE_ENVELOPE_WORK = 1e4
-# fix first: a block factored with at least DEPENDENT_CONTACTS dependent contacts (pivots
+# a block factored with at least DEPENDENT_CONTACTS dependent contacts (pivots
 # L_ii^2 < DEPENDENT_PIVOT rho D_i: contact i nearly a combination of the free contacts before
 # it) is nearly singular at this rho, and block pivoting's iterate on it swings; when most of
-# the exchange's contacts are negative free ones, block pivoting fixes only those, freeing no
-# fixed contact into that block in this step (see _inner_lcp)
+# the exchange's contacts are negative free ones, the active-set method goes on from there (or,
+# without it, block pivoting fixes only those, freeing no fixed contact into that block in this
+# step; see _inner_lcp)
 DEPENDENT_PIVOT = 100.0
 DEPENDENT_CONTACTS = 4
 # the active-set method's steps that only fix contacts, at most UPDATE_FIXED of them, delete
@@ -874,14 +875,28 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
     not cut their number, :func:`_primal_active_set` goes on from the best exchange's x
     (``prox.active_set``), or it stops unsolved.
 
-    Fix first: when the block just solved has ``DEPENDENT_CONTACTS`` dependent contacts or more
-    and most of the infeasible contacts are negative free ones, only those are exchanged
-    (fixed). Measured hot against exchanging all of them: the fork's 7x7 scenes 35.28 -> 32.96
-    solves a problem and 5.5-7% faster, its 5x5 dumps 8.12 -> 7.84 solves and 0.6-1.6% faster,
-    grid captures and box packings the same solves, and 54 generated hard-family problems
-    878 -> 868 solves in all (grid 7 seed 1 8 -> 14, grid 10 seed 1 31 -> 26). Without the
-    test that most of the exchange is negative, the generated problems took 900 solves; with
-    one dependent contact enough, the 7x7 scenes saved 7.5-8% but the 5x5 dumps lost 2-3%."""
+    Nearly singular blocks: when the block just solved has ``DEPENDENT_CONTACTS`` dependent
+    contacts or more and most of the infeasible contacts are negative free ones, block
+    pivoting's iterate swings (it fixed 42 contacts, then freed 36, on a 7x7 scene), so the
+    active-set method goes on from the best exchange's x at once (``prox.active_set``); without
+    it, only the negative free contacts are exchanged (fixed first). Measured against fixing
+    first, as the benchmark times it (each solve after posing, fastest of 20, three rounds
+    with the kernels in turn): the fork's 7x7 scenes 32.12 -> 30.44 solves a problem and
+    9.2% faster (its block pivoting took 3.2 solves before the active-set method, each a
+    factor from the first rows); its 5x5 dumps 7.84 -> 7.98 solves and 2.0% slower; the grid
+    captures 5 -> 6.5 solves; box packings the same; generated problems: 126 of the hard
+    families 2134 -> 2158 solves (the same four handed to the Python path), 40 seeds of mass
+    ratio 10 4229 -> 4220, of mass ratio 5 1084 -> 1070, of grid 10 790 -> 849 (22 worse, 17
+    better). Entering it after the first solve whatever the block (7x7 30.56 solves, 8.0%
+    faster; 5x5 7.92, 3.4% slower; grid captures 6.5; grid 10 853) or whenever the block has
+    dependent contacts (30.58, 8.1% faster; 8.06, 2.7% slower; 6.5) did no better.
+
+    Fixing first, against exchanging all infeasible contacts (measured hot, when block pivoting
+    went on from there): the fork's 7x7 scenes 35.28 -> 32.96 solves a problem and 5.5-7%
+    faster, its 5x5 dumps 8.12 -> 7.84 solves, and 54 generated hard-family problems
+    878 -> 868 solves. Without the test that most of the exchange is negative, the generated
+    problems took 900 solves; with one dependent contact enough, the 7x7 scenes saved 7.5-8%
+    but the 5x5 dumps lost 2-3%."""
     A = lcp.A
     backup_steps, active_set = prox.backup_steps, prox.active_set
     x, infeasible = work.x, work.infeasible
@@ -903,16 +918,19 @@ def _inner_lcp(lcp: OrderedLcp, policy: np.ndarray, rho: float, q: np.ndarray,
             count += infeasible[i]
         if count == 0:
             return solves, True
-        if work.cache.counters[2] >= DEPENDENT_CONTACTS and count < 2 * negative < 2 * count:
-            for i in range(n):  # fix first: only the negative free contacts are exchanged
-                infeasible[i] &= policy[i]
-        if count < best or backup > 0:
-            if count < best:
-                best, backup = count, backup_steps
-                for i in range(n):
-                    work.best_x[i] = x[i]
-            else:
+        singular = work.cache.counters[2] >= DEPENDENT_CONTACTS and \
+            count < 2 * negative < 2 * count
+        improved = count < best
+        if improved:
+            best, backup = count, backup_steps
+            for i in range(n):
+                work.best_x[i] = x[i]
+        if not (active_set and singular) and (improved or backup > 0):
+            if not improved:
                 backup -= 1
+            if singular:
+                for i in range(n):  # fix first: only the negative free contacts are exchanged
+                    infeasible[i] &= policy[i]
             for i in range(n):
                 policy[i] ^= infeasible[i]
         elif active_set:
