@@ -86,9 +86,9 @@ TUNED_ON = {
                             "table's); the drift rule (drift_steps 3, its ratio 0.999) was "
                             "designed on these scenes, the ratio set apart from the "
                             "contraction seen on the mass-ratio family; the nearly-singular "
-                            "rule (block pivoting on nearly singular blocks: first fixing "
-                            "first, now the active-set method at once) was designed on these "
-                            "scenes, its gate chosen here and on the 5x5 dumps",
+                            "rule (block pivoting on a nearly singular block: it fixed first, "
+                            "and now hands over to the active-set method at once) was designed "
+                            "on these scenes, its gate chosen here and on the 5x5 dumps",
 }
 # the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
