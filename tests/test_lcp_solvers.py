@@ -26,7 +26,7 @@ from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
 
 if TYPE_CHECKING:  # (the kernel's module is imported inside each test that runs it)
-    from qpbench.solvers.pi_robust_envelope import Csc
+    from qpbench.solvers.pi_robust_envelope import Csc, OrderedLcp
 
 
 @pytest.fixture
@@ -577,26 +577,28 @@ def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_b
         check(target, target_offsets, np.delete(kept, second))
 
 
+def posed_order_lcp(Q: sp.csc_matrix, b: np.ndarray) -> tuple[OrderedLcp, Csc, np.ndarray]:
+    """(the kernel's OrderedLcp of LCP(Q, b) in the posed order (no ordering, scale 1), Q's
+    CSC arrays with 64-bit indices, diag(Q)); Q's row indices are sorted in place first."""
+    from qpbench.solvers.pi_robust_envelope import OrderedLcp, Posed, _upper
+
+    Q.sort_indices()
+    A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
+    diag = Q.diagonal()
+    posed = Posed(A, b, diag, np.empty(0, dtype=np.int64))
+    return OrderedLcp(A, _upper(A), posed, b, diag, diag, 1.0), A, diag
+
+
 def test_a_policy_that_fixes_contacts_of_the_last_one_is_solved_by_deleting_their_rows() -> None:
     """After a policy's block is factored and solved, the policy with two of its contacts
     fixed is solved from that factor with their rows deleted, with no factorization: x_F
     solves ``(Q_FF + rho D_F) x_F = -q_F`` and is zero off F; the updated factor is kept for
     that policy, so solving it again takes it from the cache, to the same x."""
-    from qpbench.solvers.pi_robust_envelope import (
-        OrderedLcp,
-        Posed,
-        _policy_solve,
-        _upper,
-        _work,
-    )
+    from qpbench.solvers.pi_robust_envelope import _policy_solve, _work
 
     Q = generate("grid", 7, seed=1)[0].Q.tocsc()
-    Q.sort_indices()
     n, rho = Q.shape[0], 1e-5
-    A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
-    diag = Q.diagonal()
-    lcp = OrderedLcp(A, _upper(A), Posed(A, np.zeros(n), diag, np.empty(0, dtype=np.int64)),
-                     np.zeros(n), diag, diag, 1.0)
+    lcp, _, diag = posed_order_lcp(Q, np.zeros(n))
     rng = np.random.default_rng(2)
     q = rng.normal(size=n)
     policy = rng.uniform(size=n) < 0.5
@@ -628,24 +630,12 @@ def test_block_pivoting_hands_a_nearly_singular_block_to_the_active_set_method()
     left x is the method's feasible start max(x, 0), where block pivoting alone (no
     active-set method) would exchange them next and stops at its x, with negative entries.
     Given the solves it needs, the active-set method solves the prox LCP."""
-    from qpbench.solvers.pi_robust_envelope import (
-        OrderedLcp,
-        Posed,
-        Prox,
-        _gauss_seidel,
-        _inner_lcp,
-        _upper,
-        _work,
-    )
+    from qpbench.solvers.pi_robust_envelope import Prox, _gauss_seidel, _inner_lcp, _work
 
     problem = import_dump(CYCLING_DUMP)
     Q = problem.Q.tocsc()
-    Q.sort_indices()
     n, rho, b = Q.shape[0], 1e-5, problem.b
-    A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
-    diag = Q.diagonal()
-    lcp = OrderedLcp(A, _upper(A), Posed(A, b, diag, np.empty(0, dtype=np.int64)), b, diag,
-                     diag, 1.0)
+    lcp, A, diag = posed_order_lcp(Q, b)
     tol_w = 1e-9 * np.abs(b).max()
     tol_l = tol_w / diag
     centre = np.zeros(n)

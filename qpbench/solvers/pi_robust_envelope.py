@@ -39,11 +39,11 @@ claimed convergence is certified by the residual the solve measured on its answe
 rounding bound (no second pass), or else by the caller with qpbench's own metric, before it is
 reported. Additions to the Python path: on nearly singular blocks block pivoting hands over
 to the active-set method at once (:func:`_inner_lcp`; the Python path's factors, dense or over
-the degrees of freedom, report no pivots per contact); when the interior point stalls (its residual
-not cut by 10% in five iterations, as rounding makes it on extreme mass ratios) its best
-iterate is handed to the finishing policy iteration too; and a converged answer whose residual
-is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it is
-certified without a second residual pass.
+the degrees of freedom, report no pivots per contact); when the interior point stalls (its
+residual not cut by 10% in five iterations, as rounding makes it on extreme mass ratios) its
+best iterate is handed to the finishing policy iteration too; and a converged answer whose
+residual is above tol / 10 gets one more prox step on its own policy (``_polish``), so that it
+is certified without a second residual pass.
 
 Where blocks are updated rather than refactored: only where the active-set method fixes at
 most ``UPDATE_FIXED`` contacts of the block it solved last (its steps to a blocking contact and
@@ -233,8 +233,8 @@ class FactorCache(NamedTuple):
     dependent contacts (:func:`_block_solve`); ``counters = [factorizations, uses, dependent
     contacts of the factor used last]``; ``position`` a work array (all -1 between uses). A
     new factor replaces the least recently used slot; a row deletion updates the most recently
-    used one in place. A block's envelope is never wider than the whole
-    matrix's in the same order, so each slot holds the whole envelope's size."""
+    used one in place. A block's envelope is never wider than the whole matrix's in the same
+    order, so each slot holds the whole envelope's size."""
 
     factors: np.ndarray
     offsets: np.ndarray
@@ -479,7 +479,8 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
     Python path; grids the same solves). Raises LinAlgError when a pivot is not positive."""
     starts, ends, rows, data = upper
     scaled = row_scale.size > 0
-    if x.size:
+    forward = x.size > 0
+    if forward:
         _forward_rows(values, offsets, 0, first_row, x)
     if first_row == 0:
         offsets[0] = 0
@@ -510,7 +511,6 @@ def _factor_rows(upper: Upper, index: np.ndarray, position: np.ndarray, row_scal
         # the entries two at a time (j, j + 1), each inner product over the columns before
         # j - 1 first and the row's newest entries (L_i,j-1, then L_ij) subtracted last, so that
         # the long inner products never wait for the entry computed just before them
-        forward = x.size > 0
         squares = 0.0
         substituted = x[i] if forward else 0.0
         j = first_i
