@@ -15,6 +15,12 @@ solver = "clarabel"              # inner solver of the simulation (default: the 
 max_problems = 5                 # evenly spread over the captured impacts
 ```
 
+Before anything is written, every family size and every scene is checked against the memory
+available (qpbench.memory: a family's balls, a scene's bodies), and a size that cannot fit is
+refused in one line. Families are made one problem at a time, so memory holds one problem
+whatever ``count``; scenes are captured into a ``.tmp-capture-*`` folder inside the output
+folder, removed when the scene is done.
+
 Every problem file gets a reference: a verified one from two methods that agree
 (qpbench.problem.reference), or for a frictional problem one polished to a Coulomb residual of
 1e-12 with its uniqueness and solvability (qpbench.problem.friction_reference). Building is
@@ -37,16 +43,17 @@ import numpy as np
 
 from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
+from qpbench.memory import OutOfMemory, out_of_memory, require
 from qpbench.problem import files, friction_reference
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.friction_generate import FRICTION_FAMILIES
 from qpbench.problem.friction_generate import generate as generate_frictional
-from qpbench.problem.generate import FAMILIES, generate
+from qpbench.problem.generate import FAMILIES, check_family_size, family_entry, generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.scenes import Scene, load_scene
-from qpbench.simulation.stepper import Simulator
+from qpbench.simulation.stepper import BODY_BYTES, Simulator
 from qpbench.solvers.registry import resolve
 
 ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
@@ -134,11 +141,29 @@ def _family_problems(definition: dict[str, Any], existing: set[str]
     for family, options in definition.get("families", {}).items():
         sizes = options.get("sizes", [None])
         make = generate_frictional if family in FRICTION_FAMILIES else generate
+        first = options.get("seed", 0)
         for size in sizes:
-            for problem in make(family, size=size, seed=options.get("seed", 0),
-                                count=options.get("count", 1)):
+            # one problem at a time: make(seed=s + i, count=1) is make(seed=s, count=n)[i]
+            for seed in range(first, first + options.get("count", 1)):
+                [problem] = make(family, size=size, seed=seed, count=1)
                 if problem.name not in existing:
                     yield problem
+
+
+def check_sizes(definition: dict[str, Any], scenes: list[tuple[dict[str, Any], Scene]],
+                set_file: Path) -> None:
+    """OutOfMemory (one line naming the set file, the entry and its size) when one problem of
+    a family size, or the state of a scene, needs more than the memory available."""
+    for family, options in definition.get("families", {}).items():
+        table = FRICTION_FAMILIES if family in FRICTION_FAMILIES else FAMILIES
+        for size in options.get("sizes", [None]):
+            _, size = family_entry(table, family, size)
+            try:
+                check_family_size(family, size)
+            except OutOfMemory as error:
+                raise OutOfMemory(f"{set_file}: <families> '{family}': {error}") from None
+    for _, scene in scenes:
+        require(scene.bodies.count * BODY_BYTES, f"{scene.path}: {scene.bodies.count} bodies")
 
 
 def _dump_problems(definition: dict[str, Any], root: Path, existing: set[str]
@@ -173,12 +198,17 @@ def _scenes(definition: dict[str, Any], root: Path) -> list[tuple[dict[str, Any]
     return scenes
 
 
-def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[str]
-                    ) -> Iterator[ImpactProblem]:
+def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[str],
+                    output: Path) -> Iterator[ImpactProblem]:
     for entry, scene in scenes:
-        with tempfile.TemporaryDirectory() as capture:
+        with tempfile.TemporaryDirectory(dir=output, prefix=".tmp-capture-") as capture:
             simulator = Simulator(scene, choose_by_name(entry.get("solver")), capture=capture)
-            simulator.run(end_time=entry.get("end_time"), max_steps=entry.get("steps"))
+            result = simulator.run(end_time=entry.get("end_time"),
+                                   max_steps=entry.get("steps"))
+            failure = result.failure
+            if failure is not None and "MemoryError" in str(failure.get("solver_status", "")):
+                raise out_of_memory(f"simulating {scene.path}",
+                                    f"the inner solve of step {failure['step']}")
             captured = files.find([capture])
             keep = entry.get("max_problems", len(captured))
             if captured and keep < len(captured):
@@ -190,19 +220,22 @@ def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[st
                     yield problem
 
 
-def build(set_file: str | Path, output: str | Path) -> list[Path]:
-    """Writes every problem of the set to ``output`` (skipping those already there)."""
+def build(set_file: str | Path, output: str | Path,
+          on_problem: Callable[[str], None] | None = None) -> list[Path]:
+    """Writes every problem of the set to ``output`` (skipping those already there); calls
+    ``on_problem(name)`` after each problem written."""
     set_file, output = Path(set_file), Path(output)
     definition = read_set(set_file)
     root = set_file.parent
     scenes = _scenes(definition, root)
+    check_sizes(definition, scenes, set_file)
     output.mkdir(parents=True, exist_ok=True)
     existing = {path.stem for path in output.glob(f"*{files.SUFFIX}")}
     written = []
     sources = (
         _family_problems(definition, existing),
         _dump_problems(definition, root, existing),
-        _scene_problems(scenes, existing),
+        _scene_problems(scenes, existing, output),
     )
     for source in sources:
         for problem in source:
@@ -213,6 +246,8 @@ def build(set_file: str | Path, output: str | Path) -> list[Path]:
                     print(f"qpbench build-set: {problem.name}: {note}", file=sys.stderr)
                 written.append(files.save(problem, output / problem.name))
                 existing.add(problem.name)
+                if on_problem is not None:
+                    on_problem(problem.name)
                 continue
             attach_reference(problem)
             if not problem.reference.verified:
@@ -221,4 +256,6 @@ def build(set_file: str | Path, output: str | Path) -> list[Path]:
                       file=sys.stderr)
             written.append(files.save(problem, output / problem.name))
             existing.add(problem.name)
+            if on_problem is not None:
+                on_problem(problem.name)
     return written

@@ -1,10 +1,18 @@
-"""``qpbench build-set SET.toml -o DIR``: the problem files of a problem set."""
+"""``qpbench build-set SET.toml -o DIR``: the problem files of a problem set.
+
+A family size or scene that needs more memory than ``--memory-limit`` or the machine allows
+is refused in one line before anything is written (exit 2); Ctrl-C ends the command within
+about a second (exit 130), leaving every problem file whole. ``--progress`` counts the
+problems written on stderr.
+"""
 
 from __future__ import annotations
 
 import argparse
 
 from qpbench.bench import problem_sets
+from qpbench.cli.guards import add_memory_option, add_progress_option, guarded, progress_wanted
+from qpbench.cli.progress import Progress
 from qpbench.problem import files
 
 
@@ -14,11 +22,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("set_file", metavar="SET.toml", help="e.g. problems/default.toml")
     parser.add_argument("-o", "--output", required=True, help="output folder")
+    add_memory_option(parser)
+    add_progress_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    written = problem_sets.build(args.set_file, args.output)
+    with (guarded(args, "build-set", f"building {args.set_file}", [args.output]),
+          Progress("build-set", progress_wanted(args), None, "problems") as progress):
+        written = problem_sets.build(args.set_file, args.output,
+                                     on_problem=lambda name: progress.advance(note=name))
+        progress.summary = f"{len(written)} problems written"
     total = len(files.find([args.output]))
     print(f"{len(written)} problems written, {total} in {args.output}")
     return 0

@@ -1,5 +1,10 @@
 """``qpbench generate FAMILY [--size N] [--seed S] [--count K] -o DIR``: hard-case families,
-frictionless (qpbench.problem.generate) or frictional (qpbench.problem.friction_generate)."""
+frictionless (qpbench.problem.generate) or frictional (qpbench.problem.friction_generate).
+
+Problems are made, given their reference and written one at a time, so memory holds one
+problem whatever ``--count``; a size whose balls alone need more than ``--memory-limit`` or
+the machine allows is refused in one line before anything is allocated (exit 2), and Ctrl-C
+ends the command within about a second (exit 130) leaving no partial file."""
 
 from __future__ import annotations
 
@@ -7,11 +12,12 @@ import argparse
 import sys
 
 from qpbench.bench.settings import check_at_least
+from qpbench.cli.guards import add_memory_option, guarded
 from qpbench.errors import QpbenchError
 from qpbench.problem import files, friction_reference
 from qpbench.problem.friction_generate import FRICTION_FAMILIES
 from qpbench.problem.friction_generate import generate as generate_frictional
-from qpbench.problem.generate import FAMILIES, generate
+from qpbench.problem.generate import FAMILIES, check_family_size, family_entry, generate
 from qpbench.problem.reference import attach_reference
 
 ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
@@ -37,21 +43,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="box only: write a scene file (balls in a box with walls) to "
                              "simulate, instead of problems")
     parser.add_argument("-o", "--output", required=True, help="output folder")
+    add_memory_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     check_at_least(args.count, 1, "--count")
     check_at_least(args.seed, 0, "--seed")
+    with guarded(args, "generate", f"generating '{args.family}' problems", [args.output]):
+        return write_family(args)
+
+
+def seeds(args: argparse.Namespace) -> range:
+    """The seeds of the problems asked: ``--seed`` .. ``--seed + --count - 1``."""
+    return range(args.seed, args.seed + args.count)
+
+
+def write_family(args: argparse.Namespace) -> int:
+    """The problems (or box scenes) asked, each written before the next is made."""
     if args.scene:
         return write_box_scenes(args)
     if args.family in FRICTION_FAMILIES:
         return run_frictional(args)
     if args.mu is not None:
         raise QpbenchError(f"--mu is for the frictional families, not '{args.family}'")
-    problems = generate(args.family, size=args.size, seed=args.seed, count=args.count,
-                        restitution=args.restitution)
-    for problem in problems:
+    for seed in seeds(args):  # generate(seed=s + i, count=1) is generate(seed=s, count=n)[i]
+        [problem] = generate(args.family, size=args.size, seed=seed, count=1,
+                             restitution=args.restitution)
         if not args.no_reference:
             attach_reference(problem)
             if not problem.reference.verified:
@@ -65,9 +83,11 @@ def run(args: argparse.Namespace) -> int:
 
 def run_frictional(args: argparse.Namespace) -> int:
     """A frictional family: its problems with their references (friction_reference)."""
-    problems = generate_frictional(args.family, size=args.size, seed=args.seed,
-                                   count=args.count, restitution=args.restitution, mu=args.mu)
-    for problem in problems:
+    _, size = family_entry(FRICTION_FAMILIES, args.family, args.size, "frictional family")
+    check_family_size(args.family, size)
+    for seed in seeds(args):
+        [problem] = generate_frictional(args.family, size=size, seed=seed, count=1,
+                                        restitution=args.restitution, mu=args.mu)
         if not args.no_reference:
             friction_reference.attach_reference(problem)
             note = friction_reference.describe(problem.reference)
@@ -84,7 +104,9 @@ def write_box_scenes(args: argparse.Namespace) -> int:
     if args.family != "box":
         raise QpbenchError(f"--scene is for the box family only, not '{args.family}'")
     size = 1000 if args.size is None else args.size
-    for seed in range(args.seed, args.seed + args.count):
+    check_at_least(size, 1, "--size")
+    check_family_size(args.family, size)
+    for seed in seeds(args):
         scene = box_scene(size, seed=seed, restitution=1.0 if args.restitution is None
                           else args.restitution)
         print(write_scene(scene, f"{args.output}/box-{size}-s{seed}.xml"))

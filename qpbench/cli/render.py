@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
+from pathlib import Path
 
 from qpbench.bench.settings import check_at_least
-from qpbench.cli.simulate import DEFAULT_STEPS, check_span
+from qpbench.cli.guards import add_memory_option, guarded
+from qpbench.cli.simulate import DEFAULT_STEPS, check_memory_failure, check_span
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
+from qpbench.simulation.stepper import SimulationResult
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -20,6 +24,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--steps", type=int, default=None, help="at most this many steps")
     parser.add_argument("--solver", default=None, help="inner solver (default: the scene's)")
     parser.add_argument("--frames", type=int, default=80, help="frames of a gif (80)")
+    add_memory_option(parser)
     parser.set_defaults(handler=run)
 
 
@@ -28,6 +33,13 @@ def run(args: argparse.Namespace) -> int:
 
     check_span(args)
     check_at_least(args.frames, 1, "--frames")
+    output_folder = Path(args.output).parent
+    with guarded(args, "render", f"rendering {args.scene}", [output_folder]):
+        return draw(args, render)
+
+
+def draw(args: argparse.Namespace, render: Callable[..., SimulationResult]) -> int:
+    """Simulates the scene and draws it with ``render``; exit 1 when an inner solve failed."""
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench render: warning: {warning}", file=sys.stderr)
@@ -38,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
               "steps (use --end-time or --steps)", file=sys.stderr)
     result = render(scene, args.output, args.end_time, steps, choose_by_name(args.solver),
                     args.frames)
+    check_memory_failure(result)
     for note in result.notes:
         print(f"qpbench render: note: {note}", file=sys.stderr)
     if result.failure is not None:

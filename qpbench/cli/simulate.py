@@ -3,7 +3,10 @@
 ``--json`` reports the final state: ``x_final``, ``v_final`` and, for rigid bodies,
 ``theta_final`` and ``omega_final``. Without ``<end_time>`` in the scene and without
 ``--end-time``, the run stops after ``DEFAULT_STEPS`` steps and says so. Exit 0 when the
-run ends; 1 when an inner solve failed (the JSON says which), 2 on bad input.
+run ends; 1 when an inner solve failed (the JSON says which), 2 on bad input or when the run
+needs more memory than ``--memory-limit`` or the machine allows (one line, before the
+allocation where the size is known: bodies, candidate pairs, the contacts' Q), 130 on Ctrl-C.
+``--progress`` shows the steps on stderr.
 """
 
 from __future__ import annotations
@@ -13,11 +16,14 @@ import sys
 from pathlib import Path
 
 from qpbench.bench.settings import check_accuracy, check_at_least
+from qpbench.cli.guards import add_memory_option, add_progress_option, guarded, progress_wanted
 from qpbench.cli.output import print_json
+from qpbench.cli.progress import Progress
 from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
+from qpbench.memory import out_of_memory
 from qpbench.scenes import load_scene
-from qpbench.simulation.stepper import DEFAULT_ACCURACY, Simulator
+from qpbench.simulation.stepper import DEFAULT_ACCURACY, SimulationResult, Simulator
 
 DEFAULT_STEPS = 1000
 
@@ -36,6 +42,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--capture", default=None, metavar="DIR",
                         help="write every impact problem to DIR/<scene>_step<k>.npz")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_memory_option(parser)
+    add_progress_option(parser)
     parser.set_defaults(handler=run)
 
 
@@ -47,10 +55,26 @@ def check_span(args: argparse.Namespace) -> None:
         check_at_least(args.end_time, 0, "--end-time")
 
 
+def check_memory_failure(result: SimulationResult) -> None:
+    """OutOfMemory (one line, exit 2) when the run stopped because an inner solve ran out of
+    memory, rather than reporting it as a failed solve."""
+    failure = result.failure
+    if failure is not None and "MemoryError" in str(failure.get("solver_status", "")):
+        raise out_of_memory(f"simulating {result.scene}",
+                            f"the inner solve of step {failure['step']} by "
+                            f"{failure.get('solver')}, {failure.get('contacts', '?')} contacts")
+
+
 def run(args: argparse.Namespace) -> int:
     check_span(args)
     if args.accuracy is not None:
         check_accuracy(args.accuracy)
+    outputs = [] if args.capture is None else [args.capture]
+    with guarded(args, "simulate", f"simulating {args.scene}", outputs):
+        return simulate(args)
+
+
+def simulate(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench simulate: warning: {warning}", file=sys.stderr)
@@ -66,7 +90,13 @@ def run(args: argparse.Namespace) -> int:
     for note in simulator.notes:
         print(f"qpbench simulate: note: {note}", file=sys.stderr)
     noted = len(simulator.notes)
-    result = simulator.run(end_time=args.end_time, max_steps=steps)
+    with Progress("simulate", progress_wanted(args),
+                  simulator.step_count(args.end_time, steps), "steps") as progress:
+        result = simulator.run(end_time=args.end_time, max_steps=steps,
+                               on_step=lambda event: progress.advance())
+        progress.summary = (f"{result.steps} steps, {result.impacts} impacts, "
+                            f"{result.captured} captured")
+    check_memory_failure(result)
     for note in result.notes[noted:]:  # what the run itself found (e.g. coincident centres)
         print(f"qpbench simulate: note: {note}", file=sys.stderr)
     summary = result.as_dict()

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from qpbench.errors import QpbenchError
+from qpbench.memory import require
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.jacobian import contact_jacobian
 
@@ -236,6 +237,32 @@ def family_entry(families: dict[str, tuple[Any, int]], family: str, size: int | 
     return builder, size
 
 
+# families whose size counts balls per side of a square grid, and rows of a triangle
+# (qpbench.problem.friction_generate's pyramid); every other family's counts balls
+PER_SIDE_FAMILIES = ("grid", "mass-ratio", "near-duplicate")
+ROW_FAMILIES = ("pyramid",)
+# a lower bound of the bytes one ball of a generated problem takes while it is built (its
+# layout's positions, velocities, radii and masses, the grid indices, its contacts' G)
+BALL_BYTES = 1024
+
+
+def family_balls(family: str, size: int) -> int:
+    """The balls of a problem of ``family`` (frictionless or frictional) at ``size``."""
+    if family in PER_SIDE_FAMILIES:
+        return size * size
+    if family in ROW_FAMILIES:
+        return size * (size + 1) // 2
+    return size
+
+
+def check_family_size(family: str, size: int) -> None:
+    """OutOfMemory (one line, naming the family, the size and its balls, and the memory
+    available) before anything is allocated, when one problem of ``family`` at ``size``
+    needs more than the memory available (:data:`BALL_BYTES` per ball)."""
+    balls = family_balls(family, size)
+    require(balls * BALL_BYTES, f"family '{family}' at size {size} ({balls} balls)")
+
+
 def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1,
              restitution: float | None = None) -> list[ImpactProblem]:
     """``count`` problems of ``family``; problem i uses seed ``seed + i``.
@@ -243,6 +270,7 @@ def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1
     For k3, k4, k4-middle and cradle, seed 0 is the canonical, unrotated case.
     """
     builder, size = family_entry(FAMILIES, family, size)
+    check_family_size(family, size)
     problems = []
     for index in range(count):
         problem_seed = seed + index

@@ -12,10 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from qpbench.memory import require
+
 # Half of the 3x3 neighbourhood: with (0, 0) handled separately, every unordered pair of
 # neighbouring cells is visited exactly once.
 _HALF_NEIGHBOURS = ((1, -1), (1, 0), (1, 1), (0, 1))
 _MAX_KEY = 2**62
+# a lower bound of the bytes each candidate pair takes at the peak of candidate_pairs: its two
+# indices in the lists of ranges, again once concatenated, and one gathered box corner
+CANDIDATE_BYTES = 48
 
 
 def swept_boxes(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray
@@ -48,11 +53,14 @@ def candidate_pairs(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     positions = np.arange(count)
     # same cell: each ball with the balls after it in the sorted order
     same_end = np.searchsorted(sorted_keys, sorted_keys, side="right")
-    _append_ranges(positions, positions + 1, same_end, order, firsts, seconds)
+    ranges = [(positions + 1, same_end)]
     for dx, dy in _HALF_NEIGHBOURS:
         neighbour = sorted_keys + dx * height + dy
-        start = np.searchsorted(sorted_keys, neighbour, side="left")
-        end = np.searchsorted(sorted_keys, neighbour, side="right")
+        ranges.append((np.searchsorted(sorted_keys, neighbour, side="left"),
+                       np.searchsorted(sorted_keys, neighbour, side="right")))
+    candidates = sum(int(np.maximum(end - start, 0).sum()) for start, end in ranges)
+    require(candidates * CANDIDATE_BYTES, f"{candidates} candidate pairs of {count} balls")
+    for start, end in ranges:
         _append_ranges(positions, start, end, order, firsts, seconds)
     if not firsts:
         return np.zeros((0, 2), dtype=np.int64)

@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from qpbench.errors import QpbenchError, UnsupportedError
+from qpbench.memory import OutOfMemory, product_bytes, require
 from qpbench.problem import files, metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
@@ -68,6 +69,12 @@ from qpbench.simulation.operators import (
 
 DEFAULT_ACCURACY = 1e-8
 TIGHTEST_ACCURACY = 1e-13  # what the inner solvers reach in double precision
+# a lower bound of the bytes of one body's state over a run (positions, velocities, inverse
+# masses and their per-step copies)
+BODY_BYTES = 256
+# formulations whose inner solve never forms Q = G^T M^-1 G (the others do, as do frictional
+# solves their Delassus operator)
+WITHOUT_Q = ("primal", "dual-factored")
 
 
 @dataclass
@@ -229,6 +236,9 @@ class Simulator:
         self._coincident_noted = False
         self._offsets: list[float] = []  # each portal's dx this step
         self._kicks = np.zeros((0, 2))  # each contact's kinematic kick (Lees-Edwards portals)
+        require(bodies.count * BODY_BYTES, f"{scene.path}: {bodies.count} bodies")
+        self._forms_q = any(inner.chosen.name.rsplit("/", 1)[-1] not in WITHOUT_Q
+                            for inner in self.inner.values())
 
     def _inverse_masses(self) -> np.ndarray:
         """Diagonal of M^-1 per degree of freedom (x, y[, theta]); 0 for kinematic bodies."""
@@ -325,6 +335,20 @@ class Simulator:
         self._kicks = np.zeros((found.count, 2))
         self._kicks[:kicks.shape[0]] = kicks
         return found
+
+    def _check_contact_matrices(self, found: contacts.Contacts) -> None:
+        """OutOfMemory before the problem is posed when the inner solve would form Q
+        (``G^T M^-1 G``) and scipy's product for it needs more than the memory available:
+        each contact puts one entry in each of its bodies' x and y rows of G, so body k's
+        ``c_k`` contacts make ``2 c_k^2`` of the entries the product reserves (nearly
+        coincident balls: O(n^2) contacts and O(n^3) entries)."""
+        if not self._forms_q or found.count == 0:
+            return
+        count = self.scene.bodies.count
+        per_body = np.bincount(found.body_a, minlength=count)
+        per_body += np.bincount(found.body_b[found.body_b >= 0], minlength=count)
+        require(product_bytes(np.repeat(per_body, 2)),
+                f"{found.count} contacts (Q = G^T M^-1 G)")
 
     def _metadata(self, kind: str) -> dict[str, Any]:
         scene = self.scene
@@ -441,7 +465,11 @@ class Simulator:
         impulses = np.zeros(0)
         problem: ImpactProblem | FrictionalProblem | None = None
         if self.collides and scene.bodies.count:
-            found = self.find_contacts(x0, x1)
+            try:
+                found = self.find_contacts(x0, x1)
+                self._check_contact_matrices(found)
+            except OutOfMemory as error:
+                raise OutOfMemory(f"{self._where}step {self.step_index}: {error}") from None
         if not found.count:
             self._cache.clear()  # as SCISim: a step without contacts forgets cached impulses
         if found.count:

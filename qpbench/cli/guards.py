@@ -1,0 +1,71 @@
+"""The guards of the commands that build things (``simulate``, ``render``, ``generate``,
+``build-set``): their ``--memory-limit`` and ``--progress`` options, and :func:`guarded`,
+which applies the memory cap, turns running out of memory into one line (exit 2) and
+watches for Ctrl-C (exit 130 within about a second)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import sys
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+
+from qpbench.bench.settings import check_at_least
+from qpbench.interrupts import Watchdog, interrupt_watchdog
+from qpbench.memory import (
+    DEFAULT_FRACTION,
+    LIMIT_OPTION,
+    apply_limit,
+    default_limit_mb,
+    out_of_memory_as_error,
+)
+
+
+def add_memory_option(parser: argparse.ArgumentParser) -> None:
+    """``--memory-limit MB``: the address-space cap (default: a fraction of the memory
+    available; 0: none)."""
+    parser.add_argument(
+        LIMIT_OPTION, type=int, default=None, metavar="MB", dest="memory_limit",
+        help=f"cap on the address space in MiB (default: {DEFAULT_FRACTION:.0%} of the "
+             "memory available at the start; 0: none); a request that needs more is "
+             "refused in one line")
+
+
+def add_progress_option(parser: argparse.ArgumentParser) -> None:
+    """``--progress/--no-progress``: a progress bar and a closing summary on stderr
+    (default: when stderr is a terminal)."""
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="progress and a closing summary on stderr (default: when "
+                             "stderr is a terminal)")
+
+
+def progress_wanted(args: argparse.Namespace) -> bool:
+    """``--progress``/``--no-progress`` when given, else whether stderr is a terminal."""
+    if args.progress is not None:
+        return bool(args.progress)
+    return sys.stderr.isatty()
+
+
+@contextmanager
+def guarded(args: argparse.Namespace, command: str, what: str,
+            outputs: Iterable[str | os.PathLike[str]] = ()) -> Iterator[Watchdog]:
+    """Runs the block of ``command`` under the cap of ``args.memory_limit`` (restored after),
+    with a MemoryError becoming one line (``out of memory while WHAT``, exit 2 through
+    :class:`~qpbench.errors.QpbenchError`) and SIGINT watched
+    (:func:`~qpbench.interrupts.interrupt_watchdog`: the ``.tmp-*`` files of the folders
+    ``outputs`` are removed on a forced exit); yields the watchdog."""
+    limit_mb = default_limit_mb() if args.memory_limit is None else args.memory_limit
+    check_at_least(limit_mb, 0, LIMIT_OPTION)
+    previous = resource.getrlimit(resource.RLIMIT_AS)
+    apply_limit(limit_mb)
+    try:
+        with interrupt_watchdog(command) as watchdog, out_of_memory_as_error(what):
+            for folder in outputs:
+                watchdog.sweep(folder)
+            yield watchdog
+    finally:
+        apply_limit(0)
+        resource.setrlimit(resource.RLIMIT_AS, previous)
+

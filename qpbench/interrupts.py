@@ -1,0 +1,135 @@
+"""Ctrl-C within a second, even while compiled code runs for long.
+
+Python runs its SIGINT handler (which raises KeyboardInterrupt) only between bytecodes, so a
+long numpy, scipy or solver call would delay an interrupt until it returns. The C-level
+handler, however, writes the signal's number to the wakeup file descriptor
+(``signal.set_wakeup_fd``) at once. :func:`interrupt_watchdog` points that descriptor at a
+socket read by a helper thread: on SIGINT the main thread still gets its KeyboardInterrupt as
+usual (the command then ends the ordinary way, exit 130, atomic writes undone); if it has not
+left the watched block ``grace_s`` seconds later, the helper removes the temporary files it
+knows of (every ``.tmp-*`` entry made since the block began in the folders registered with
+:meth:`Watchdog.sweep`, and the paths registered with :meth:`Watchdog.remove_on_exit`),
+prints ``qpbench COMMAND: interrupted`` and ends the process with ``os._exit(130)``.
+
+The helper needs the interpreter lock to act; numpy's and scipy's long loops and the solver
+libraries release it, but a compiled kernel that keeps it delays the exit until it returns.
+Atomic writes (:mod:`qpbench.atomic`) rename a complete temporary file over their target, so
+an exit at any moment leaves each target either as it was or whole.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from pathlib import Path
+
+EXIT_INTERRUPTED = 130
+GRACE_S = 0.8  # the main thread's time to end by itself after SIGINT
+TEMPORARY_PREFIX = ".tmp-"  # qpbench.atomic's temporary files
+
+
+class Watchdog:
+    """What the helper thread of :func:`interrupt_watchdog` removes before it ends the
+    process."""
+
+    def __init__(self, command: str) -> None:
+        self.command = command
+        self.started = time.time()
+        self._folders: list[Path] = []
+        self._paths: list[Path] = []
+        self._lock = threading.Lock()
+
+    def sweep(self, folder: str | os.PathLike[str]) -> None:
+        """Registers ``folder``: its ``.tmp-*`` entries made since the watch began are
+        removed on a forced exit."""
+        with self._lock:
+            self._folders.append(Path(folder))
+
+    def remove_on_exit(self, path: str | os.PathLike[str]) -> None:
+        """Registers a temporary file or folder, removed on a forced exit."""
+        with self._lock:
+            self._paths.append(Path(path))
+
+    def forget(self, path: str | os.PathLike[str]) -> None:
+        """Unregisters a path of :meth:`remove_on_exit` (it is gone or kept)."""
+        with self._lock:
+            self._paths = [known for known in self._paths if known != Path(path)]
+
+    def remove_temporaries(self) -> None:
+        """Removes the registered paths and the recent ``.tmp-*`` entries of the registered
+        folders; errors (an entry already gone) are ignored."""
+        with self._lock:
+            folders, paths = list(self._folders), list(self._paths)
+        for folder in folders:
+            try:
+                entries = list(folder.glob(f"{TEMPORARY_PREFIX}*"))
+            except OSError:
+                continue
+            for entry in entries:
+                try:
+                    if entry.lstat().st_mtime >= self.started - 1.0:
+                        paths.append(entry)
+                except OSError:
+                    continue
+        for path in paths:
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                with suppress(OSError):
+                    path.unlink()
+
+    def force_exit(self) -> None:
+        """Removes the temporaries, says ``interrupted`` on stderr and ends the process with
+        exit status 130, whatever the main thread is doing."""
+        self.remove_temporaries()
+        try:
+            os.write(2, f"qpbench {self.command}: interrupted\n".encode())
+        finally:
+            os._exit(EXIT_INTERRUPTED)
+
+
+def _watch(reader: socket.socket, done: threading.Event, watchdog: Watchdog,
+           grace_s: float) -> None:
+    """The helper thread: waits for SIGINT's byte on ``reader``; then gives the main thread
+    ``grace_s`` seconds to set ``done`` before :meth:`Watchdog.force_exit`."""
+    while not done.is_set():
+        try:
+            received = reader.recv(64)
+        except OSError:
+            return
+        if not received:  # the writer was closed: the watch is over
+            return
+        if signal.SIGINT in received and not done.wait(grace_s):
+            watchdog.force_exit()
+
+
+@contextmanager
+def interrupt_watchdog(command: str, grace_s: float = GRACE_S) -> Iterator[Watchdog]:
+    """Watches the block for SIGINT (module docstring); yields the :class:`Watchdog` to
+    register temporary files with. Outside the main thread (where no wakeup descriptor can
+    be set) the block runs unwatched."""
+    watchdog = Watchdog(command)
+    if threading.current_thread() is not threading.main_thread():
+        yield watchdog
+        return
+    reader, writer = socket.socketpair()
+    writer.setblocking(False)
+    done = threading.Event()
+    previous = signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+    helper = threading.Thread(target=_watch, args=(reader, done, watchdog, grace_s),
+                              name="qpbench-interrupt-watchdog", daemon=True)
+    helper.start()
+    try:
+        yield watchdog
+    finally:
+        done.set()
+        signal.set_wakeup_fd(previous)
+        writer.close()
+        helper.join(timeout=1.0)
+        reader.close()
