@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 
 class QpbenchError(Exception):
     """A user-facing error: bad input, unknown solver, unsupported feature.
@@ -29,3 +31,13 @@ class InputError(QpbenchError):
 
 class UnsupportedError(QpbenchError):
     """Input that is well formed but asks for something qpbench does not do."""
+
+
+class OutputError(QpbenchError):
+    """An output path that qpbench cannot or will not write: a device, a folder or a symbolic
+    link where a file goes, or a read-only or full disk. The message names the path first:
+    ``results.json: cannot write: Read-only file system``."""
+
+    def __init__(self, path: str | os.PathLike[str], message: str) -> None:
+        self.path = str(path)
+        super().__init__(f"{self.path}: {message}")

@@ -1,7 +1,10 @@
-"""Export: qpbenchmark's Parquet problem list and one .mat per problem, readable back."""
+"""Export: qpbenchmark's Parquet problem list and one .mat per problem, readable back;
+frictional problems as their ccp relaxation; nothing half-written."""
 
 from __future__ import annotations
 
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +12,7 @@ import pandas as pd
 import pytest
 import scipy.io
 from bench_problems import write_tiny_problems
+from friction_cases import pair_on_floor
 
 from qpbench.bench.export import export
 from qpbench.cli import main
@@ -62,3 +66,72 @@ def test_cli_export_of_a_missing_file_is_one_line_and_exit_2(
     error = capsys.readouterr().err
     assert code == 2 and error.count("\n") == 1 and "nope.npz" in error
     assert not (tmp_path / "x.parquet").exists()
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder of one frictionless and one frictional problem (3 contacts, mu 0.5)."""
+    folder = tmp_path_factory.mktemp("mixed")
+    write_tiny_problems(folder, count=1)
+    files.save(pair_on_floor(mu=0.5), folder / "pair")
+    return folder
+
+
+def test_a_frictional_problem_is_exported_as_its_ccp_relaxation(
+        mixed: Path, tmp_path: Path) -> None:
+    frictional = files.load(mixed / "pair.npz")
+    relaxed = frictional.relaxed()
+    assert export([mixed], tmp_path / "mat", "mat", "dual") == 2
+    pair = scipy.io.loadmat(tmp_path / "mat" / "pair.mat")
+    assert str(pair["model"][0]) == "ccp" and np.array_equal(pair["mu"].ravel(), frictional.mu)
+    assert pair["P"].shape == (6, 6)  # z = (z+, z-): two unknowns per contact
+    assert np.allclose(pair["P"].toarray(), relaxed.Q.toarray())
+    assert np.allclose(pair["q"].ravel(), relaxed.b) and np.all(pair["lb"] == 0)
+    assert str(scipy.io.loadmat(tmp_path / "mat" / "row3.mat")["model"][0]) == "impact"
+
+    assert export([mixed], tmp_path / "list.parquet", "parquet", "primal") == 2
+    frame = pd.read_parquet(tmp_path / "list.parquet").set_index("name")
+    qp = primal_qp(relaxed)
+    assert np.allclose(frame.loc["pair", "h"], -qp.lower)
+    assert np.array_equal(frame.loc["pair", "G"].reshape(6, -1), -qp.A.toarray())  # row per
+    # relaxed contact, a column per free degree of freedom
+    assert frame.loc["row3", "lb"] is None
+
+
+def test_the_readme_command_exports_a_mixed_folder(
+        mixed: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for fmt, output in (("mat", tmp_path / "mat"), ("parquet", tmp_path / "p.parquet")):
+        assert main(["export", str(mixed), "--format", fmt, "-o", str(output)]) == 0
+        assert "2 problems" in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path / "mat")) == ["pair.mat", "row3.mat"]
+
+
+def test_a_bad_problem_among_good_ones_leaves_no_mat_file(
+        mixed: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "problems"
+    shutil.copytree(mixed, folder)
+    (folder / "zz-broken.npz").write_bytes(b"not an archive")  # read after the good ones
+    output = tmp_path / "mat"
+    assert main(["export", str(folder), "--format", "mat", "-o", str(output)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "zz-broken.npz" in error
+    assert os.listdir(output) == []  # neither the two written first nor any temporary file
+
+
+def test_two_problems_of_one_name_are_refused_for_mat(
+        mixed: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "copy").mkdir()
+    shutil.copy(mixed / "row3.npz", tmp_path / "copy" / "row3.npz")
+    output = tmp_path / "mat"
+    code = main(["export", str(mixed), str(tmp_path / "copy"), "--format", "mat",
+                 "-o", str(output)])
+    assert code == 2 and "problem name 'row3'" in capsys.readouterr().err
+    assert os.listdir(output) == []
+
+
+def test_mat_output_that_is_a_file_is_refused_before_reading(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "out").write_text("a file")
+    code = main(["export", str(tmp_path / "missing"), "--format", "mat",
+                 "-o", str(tmp_path / "out")])
+    assert code == 2 and "out: is a file; --format mat writes a folder" in capsys.readouterr().err

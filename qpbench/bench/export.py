@@ -5,19 +5,31 @@
   entries null (as qpbenchmark's ParquetTestSet reads them). Note that qpbenchmark's
   ``b`` is the right-hand side of equality constraints, not our ``b``.
 * ``mat``: one MATLAB file per problem (scipy.io.savemat) with sparse ``P``, ``q``,
-  ``lb`` (dual) or ``P, q, G, h`` (primal), plus ``name``.
+  ``lb`` (dual) or ``P, q, G, h`` (primal), plus ``name`` and ``model``.
 
 Formulations (docs/design.md section 1), both as ``min 1/2 x^T P x + q^T x``:
 
 * ``dual``: ``P = Q``, ``q = b``, ``lb = 0`` (x = l, the impulses);
 * ``primal``: ``P = diag(M_free)``, ``q = -M_free v-_free``, ``G x <= h`` with
   ``G = -G_free^T``, ``h = -lower`` (x = v+ on the degrees of freedom with finite mass).
+
+A frictional problem is not a QP under Coulomb's law; both formats hold it as the QP of
+Anitescu's convex relaxation (the ``ccp`` model, docs/design.md section 8), which in 2D is an
+impact problem of 2n contacts with columns ``n + mu t`` and ``n - mu t``
+(:meth:`FrictionalProblem.relaxed`): the dual's x is ``z = (z+, z-)``, whence
+``l_N = z+ + z-`` and ``l_T = mu (z+ - z-)``; the primal's x is v+ as above. Its answer is the
+``ccp`` model's, not Coulomb's. A ``.mat`` file says which in ``model`` (``impact`` or
+``ccp``) and, for ``ccp``, holds ``mu``.
+
+Nothing is half-written: the Parquet list is one atomic file, and the ``.mat`` files are
+all written to temporary files first and renamed only once every problem has been written.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterable
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -26,39 +38,60 @@ import pandas as pd
 import scipy.io
 import scipy.sparse as sp
 
-from qpbench.atomic import atomic_path
-from qpbench.errors import QpbenchError, UnsupportedError
+from qpbench.atomic import atomic_path, checked_target
+from qpbench.errors import InputError, OutputError, QpbenchError, UnsupportedError
 from qpbench.problem import files
+from qpbench.problem.files import AnyProblem
 from qpbench.problem.formulations import primal_qp
+from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 
 FORMATS = ("parquet", "mat")
 FORMULATIONS = ("dual", "primal")
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
 MAX_DENSE_ENTRIES = 50_000_000  # 400 MB of float64 per dense matrix in the Parquet list
+IMPACT_MODEL = "impact"
+FRICTIONAL_MODEL = "ccp"
 
 
-def qp_matrices(problem: ImpactProblem, formulation: str) -> dict[str, Any]:
-    """The QP of ``problem`` as qpbenchmark names it: P, q and G, h or lb (sparse P, G)."""
+def exported_problem(problem: AnyProblem) -> ImpactProblem:
+    """The impact problem whose QP is exported for ``problem``: itself, or for a frictional
+    problem its ``ccp`` relaxation (2n contacts)."""
+    return problem.relaxed() if isinstance(problem, FrictionalProblem) else problem
+
+
+def qp_matrices(problem: AnyProblem, formulation: str) -> dict[str, Any]:
+    """The QP of ``problem`` as qpbenchmark names it: P, q and G, h or lb (sparse P, G); a
+    frictional problem's is that of its ``ccp`` relaxation."""
+    impact = exported_problem(problem)
     if formulation == "dual":
-        return {"P": sp.csc_matrix(problem.Q), "q": np.asarray(problem.b, dtype=float),
-                "lb": np.zeros(problem.n_contacts)}
+        return {"P": sp.csc_matrix(impact.Q), "q": np.asarray(impact.b, dtype=float),
+                "lb": np.zeros(impact.n_contacts)}
     if formulation == "primal":
-        qp = primal_qp(problem)
+        qp = primal_qp(impact)
         return {"P": sp.csc_matrix(qp.P), "q": np.asarray(qp.q, dtype=float),
                 "G": sp.csc_matrix(-qp.A), "h": -np.asarray(qp.lower, dtype=float)}
     raise QpbenchError(f"--formulation: unknown '{formulation}' (known: {', '.join(FORMULATIONS)})")
 
 
-def _dense_flat(matrix: sp.spmatrix, problem: ImpactProblem) -> np.ndarray:
+def mat_content(problem: AnyProblem, formulation: str) -> dict[str, Any]:
+    """What ``<name>.mat`` holds: the QP, ``name``, ``model`` and, for ``ccp``, ``mu``."""
+    content = {**qp_matrices(problem, formulation), "name": problem.name}
+    if isinstance(problem, FrictionalProblem):
+        return {**content, "model": FRICTIONAL_MODEL, "mu": np.asarray(problem.mu, dtype=float)}
+    return {**content, "model": IMPACT_MODEL}
+
+
+def _dense_flat(matrix: sp.spmatrix, problem: AnyProblem) -> np.ndarray:
     if matrix.shape[0] * matrix.shape[1] > MAX_DENSE_ENTRIES:
         raise UnsupportedError(f"{problem.source or problem.name}: a {matrix.shape} matrix is too "
                                "large for qpbenchmark's dense Parquet list; use --format mat")
     return np.asarray(matrix.toarray(), dtype=float).ravel()
 
 
-def export_parquet(problems: Iterable[ImpactProblem], path: Path, formulation: str) -> int:
-    """Writes qpbenchmark's problem list to ``path``; returns the number of problems."""
+def export_parquet(problems: Iterable[AnyProblem], path: Path, formulation: str) -> int:
+    """Writes qpbenchmark's problem list to ``path`` (one atomic file); returns the number of
+    problems."""
     columns: dict[str, list[Any]] = {key: [] for key in QPBENCHMARK_KEYS}
     for problem in problems:
         qp = qp_matrices(problem, formulation)
@@ -70,36 +103,54 @@ def export_parquet(problems: Iterable[ImpactProblem], path: Path, formulation: s
     if not columns["name"]:
         raise QpbenchError("no problems to export")
     frame = pd.DataFrame(columns)
-    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as temporary:
         frame.to_parquet(temporary, engine="pyarrow", index=False)
     return len(frame)
 
 
-def export_mat(problems: Iterable[ImpactProblem], folder: Path, formulation: str) -> int:
-    """Writes ``folder/<name>.mat`` per problem; returns the number written."""
-    folder.mkdir(parents=True, exist_ok=True)
-    count = 0
-    for problem in problems:
-        content = {**qp_matrices(problem, formulation), "name": problem.name}
-        target = folder / f"{problem.name}.mat"
-        with atomic_path(target) as temporary:
-            scipy.io.savemat(str(temporary), content, do_compression=True)
-        count += 1
-    if not count:
-        raise QpbenchError("no problems to export")
-    return count
+def export_mat(problems: Iterable[AnyProblem], folder: Path, formulation: str) -> int:
+    """Writes ``folder/<name>.mat`` per problem; returns the number written. Each file is
+    written to a temporary file, and none is renamed into place before all are written, so
+    an error on any problem leaves the folder as it was. Two problems of one name are an
+    InputError (their files would be one)."""
+    written: dict[str, str] = {}
+    with ExitStack() as pending:
+        for problem in problems:
+            if problem.name in written:
+                raise InputError(problem.source or problem.name, f"problem name "
+                                 f"'{problem.name}' is also that of {written[problem.name]}; "
+                                 "each .mat file is named by its problem")
+            written[problem.name] = problem.source or problem.name
+            temporary = pending.enter_context(atomic_path(folder / f"{problem.name}.mat"))
+            scipy.io.savemat(str(temporary), mat_content(problem, formulation),
+                             do_compression=True)
+        if not written:
+            raise QpbenchError("no problems to export")
+    return len(written)
+
+
+def check_output(output: Path, fmt: str) -> None:
+    """OutputError before any problem is read when ``output`` cannot take ``fmt``: for
+    ``parquet`` anything but a regular file or nothing (:func:`checked_target`), for ``mat``
+    anything but a folder or nothing."""
+    if fmt == "parquet":
+        checked_target(output)
+    elif checked_target(output, accept_folder=True).exists() and not output.is_dir():
+        raise OutputError(output, "is a file; --format mat writes a folder of .mat files")
 
 
 def export(paths: Iterable[str | os.PathLike[str]], output: str | os.PathLike[str],
            fmt: str = "parquet", formulation: str = "dual") -> int:
-    """Exports every problem file named or found in ``paths``; returns the number exported."""
+    """Exports every problem file named or found in ``paths`` (frictional ones as their
+    ``ccp`` relaxation); returns the number exported."""
     if fmt not in FORMATS:
         raise QpbenchError(f"--format: unknown '{fmt}' (known: {', '.join(FORMATS)})")
     if formulation not in FORMULATIONS:
         raise QpbenchError(f"--formulation: unknown '{formulation}' "
                            f"(known: {', '.join(FORMULATIONS)})")
+    output = Path(output)
+    check_output(output, fmt)
     problems = files.load_all(paths)
     if fmt == "parquet":
-        return export_parquet(problems, Path(output), formulation)
-    return export_mat(problems, Path(output), formulation)
+        return export_parquet(problems, output, formulation)
+    return export_mat(problems, output, formulation)

@@ -3,7 +3,10 @@
 Each module has ``add_parser(subparsers)`` which registers its arguments and
 sets ``handler`` to a function ``(args) -> exit code``. Errors in the input
 reach the user as one line on stderr and a non-zero exit, never a traceback
-(set QPBENCH_DEBUG=1 to see one).
+(set QPBENCH_DEBUG=1 to see one). So does an output path that cannot be written: one
+that is a device, a FIFO, a socket or a symbolic link (unless QPBENCH_FOLLOW_SYMLINKS is
+set) is refused before the command starts, and a read-only or full disk is one line,
+``qpbench COMMAND: PATH: cannot write: REASON``, and exit 2.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from qpbench import SINGLE_THREAD_ENV, __version__
+from qpbench.atomic import WRITE_ERRNOS, checked_target, os_error_reason
 from qpbench.errors import QpbenchError
 
 # Solvers are timed single-threaded (fair, and stable on shared cores) unless the user says
@@ -39,10 +43,14 @@ COMMANDS = (
     "sequence",
     "breakdown",
     "head_to_head",
+    "fuzz",
 )
 
 EXIT_INPUT_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
+# the argument names (dest) under which the commands take the paths they write: ``-o`` and
+# ``simulate --capture``
+OUTPUT_ARGUMENTS = ("output", "capture")
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -88,11 +96,44 @@ def _chosen_command(argv: Sequence[str]) -> str | None:
     return None
 
 
+def check_outputs(args: argparse.Namespace) -> None:
+    """OutputError, before the command does any work, when a path it is to write
+    (OUTPUT_ARGUMENTS) is a device, a FIFO, a socket, or a symbolic link to anything but a
+    folder that is not followed: never a file or a folder to write. Whether the command needs
+    a file or a folder there is the command's own check."""
+    for name in OUTPUT_ARGUMENTS:
+        value = getattr(args, name, None)
+        if isinstance(value, str | os.PathLike):
+            checked_target(value, accept_folder=True)
+
+
+def os_error_line(error: OSError) -> str | None:
+    """An OSError that names its file, or that only a write gives (a read-only or full disk),
+    as one line: ``PATH: cannot write: REASON`` (``PATH: REASON`` for other errors, such as a
+    permission refused); None for any other OSError, an internal fault."""
+    filename = error.filename
+    where = f"{os.fsdecode(filename)}: " if isinstance(filename, str | bytes | os.PathLike) else ""
+    if not where and error.errno not in WRITE_ERRNOS:
+        return None
+    what = "cannot write: " if error.errno in WRITE_ERRNOS else ""
+    return f"{where}{what}{os_error_reason(error)}"
+
+
+def _internal_error(command: str, error: Exception) -> int:
+    """An internal fault: one line and exit 3, unless QPBENCH_DEBUG asks for the traceback."""
+    if os.environ.get("QPBENCH_DEBUG"):
+        raise error
+    print(f"qpbench {command}: internal error: {type(error).__name__}: {error} "
+          "(set QPBENCH_DEBUG=1 for a traceback)", file=sys.stderr)
+    return EXIT_INTERNAL_ERROR
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(only=_chosen_command(argv))
     args = parser.parse_args(argv)
     try:
+        check_outputs(args)
         return int(args.handler(args) or 0)
     except QpbenchError as error:
         print(f"qpbench {args.command}: {error}", file=sys.stderr)
@@ -103,12 +144,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"qpbench {args.command}: interrupted", file=sys.stderr)
         return 130
+    except OSError as error:  # a file the command could not read or write
+        line = os_error_line(error)
+        if line is None:
+            return _internal_error(args.command, error)
+        print(f"qpbench {args.command}: {line}", file=sys.stderr)
+        return EXIT_INPUT_ERROR
     except Exception as error:  # an internal fault: still one line unless debugging
-        if os.environ.get("QPBENCH_DEBUG"):
-            raise
-        print(f"qpbench {args.command}: internal error: {type(error).__name__}: {error} "
-              "(set QPBENCH_DEBUG=1 for a traceback)", file=sys.stderr)
-        return EXIT_INTERNAL_ERROR
+        return _internal_error(args.command, error)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Helpers shared by the subcommands: JSON output of numpy values."""
+"""Helpers shared by the subcommands: JSON output of numpy values, output paths checked
+before any work."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from qpbench.atomic import atomic_path, checked_target
+from qpbench.errors import OutputError
 
 
 def to_jsonable(value: Any) -> Any:
@@ -32,29 +36,26 @@ def print_json(value: Any) -> None:
 
 
 def write_json(path: str | os.PathLike[str], value: Any) -> Path:
-    """Writes ``value`` as indented JSON atomically (a temporary file renamed over ``path``)."""
-    from qpbench.atomic import atomic_path
-    from qpbench.errors import InputError
-
+    """Writes ``value`` as indented JSON atomically (a temporary file renamed over ``path``;
+    OutputError, one line, when ``path`` is not a regular file or cannot be written)."""
     text = json.dumps(to_jsonable(value), indent=2) + "\n"
-    try:
-        with atomic_path(path) as temporary:
-            temporary.write_text(text)
-    except OSError as error:
-        raise InputError(str(path), f"cannot write: {error.strerror or error}") from error
+    with atomic_path(path) as temporary:
+        temporary.write_text(text)
     return Path(path)
 
 
 def writable_output(path: str | os.PathLike[str]) -> Path:
-    """``path`` as a Path; InputError before any work when it is a folder or its nearest
-    existing folder is not writable, so a measurement never runs for an output it cannot
-    write."""
-    from qpbench.errors import InputError
-
+    """``path`` as a Path, checked before any work so that a measurement never runs for an
+    output it cannot write: OutputError when it is a folder, a device, a FIFO, a socket or a
+    symbolic link that is not followed (:func:`qpbench.atomic.checked_target`), or when its
+    nearest existing folder is not writable."""
     output = Path(path)
-    existing = next(parent for parent in (output, *output.parents) if parent.exists())
-    if output.is_dir() or not os.access(existing, os.W_OK):
-        raise InputError(str(output), "cannot write here")
+    target = checked_target(output)
+    existing = next(parent for parent in target.parents if parent.exists())
+    if not existing.is_dir():
+        raise OutputError(output, f"cannot write: {existing} is not a folder")
+    if not os.access(existing, os.W_OK):
+        raise OutputError(output, f"cannot write: {existing} is not writable")
     return output
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import zipfile
+import zlib
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,10 @@ _REFERENCE_FIELDS: dict[str, tuple[type, ...]] = {
 _FRICTIONAL_REFERENCE_FIELDS: dict[str, tuple[type, ...]] = {
     "method": (str,), "residual": _REAL, "unique": (bool, type(None)), "solvable": (bool,)}
 _OPTIONAL_REFERENCE_FIELDS = ("solvable",)
+NPY_SIGNATURE = b"\x93NUMPY"  # the start of a single .npy array
+ZIP_SIGNATURES = (b"PK\x03\x04", b"PK\x05\x06")  # a zip archive's first entry, or an empty one
+_NPY_HEADER_READERS = {(1, 0): np.lib.format.read_array_header_1_0,
+                       (2, 0): np.lib.format.read_array_header_2_0}
 
 AnyProblem = ImpactProblem | FrictionalProblem
 
@@ -163,13 +168,7 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
     """Reads a problem file written by :func:`save` (an :class:`ImpactProblem` or a
     :class:`FrictionalProblem`, by its kind); raises InputError on a bad file."""
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            arrays = {key: archive[key] for key in archive.files}
-    except FileNotFoundError as error:
-        raise InputError(str(path), "no such problem file") from error
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
-        raise InputError(str(path), f"not a qpbench problem file ({error})") from error
+    arrays = read_arrays(path)
     try:
         header = json.loads(_array(arrays, "header_json", path).tobytes().decode())
     except (ValueError, RecursionError) as error:  # JSON, UTF-8, nesting beyond json's limit
@@ -202,6 +201,57 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
         problem.validate(str(path))
     _check_carried(loaded, arrays, path)
     return loaded
+
+
+def read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` archive at ``path``, by name, read without pickle;
+    InputError naming the file (and the array, where one is at fault) and saying what is
+    wrong when it is no such archive: a single ``.npy`` array, not a zip archive at all, a
+    damaged or truncated one, a member that is not a ``.npy`` array, or an array of Python
+    objects."""
+    try:
+        with open(path, "rb") as stream:
+            signature = stream.read(len(NPY_SIGNATURE))
+    except FileNotFoundError as error:
+        raise InputError(str(path), "no such problem file") from error
+    except IsADirectoryError as error:
+        raise InputError(str(path), "is a folder, not a problem file") from error
+    except OSError as error:
+        raise InputError(str(path), f"cannot read: {error.strerror or error}") from error
+    if signature.startswith(NPY_SIGNATURE):
+        raise InputError(str(path), "a single NumPy array (.npy), not a problem file (a .npz "
+                         "archive of arrays)")
+    if not signature.startswith(ZIP_SIGNATURES):
+        raise InputError(str(path), "not a problem file: not a .npz (zip) archive")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return {member.removesuffix(".npy"): _member_array(archive, member, path)
+                    for member in archive.namelist()}
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, RuntimeError,
+            NotImplementedError) as error:  # RuntimeError: encrypted; NotImplementedError:
+        # a compression method zipfile does not read
+        raise InputError(str(path), f"a damaged or truncated .npz archive ({error})") from error
+
+
+def _member_array(archive: zipfile.ZipFile, member: str, path: Path) -> np.ndarray:
+    """The array stored as ``member`` of ``archive``; InputError naming it when it is not a
+    ``.npy`` array of numbers, or is cut short or damaged."""
+    key = member.removesuffix(".npy")
+    try:
+        with archive.open(member) as stream:
+            version = np.lib.format.read_magic(stream)
+            if version not in _NPY_HEADER_READERS:
+                raise InputError(str(path), f".npy format version {version} is not one "
+                                 "problem files use", attribute=key)
+            _, _, dtype = _NPY_HEADER_READERS[version](stream)
+            if dtype.hasobject:
+                raise InputError(str(path), f"holds Python objects ({dtype}); a problem file "
+                                 "holds arrays of numbers only", attribute=key)
+        with archive.open(member) as stream:
+            return np.lib.format.read_array(stream, allow_pickle=False)
+    except (zipfile.BadZipFile, zlib.error, EOFError, ValueError) as error:
+        raise InputError(str(path), f"not a readable .npy array ({error})",
+                         attribute=key) from error
 
 
 def _check_carried(problem: AnyProblem, arrays: dict[str, np.ndarray], path: Path) -> None:
