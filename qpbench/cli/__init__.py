@@ -27,24 +27,26 @@ from qpbench.errors import QpbenchError
 for _variable, _value in SINGLE_THREAD_ENV.items():
     os.environ.setdefault(_variable, _value)
 
-COMMANDS = (
-    "solvers",
-    "import_dump",
-    "generate",
-    "build_set",
-    "solve",
-    "simulate",
-    "run",
-    "report",
-    "export",
-    "render",
-    "scaling",
-    "speed",
-    "sequence",
-    "breakdown",
-    "head_to_head",
-    "fuzz",
-)
+# every subcommand's module, with the one line ``qpbench --help`` lists for it: the listing is
+# drawn from this table alone, so that it imports no subcommand (and no solver backend)
+COMMANDS = {
+    "solvers": "list solvers, formulations and availability",
+    "import_dump": "import SCISim LCP dumps as problems",
+    "generate": "write seeded problems of a hard-case family",
+    "build_set": "write the problems of a set file (families, dumps, captured scenes)",
+    "solve": "solve one problem file and judge the answer",
+    "simulate": "simulate a SCISim 2D scene",
+    "run": "solve problems x solvers x accuracy levels into one Parquet table",
+    "report": "write REPORT.md, plots and index.html from a results file",
+    "export": "write problems for other QP benchmarks (qpbenchmark Parquet, .mat)",
+    "render": "simulate a scene and draw it (png or gif)",
+    "scaling": "cost per ball per step of the simulator",
+    "speed": "pi-robust against one sparse factorization on box packings",
+    "sequence": "replay captured scenes, each solver warm from its own answers",
+    "breakdown": "where pi-robust's time goes",
+    "head_to_head": "pi-robust against the fastest external pairs, per set, cold",
+    "fuzz": "run mutated scenes and problem files through qpbench, judge the errors",
+}
 
 EXIT_INPUT_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
@@ -68,22 +70,21 @@ def _module_name(command: str) -> str:
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The argument parser; with ``only``, just that subcommand's module is imported (the
-    solver backends, pandas and matplotlib load only for the commands that use them)."""
+    """The argument parser. With ``only``, that subcommand's module is imported and registers
+    its arguments (the solver backends, pandas and matplotlib load only for the commands that
+    use them); without, every subcommand is listed by its line in COMMANDS and none is
+    imported, so that ``qpbench --help`` and a mistyped command answer at once."""
     parser = OneLineParser(
         prog="qpbench",
         description="Formulations and solvers for the impulses of simultaneous 2D ball impacts.",
     )
     parser.add_argument("--version", action="version", version=f"qpbench {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in COMMANDS if only is None else (only,):
-        try:
-            module = importlib.import_module(f"qpbench.cli.{name}")
-        except ModuleNotFoundError as error:
-            if error.name != f"qpbench.cli.{name}":
-                raise
-            continue
-        module.add_parser(subparsers)
+    if only is None:
+        for name, summary in COMMANDS.items():
+            subparsers.add_parser(name.replace("_", "-"), help=summary)
+        return parser
+    importlib.import_module(f"qpbench.cli.{only}").add_parser(subparsers)
     return parser
 
 

@@ -1,0 +1,44 @@
+"""``qpbench --help`` lists every subcommand from the command table without importing any of
+them, and each listed subcommand builds its own parser under the listed name."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+
+import pytest
+
+from qpbench.cli import COMMANDS, build_parser
+
+LISTING = """
+import contextlib, io, json, sys
+from qpbench.cli import main
+out = io.StringIO()
+with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):
+    main(["--help"])
+loaded = sorted(name for name in sys.modules
+                if name.startswith(("qpbench.cli.", "qpbench.solvers", "numpy", "pandas")))
+print(json.dumps({"help": out.getvalue(), "loaded": loaded}))
+"""
+
+
+def test_help_lists_every_command_and_imports_none_of_them() -> None:
+    result = subprocess.run([sys.executable, "-c", LISTING], capture_output=True, text=True,
+                            check=True)
+    listing = json.loads(result.stdout)
+    for name, summary in COMMANDS.items():
+        assert name.replace("_", "-") in listing["help"]
+        assert summary.split()[0] in listing["help"]
+    assert listing["loaded"] == []
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_each_listed_command_builds_its_own_parser(name: str) -> None:
+    command = name.replace("_", "-")
+    parser = build_parser(only=name)
+    subcommands = next(action for action in parser._actions
+                       if isinstance(action, argparse._SubParsersAction))
+    assert list(subcommands.choices) == [command]
+    assert callable(subcommands.choices[command].get_default("handler"))
