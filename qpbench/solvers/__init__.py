@@ -14,7 +14,12 @@ import importlib
 FAMILIES = ("qpsolvers_", "cvxpy_", "ipopt_", "policy_iteration", "pi_robust", "pgs", "lemke",
             "penalty", "apgd", "nsgs",
             # twins of the frictionless dual/lcp solvers: after every family they twin
-            "friction_ccp", "friction_staggered")
+            "friction_ccp", "friction_staggered",
+            # each QP backend through its own Python API (backend "native"), for impact
+            # problems only: after the twins, so that they measure the call path, not friction
+            "native.daqp_", "native.piqp_", "native.osqp_", "native.clarabel_",
+            "native.proxqp_", "native.highs_", "native.quadprog_", "native.scs_",
+            "native.ecos_", "native.qpalm_")
 
 for _module in FAMILIES:
     importlib.import_module(f"qpbench.solvers.{_module}")

@@ -218,7 +218,40 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     # (the box QP of X = pi, pgs, lemke, ...); each inner solve reads X's own row at inner_accuracy
     "staggered": {"max_outer": 200, "inner_accuracy": _tenth, "box_max_sweeps": 100_000,
                   "box_check_every": 10},
+    # --- Siconos (qpbench/solvers/siconos_.py): tol is Siconos' own relative error
+    # (||l - max(0, l - w)||_2 / ||q||_2 for an LCP); the dense solvers decline above
+    # max_contacts, fc2d's Lemke and enumeration (an LCP of 3 unknowns per contact) above
+    # max_frictional_contacts ---
+    "siconos-lemke": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500,
+                      "max_frictional_contacts": 500},
+    "siconos-pivot": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-pivot-lumod": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-murty": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-pgs": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-psor": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-rpgs": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500},
+    "siconos-cpg": {"tol": _relative, "max_iter": 100_000, "max_contacts": 1_500,
+                    "max_frictional_contacts": 750},
+    "siconos-newton-min": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
+    "siconos-newton-fb": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
+    "siconos-newton-min-fb": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
+    "siconos-nsqp": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
+    "siconos-enum": {"tol": _relative, "max_iter": 0, "max_contacts": 12,
+                     "max_frictional_contacts": 4},
+    "siconos-nsgs": {"tol": _relative, "max_iter": 100_000, "max_contacts": 750},
 }
+
+
+# --- native pairs: each backend through its own Python API, with its qpsolvers twin's row
+# (the same options, mapped from eps alike), so that a pair and its twin differ only by the
+# call path ---
+NATIVE_TWINS: dict[str, str] = {
+    "daqp-native": "daqp", "piqp-native": "piqp", "piqp-dense-native": "piqp",
+    "osqp-native": "osqp", "clarabel-native": "clarabel", "proxqp-native": "proxqp",
+    "proxqp-dense-native": "proxqp", "highs-native": "highs", "quadprog-native": "quadprog",
+    "scs-native": "scs", "ecos-native": "ecos", "qpalm-native": "qpalm",
+}
+OPTIONS.update({native: dict(OPTIONS[twin]) for native, twin in NATIVE_TWINS.items()})
 
 
 def options_for(solver: str, accuracy: float, scale: float = 1.0) -> dict[str, Any]:
