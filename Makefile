@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 # Debian packages: what cyipopt builds against (IPOPT with MUMPS), and the browser the tests
 # of results/index.html drive headless (Playwright with the system chromium)
-APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config chromium
+APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config chromium python3-siconos
 
 .PHONY: setup apt-packages lock test bench bench-large lint clean-results
 

@@ -49,3 +49,17 @@ def test_a_malformed_row_names_its_field(tmp_path: Path, change: tuple[str, str]
     table.write_text(row.replace(*change), encoding="utf-8")
     with pytest.raises(InputError, match=f"<defect 1> attribute '{field}'"):
         defects.defects(table)
+
+
+def test_a_debian_package_row_reads_dpkgs_version() -> None:
+    """``debian:NAME`` rows take the version dpkg records (``4.4.0+dfsg-2`` is a PEP 440 local
+    version, so ``>=4.4`` holds), and a package that is not installed applies nowhere."""
+    row = {"solver": "siconos-lemke", "formulation": "fc2d", "versions": ">=4.4",
+           "problems": "any", "effect": "fails", "what": "an example"}
+    missing = defects.Defect(package="debian:no-such-package-here", **row)
+    assert missing.installed_version() is None and not missing.applies_here()
+    dpkg = defects.debian_version("dpkg")
+    if dpkg is None:
+        pytest.skip("no dpkg on this machine")
+    present = defects.Defect(package="debian:dpkg", **{**row, "versions": ">=1.0"})
+    assert present.installed_version() == dpkg and present.applies_here()

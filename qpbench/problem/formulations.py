@@ -144,17 +144,17 @@ def pose(problem: ImpactProblem | FrictionalProblem, formulation: str) -> None:
         raise ValueError(f"unknown formulation {formulation!r}")
 
 
-FRICTIONAL_FORMULATIONS = ("staggered", "lcp", "nsgs", "ccp")
+FRICTIONAL_FORMULATIONS = ("staggered", "lcp", "nsgs", "ccp", "fc2d")
 
 
 def _pose_frictional(problem: FrictionalProblem, formulation: str) -> None:
-    """``W``, ``q`` and ``diag(W_NN)`` for ``staggered`` and ``nsgs``, and for ``staggered``
-    W's blocks ``W_NT``, ``W_TT`` and ``W_TN`` of its two QPs; the relaxed impact problem with its
-    ``Q``, ``b`` for ``ccp``; the Stewart-Trinkle LCP for ``lcp``."""
+    """``W``, ``q`` and ``diag(W_NN)`` for ``staggered``, ``nsgs`` and ``fc2d``, and for
+    ``staggered`` W's blocks ``W_NT``, ``W_TT`` and ``W_TN`` of its two QPs; the relaxed impact
+    problem with its ``Q``, ``b`` for ``ccp``; the Stewart-Trinkle LCP for ``lcp``."""
     if formulation == "staggered":
         _ = (problem.W, problem.q, problem.diag_N, problem.scale, problem.W_NT, problem.W_TT,
              problem.W_TN)
-    elif formulation == "nsgs":
+    elif formulation in ("nsgs", "fc2d"):
         _ = problem.W, problem.q, problem.diag_N, problem.scale
     elif formulation == "ccp":
         relaxed = problem.relaxed()

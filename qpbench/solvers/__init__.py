@@ -19,7 +19,9 @@ FAMILIES = ("qpsolvers_", "cvxpy_", "ipopt_", "policy_iteration", "pi_robust", "
             # problems only: after the twins, so that they measure the call path, not friction
             "native.daqp_", "native.piqp_", "native.osqp_", "native.clarabel_",
             "native.proxqp_", "native.highs_", "native.quadprog_", "native.scs_",
-            "native.ecos_", "native.qpalm_")
+            "native.ecos_", "native.qpalm_",
+            # Siconos, run by the system interpreter behind a pipe (backend "siconos")
+            "siconos_")
 
 for _module in FAMILIES:
     importlib.import_module(f"qpbench.solvers.{_module}")

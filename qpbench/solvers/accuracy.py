@@ -236,8 +236,8 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "siconos-newton-fb": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
     "siconos-newton-min-fb": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
     "siconos-nsqp": {"tol": _relative, "max_iter": 1_000, "max_contacts": 1_500},
-    "siconos-enum": {"tol": _relative, "max_iter": 0, "max_contacts": 12,
-                     "max_frictional_contacts": 4},
+    "siconos-enum": {"tol": _relative, "max_iter": 0, "max_contacts": 16,
+                     "max_frictional_contacts": 5},
     "siconos-nsgs": {"tol": _relative, "max_iter": 100_000, "max_contacts": 750},
 }
 

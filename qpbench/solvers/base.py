@@ -27,6 +27,10 @@ TIME_S_COVERS = ("`time_s` is the wall time, on one stopwatch around every solve
                  "the formulation's matrices to l as a NumPy array: conversion to the "
                  "backend's format, its set-up and factorizations, the solve and reading the "
                  "answer back (cvxpy's compile step included); the minimum over repeats.")
+# SolverOutput.info keys of a solver that times itself (SolverSpec.reports_own_time): the time
+# it measured across the same boundary, and the harness's stopwatch around the whole call
+OWN_TIME = "own_time_s"
+ROUND_TRIP_TIME = "round_trip_time_s"
 
 
 def reported_times(**seconds: Any) -> dict[str, float]:
@@ -87,6 +91,10 @@ class SolverSpec:
     # the problem kinds it takes: "impact" (ImpactProblem) and/or "frictional"
     # (FrictionalProblem, whose impulses are r = (l_N, l_T))
     kinds: tuple[str, ...] = ("impact",)
+    # solves in another process, which times the same boundary itself (from the arrays it
+    # received to l) and returns it as info[OWN_TIME]: that becomes time_s, and the harness's
+    # stopwatch (the round trip, messages included) is kept as info[ROUND_TRIP_TIME]
+    reports_own_time: bool = False
 
     @property
     def key(self) -> str:

@@ -8,6 +8,7 @@ expect a described failure; the report prints the table.
 
 from __future__ import annotations
 
+import subprocess
 import tomllib
 from dataclasses import dataclass
 from functools import cache
@@ -24,6 +25,24 @@ EFFECTS = ("wrong-claim", "fails", "inaccurate")
 FIELDS = ("solver", "formulation", "package", "versions", "problems", "effect", "what")
 
 
+# a package named ``debian:NAME`` is Debian's package NAME (a solver that runs in the system
+# interpreter, such as python3-siconos, has no Python metadata that the venv can see)
+DEBIAN = "debian:"
+
+
+@cache
+def debian_version(package: str) -> str | None:
+    """The installed version of Debian package ``package`` as dpkg records it
+    (``4.4.0+dfsg-2``), or None when it is not installed or there is no dpkg."""
+    try:
+        query = subprocess.run(["dpkg-query", "-W", "-f=${Status}|${Version}", package],
+                               capture_output=True, text=True, check=False, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    status, _, version = query.stdout.partition("|")
+    return version.strip() or None if status.endswith(" installed") else None
+
+
 @dataclass(frozen=True)
 class Defect:
     solver: str
@@ -35,6 +54,10 @@ class Defect:
     what: str
 
     def installed_version(self) -> str | None:
+        """The version of ``package`` installed here: a Python distribution's, or for
+        ``debian:NAME`` that Debian package's (dpkg's record), None when it is missing."""
+        if self.package.startswith(DEBIAN):
+            return debian_version(self.package.removeprefix(DEBIAN))
         try:
             return metadata.version(self.package)
         except metadata.PackageNotFoundError:

@@ -17,7 +17,14 @@ from qpbench.problem import friction_metrics, metrics
 from qpbench.problem.formulations import pose
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers.base import BACKEND_TIMES, SolverOutput, SolverSpec, Stopwatch
+from qpbench.solvers.base import (
+    BACKEND_TIMES,
+    OWN_TIME,
+    ROUND_TRIP_TIME,
+    SolverOutput,
+    SolverSpec,
+    Stopwatch,
+)
 
 # the verdict on a problem that has no solution (a wedged contact with e > 0): no solver is
 # charged for it, and it counts neither as a success nor as a failure
@@ -31,7 +38,9 @@ def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, ac
 
     The solver gets :meth:`ImpactProblem.blind_copy` (fresh arrays; no reference, no stored
     data) with its formulation's matrices already built (``formulation_time_s``), and a copy
-    of the warm start. ``time_s`` is the wall time from there to l as a NumPy array.
+    of the warm start. ``time_s`` is the wall time from there to l as a NumPy array; for a
+    solver that ``reports_own_time`` (it solves in another process), the time it measured
+    across that boundary, with this stopwatch's round trip kept as ``info[ROUND_TRIP_TIME]``.
     ``problem`` itself is never handed over, so it stays untouched for judging.
     """
     assert spec.solve is not None, f"{spec.key} is not usable: {spec.reason}"
@@ -54,6 +63,10 @@ def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, ac
         output = SolverOutput(impulses=None, status=_error_status(failure),
                               claimed_success=False)
     output.time_s = clock.elapsed
+    own = output.info.get(OWN_TIME)
+    if spec.reports_own_time and isinstance(own, float) and 0.0 <= own <= clock.elapsed:
+        output.info[ROUND_TRIP_TIME] = clock.elapsed
+        output.time_s = own
     output.formulation_time_s = posing.elapsed
     return output
 
