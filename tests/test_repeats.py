@@ -53,9 +53,9 @@ def test_a_solve_slower_than_the_repeat_budget_is_not_repeated(
 # --- the main table's repeats (qpbench run --repeats K --repeat-budget S) ------------------
 def repeats_of_a_cell(monkeypatch: pytest.MonkeyPatch, tmp_path, times: list[float],
                       limits: Limits) -> dict:
-    """The worker's row of one cell whose solves take ``times`` in turn (a real solve of a
-    tiny problem, its stopwatch replaced)."""
-    upcoming: Iterator[float] = iter(times)
+    """The worker's row of one cell whose timed solves take ``times`` in turn (a real solve of
+    a tiny problem, its stopwatch replaced; the untimed warm-up before them takes 1 s)."""
+    upcoming: Iterator[float] = iter([1.0, *times])
     real_call_solver = worker.call_solver
 
     def call_solver(spec, problem, accuracy, warm_start=None) -> SolverOutput:

@@ -1,8 +1,10 @@
-"""Results survive kill -9: nothing written is lost, nothing is duplicated on resume."""
+"""Results survive kill -9 and Ctrl-C: nothing written is lost, nothing is duplicated on
+resume, and an interrupted run leaves a readable table."""
 
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import signal
 import subprocess
@@ -128,6 +130,48 @@ def test_a_run_killed_mid_way_and_resumed_has_exactly_the_rows_of_an_uninterrupt
     assert (kept["cell_wall_s"] == kept["cell_wall_s_before"]).all()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("interrupt", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_run_leaves_a_readable_table_that_a_resume_completes(
+        tmp_path: Path, misbehaving_solvers: None, interrupt: signal.Signals) -> None:
+    problems = tmp_path / "problems"
+    write_tiny_problems(problems, count=3)  # 9 cells of 0.3 s each
+    output = tmp_path / "interrupted.parquet"
+    logs = tmp_path / "tmp"  # the run's temporary folder: where worker logs would stay
+    logs.mkdir()
+    environment = {**os.environ, "QPBENCH_EXTRA_SOLVERS": "bench_solvers", "TMPDIR": str(logs),
+                   "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen(_matrix_command(problems, output), env=environment,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    store = ResultStore(output)
+    deadline = time.monotonic() + 240
+    while len(store.part_files()) < 2 and time.monotonic() < deadline:
+        assert process.poll() is None, process.stderr.read() if process.stderr else ""
+        time.sleep(0.02)
+    process.send_signal(interrupt)
+    _, error = process.communicate(timeout=120)
+    assert process.returncode == 130
+    assert error == "qpbench run: interrupted\n"  # one line, no traceback
+    assert list(logs.iterdir()) == []  # no worker log left behind
+
+    # the named file alone holds every row finished before the interrupt
+    assert store.part_files() == [] and not store.parts.exists()
+    before = pd.read_parquet(output)
+    assert 2 <= len(before) < 9, "the interrupt must land mid-way"
+    key = list(CELL_KEY)
+    assert not before.duplicated(subset=key).any()
+    assert set(before["status"]) == {"solved"}
+
+    settings = RunSettings(solvers=("test-slow/lcp",), accuracies=(1e-4, 1e-6, 1e-8),
+                           limits=Limits(timeout_s=30))
+    counts = runner.run([str(problems)], settings, output, SerialExecutor(), progress=False)
+    assert counts["skipped"] == len(before) and counts["run"] == 9 - len(before)
+    resumed = pd.read_parquet(output)
+    assert len(resumed) == 9 and not resumed.duplicated(subset=key).any()
+    assert set(resumed["status"]) == {"solved"}
+    assert resumed[[*key, "residual", "time_s", "lock_hash"]].notna().all().all()
+
+
 def test_a_second_run_on_the_same_results_is_refused_while_the_first_writes(
         tmp_path: Path) -> None:
     write_tiny_problems(tmp_path / "problems", count=1)
@@ -174,3 +218,21 @@ def test_retry_solves_timed_out_cells_again_and_replaces_their_rows(
     assert counts["run"] == 1
     rows = ResultStore(output).read()
     assert list(rows["status"]) == ["solved"] and list(rows["time_limit_s"]) == [30.0]
+
+
+def test_a_resume_solves_killed_cells_again_and_keeps_the_other_statuses(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    """A worker killed from outside says nothing about the solver, so a plain resume solves
+    its cell again; a timeout is a finished cell until ``--retry timeout``."""
+    write_tiny_problems(tmp_path / "problems", count=1)
+    store = ResultStore(tmp_path / "r.parquet")
+    stored = [{**_row("row3", level, math.nan), "solver": "test-exact", "formulation": "lcp",
+               "status": status, "success": False}
+              for level, status in ((1e-4, "timeout"), (1e-8, "killed"))]
+    store.write_part(stored)
+    settings = RunSettings(solvers=("test-exact/lcp",), accuracies=(1e-4, 1e-8))
+    counts = runner.run([str(tmp_path / "problems")], settings, store.path, SerialExecutor(),
+                        progress=False)
+    assert counts["skipped"] == 1 and counts["run"] == 1 and counts["solved"] == 1
+    rows = store.read().set_index("accuracy")
+    assert rows.loc[1e-8, "status"] == "solved" and rows.loc[1e-4, "status"] == "timeout"

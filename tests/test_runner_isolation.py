@@ -1,8 +1,13 @@
-"""A solver that aborts, segfaults, hangs or eats memory becomes a row; the run goes on."""
+"""A solver that aborts, segfaults, hangs or eats memory becomes a row; the run goes on; and
+a worker's death is named by what happened, out-of-memory only on evidence."""
 
 from __future__ import annotations
 
 import importlib
+import os
+import signal
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -11,6 +16,7 @@ from bench_problems import write_tiny_problems
 
 from qpbench.bench import isolation, runner
 from qpbench.bench.executors import SerialExecutor
+from qpbench.bench.isolation import classify_death
 from qpbench.bench.lock import lock_label
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import Cell, Limits, RunSettings
@@ -83,3 +89,51 @@ def test_a_worker_started_as_a_program_is_isolated_too(
         worker.close()
     assert crashed["status"] == "crashed" and "SIGABRT" in crashed["solver_status"]
     assert solved["status"] == "solved" and solved["residual"] <= 1e-12
+
+
+@pytest.mark.slow
+def test_a_worker_killed_from_outside_is_killed_not_out_of_memory(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    """SIGKILL sent by someone else (a user's kill -9) to a worker that allocated nothing."""
+    (path,) = write_tiny_problems(tmp_path, count=1)
+    worker = isolation.IsolatedWorker()
+    worker.start()
+    pid = worker.process.pid
+
+    def kill_soon() -> None:
+        time.sleep(1.0)  # test-hang is asleep in its solve by then
+        os.kill(pid, signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_soon)
+    killer.start()
+    try:
+        row = worker.solve(Cell(str(path), "row3", "test-hang", "lcp", 1e-8, "cold"),
+                           Limits(timeout_s=60.0, memory_limit_mb=3072))
+    finally:
+        killer.join()
+        worker.close()
+    assert row["status"] == "killed"
+    assert "killed by SIGKILL" in row["solver_status"]
+    assert "a signal qpbench did not send" in row["solver_status"]
+    assert row["memory_limit_mb"] == 3072  # the cap it ran under, stated on the row
+
+
+@pytest.mark.parametrize(("returncode", "log", "cap", "oom_killer_ran", "status", "named"), [
+    (-signal.SIGKILL, "", 0, False, "killed", "SIGKILL"),
+    (-signal.SIGKILL, "", 4096, False, "killed", "SIGKILL"),  # a cap alone is no evidence
+    (-signal.SIGTERM, "", 4096, False, "killed", "SIGTERM"),
+    (-signal.SIGKILL, "", 0, True, "out-of-memory", "OOM killer"),
+    (-signal.SIGABRT, "terminate called after throwing std::bad_alloc", 3072, False,
+     "out-of-memory", "under the 3072 MiB cap"),
+    (-signal.SIGABRT, "terminate called after throwing std::bad_alloc", 0, False,
+     "crashed", "SIGABRT"),  # no cap: the solver's own crash, its message kept
+    (-signal.SIGSEGV, "", 4096, False, "crashed", "SIGSEGV"),
+    (3, "fatal: bad pivot", 4096, False, "crashed", "exit code 3"),
+])
+def test_a_dead_worker_is_classified_by_what_happened(
+        returncode: int, log: str, cap: int, oom_killer_ran: bool, status: str,
+        named: str) -> None:
+    found, message = classify_death(returncode, log, cap, oom_killer_ran)
+    assert found == status
+    assert named in message and message.startswith("worker died: ")
+    assert log in message

@@ -4,7 +4,9 @@ Every executor hands each cell to an :class:`~qpbench.bench.isolation.IsolatedWo
 (a child process), so all three give the same rows; they differ only in how many
 cells run at once and on which machine. Cells are grouped (by problem file and
 solver locally, by problem file for Dask tasks) so a worker loads a problem once per
-group. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any order.
+group. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any order; when
+the caller stops early (an interrupt, or closing the iterator) the local workers are killed
+at once, and no new one is started.
 """
 
 from __future__ import annotations
@@ -53,7 +55,11 @@ class SerialExecutor:
 
 
 class ProcessExecutor:
-    """``workers`` worker processes on this machine, fed by as many threads."""
+    """``workers`` worker processes on this machine, fed by as many threads (daemon threads,
+    so that an interrupted run never waits for a solve to finish)."""
+
+    # how long the end of a run waits for each feeding thread once its worker is killed
+    THREAD_JOIN_S = 2.0
 
     name = "processes"
 
@@ -104,9 +110,9 @@ class ProcessExecutor:
         finally:
             stop.set()
             for worker in workers:
-                worker.stop()
+                worker.retire()  # killed now, and never restarted by its thread
             for thread in threads:
-                thread.join(timeout=10)
+                thread.join(timeout=self.THREAD_JOIN_S)
 
 
 # --- Dask ----------------------------------------------------------------------------------

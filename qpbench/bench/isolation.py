@@ -1,10 +1,22 @@
 """Process isolation: each cell solved in a worker process, whatever happens to it.
 
 An :class:`IsolatedWorker` is a child process (see ``qpbench.bench.worker``) that lives
-across cells and is replaced when it dies. A solver that segfaults or aborts kills only that
-process (status ``crashed``); one that runs past the wall-clock limit is killed
-(``timeout``); one that exceeds the address-space cap gets MemoryError, or is killed by
-SIGKILL from the kernel (``out-of-memory``). Each becomes a row (:func:`failure_row`).
+across cells and is replaced when it dies. How it died is the row's status
+(:func:`classify_death`, :func:`failure_row`), named by what happened:
+
+* ``timeout``: the runner killed it at the wall-clock limit;
+* ``out-of-memory``: only on evidence: an allocation failure (MemoryError, ``bad_alloc``)
+  reported under the address-space cap, or the kernel's OOM killer having killed a process
+  while the cell ran (its ``oom_kill`` count in /proc/vmstat rose) when the worker died of
+  SIGKILL;
+* ``killed``: a signal that comes from outside (SIGKILL, SIGTERM, SIGINT, SIGHUP, SIGQUIT:
+  a user or another process) with no such evidence; a resume solves the cell again;
+* ``crashed``: any other signal (SIGSEGV, SIGABRT, ...) or an exit code, named in the row.
+
+Its log (the worker's stdout and stderr, read for the row of a death) is a temporary file
+whose name is removed as soon as the worker has opened it (by the worker itself, or at the
+latest once it is ready) and which is read through the descriptor kept open, so no log
+outlives the run, however the run ends.
 
 Workers are forked by a multiprocessing fork server, so, as with any multiprocessing
 program, a Python script that starts one must do so under ``if __name__ == "__main__":``
@@ -15,6 +27,7 @@ new worker after a crash is ready in about 0.15 s; the harness adds about 4 ms p
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
 import math
@@ -31,12 +44,26 @@ from dataclasses import asdict
 from typing import Any
 
 from qpbench import EXTRA_SOLVERS_ENV, SINGLE_THREAD_ENV
-from qpbench.bench.settings import CRASHED, ERROR, OUT_OF_MEMORY, TIMEOUT, Cell, Limits
+from qpbench.bench.settings import (
+    CRASHED,
+    ERROR,
+    KILLED,
+    OUT_OF_MEMORY,
+    TIMEOUT,
+    Cell,
+    Limits,
+)
 from qpbench.errors import QpbenchError
 
 STARTUP_TIMEOUT_S = 300.0
 # allowance for the parts of a cell that are not the solver call (loading the problem, judging)
 OUTSIDE_SOLVE_ALLOWANCE_S = 120.0
+
+
+# signals that a user or another process sends; the runner's own kills are timeouts
+OUTSIDE_SIGNALS = (signal.SIGKILL, signal.SIGTERM, signal.SIGINT, signal.SIGHUP, signal.SIGQUIT)
+# what an allocation failure leaves on a worker's stderr (Python, C++, C libraries)
+ALLOCATION_FAILURES = ("MemoryError", "bad_alloc", "Cannot allocate memory", "out of memory")
 
 
 class WorkerDied(Exception):
@@ -45,6 +72,23 @@ class WorkerDied(Exception):
     def __init__(self, returncode: int | None) -> None:
         self.returncode = returncode
         super().__init__(f"worker exited with {returncode}")
+
+
+class WorkerRetired(QpbenchError):
+    """The worker was retired (the run is ending) and starts no new process."""
+
+
+def oom_kill_count() -> int | None:
+    """How many processes the kernel's OOM killer has killed since boot (``oom_kill`` of
+    /proc/vmstat, counting system-wide and cgroup kills); None where it is not reported."""
+    try:
+        with open("/proc/vmstat", encoding="ascii") as stream:
+            for line in stream:
+                if line.startswith("oom_kill "):
+                    return int(line.split()[1])
+    except (OSError, ValueError):
+        return None
+    return None
 
 
 _FORK_SERVER: Any = None
@@ -104,45 +148,72 @@ class IsolatedWorker:
         self.process: Any = None  # subprocess.Popen or multiprocessing.Process
         self.connection: Any = None  # multiprocessing Connection (forked worker)
         self._buffer = b""
-        self._log: Any = None
+        self._log_descriptor: int | None = None  # the worker's log, open for reading
+        self._log_path: str | None = None  # its name, until the worker has opened it
+        self._memory_cap_mb = 0  # the address-space cap the worker reported applying
+        self._retired = False
+        # start and stop may be called from the thread that feeds the worker and from the
+        # thread that ends the run; process, connection and log change under this lock
+        self._life = threading.RLock()
 
     # --- process life --------------------------------------------------------------
     def start(self) -> None:
-        self._log = tempfile.NamedTemporaryFile(prefix="qpbench-worker-", suffix=".log")  # noqa: SIM115 (lives as long as the worker)
-        if self.program:
-            search_path = os.pathsep.join(entry for entry in sys.path if entry)
-            env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1",
-                   "PYTHONPATH": search_path}  # the modules this process can import
-            self.process = subprocess.Popen(
-                [sys.executable, "-m", "qpbench.bench.worker"],
-                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._log, env=env,
-                start_new_session=True,  # a Ctrl-C in the terminal reaches the runner only
-            )
-            self._buffer = b""
-        else:
-            from qpbench.bench.worker import child_main
+        """Starts the process and waits for it to say it is ready (WorkerRetired once
+        :meth:`retire` was called: a run that is ending starts no worker)."""
+        with self._life:
+            if self._retired:
+                raise WorkerRetired("the run is ending")
+            self._log_descriptor, self._log_path = tempfile.mkstemp(prefix="qpbench-worker-",
+                                                                    suffix=".log")
+            self._memory_cap_mb = 0
+            if self.program:
+                search_path = os.pathsep.join(entry for entry in sys.path if entry)
+                env = {**os.environ, **SINGLE_THREAD_ENV, "PYTHONUNBUFFERED": "1",
+                       "PYTHONPATH": search_path}  # the modules this process can import
+                self.process = subprocess.Popen(
+                    [sys.executable, "-m", "qpbench.bench.worker"],
+                    stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                    stderr=self._log_descriptor, env=env,
+                    start_new_session=True,  # a Ctrl-C in the terminal reaches the runner only
+                )
+                self._buffer = b""
+                self._forget_log_name()  # the process has it open already
+            else:
+                from qpbench.bench.worker import child_main
 
-            context = fork_server()
-            ours, theirs = context.Pipe(duplex=True)
-            # the fork server was started earlier: hand over what may have changed since
-            extra_solvers = os.environ.get(EXTRA_SOLVERS_ENV, "")
-            self.process = context.Process(
-                target=child_main, args=(theirs, self._log.name, extra_solvers, list(sys.path)),
-                name="qpbench-worker", daemon=True)
-            self.process.start()
-            theirs.close()
-            self.connection = ours
+                context = fork_server()
+                ours, theirs = context.Pipe(duplex=True)
+                # the fork server was started earlier: hand over what may have changed since
+                extra_solvers = os.environ.get(EXTRA_SOLVERS_ENV, "")
+                self.process = context.Process(
+                    target=child_main,
+                    args=(theirs, self._log_path, extra_solvers, list(sys.path)),
+                    name="qpbench-worker", daemon=True)
+                self.process.start()
+                theirs.close()
+                self.connection = ours
         try:
             message = self._next_message(time.monotonic() + STARTUP_TIMEOUT_S)
-        except WorkerDied as died:
+        except (WorkerDied, OSError, EOFError) as died:
             tail = self.stderr_tail()
             self.stop()
+            if self._retired:
+                raise WorkerRetired("the run is ending") from died
             raise QpbenchError(f"the worker process could not start ({died}): "
                                f"{tail or 'no message'}") from died
         if message is None or message.get("event") != "ready":
             self.stop()
             raise QpbenchError("the worker process did not start within "
                                f"{STARTUP_TIMEOUT_S:.0f} s")
+        self._forget_log_name()  # the worker has opened its log: only descriptors remain
+
+    def _forget_log_name(self) -> None:
+        """Unlinks the log's name; the file lives on through the open descriptors."""
+        with self._life:
+            if self._log_path is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(self._log_path)
+                self._log_path = None
 
     def alive(self) -> bool:
         if self.process is None:
@@ -152,61 +223,86 @@ class IsolatedWorker:
         return self.process.is_alive()
 
     def returncode(self) -> int | None:
-        """The exit code (negative: the signal) once the process has ended."""
-        if self.process is None:
-            return None
-        if self.program:
-            return self.process.wait()
-        self.process.join()
-        return self.process.exitcode
+        """The exit code (negative: the signal) once the process has ended; a process still
+        running 10 s after closing its end of the messages is killed first."""
+        with self._life:
+            process = self.process
+            if process is None:
+                return None
+            if self.program:
+                try:
+                    return process.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    return process.wait()
+            process.join(timeout=10)
+            if process.exitcode is None:
+                process.kill()
+                process.join()
+            return process.exitcode
 
     def stop(self) -> None:
-        """Kills the process (if running) and forgets it."""
-        if self.process is not None:
-            if self.alive():
-                self.process.kill()
-            if self.program:
-                self.process.wait()
-                for stream in (self.process.stdin, self.process.stdout):
-                    if stream is not None:
-                        stream.close()
-            else:
-                self.process.join()
-                self.process.close()
-            self.process = None
-        if self.connection is not None:
-            self.connection.close()
-            self.connection = None
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        """Kills the process (if running) and forgets it and its log."""
+        with self._life:
+            if self.process is not None:
+                if self.alive():
+                    self.process.kill()
+                if self.program:
+                    self.process.wait()
+                    for stream in (self.process.stdin, self.process.stdout):
+                        if stream is not None:
+                            stream.close()
+                else:
+                    self.process.join()
+                    self.process.close()
+                self.process = None
+            if self.connection is not None:
+                self.connection.close()
+                self.connection = None
+            self._forget_log_name()
+            if self._log_descriptor is not None:
+                os.close(self._log_descriptor)
+                self._log_descriptor = None
+
+    def retire(self) -> None:
+        """Kills the process now and starts no other: the run is ending (an interrupt)."""
+        with self._life:
+            self._retired = True
+            self.stop()
 
     def close(self) -> None:
         """Asks the process to finish (end of input), then makes sure it is gone."""
-        if self.process is not None:
+        with self._life:
+            process = self.process
             try:
-                if self.program and self.process.stdin is not None:
-                    self.process.stdin.close()
-                    self.process.wait(timeout=5)
+                if process is not None and self.program and process.stdin is not None:
+                    process.stdin.close()
                 elif self.connection is not None:
                     self.connection.close()
                     self.connection = None
-                    self.process.join(timeout=5)
-            except (OSError, subprocess.TimeoutExpired):
+            except OSError:
+                pass
+        if process is not None:
+            try:  # outside the lock: another thread may retire the worker meanwhile
+                if self.program:
+                    process.wait(timeout=5)
+                else:
+                    process.join(timeout=5)
+            except (OSError, ValueError, subprocess.TimeoutExpired):
                 pass
         self.stop()
 
     def stderr_tail(self, lines: int = 3) -> str:
         """The last lines the process wrote to its log (solver messages, fatal errors)."""
-        if self._log is None:
-            return ""
-        try:
-            with open(self._log.name, "rb") as stream:
-                stream.seek(0, os.SEEK_END)
-                stream.seek(max(0, stream.tell() - 4096))
-                text = stream.read().decode("utf-8", "replace")
-        except OSError:
-            return ""
+        with self._life:
+            if self._log_descriptor is None:
+                return ""
+            try:
+                size = os.fstat(self._log_descriptor).st_size
+                data = os.pread(self._log_descriptor, 4096, max(0, size - 4096))
+            except OSError:
+                return ""
+        text = data.decode("utf-8", "replace")
         return " | ".join(line.strip() for line in text.strip().splitlines()[-lines:])
 
     # --- messages --------------------------------------------------------------------
@@ -219,24 +315,33 @@ class IsolatedWorker:
             self.connection.send(message)
 
     def _next_message(self, deadline: float) -> dict[str, Any] | None:
-        """The next message from the process; None at the deadline; WorkerDied on exit."""
+        """The next message from the process; None at the deadline; WorkerDied on exit (or
+        once another thread has stopped the worker)."""
         if not self.program:
-            if not self.connection.poll(max(0.0, deadline - time.monotonic())):
-                return None
+            connection = self.connection
+            if connection is None:
+                raise WorkerDied(None)
             try:
-                return self.connection.recv()
+                if not connection.poll(max(0.0, deadline - time.monotonic())):
+                    return None
+                return connection.recv()
             except (EOFError, OSError) as error:
                 raise WorkerDied(self.returncode()) from error
-        assert self.process is not None and self.process.stdout is not None
-        descriptor = self.process.stdout.fileno()
+        process = self.process
+        if process is None or process.stdout is None or process.stdout.closed:
+            raise WorkerDied(None)
+        descriptor = process.stdout.fileno()
         while b"\n" not in self._buffer:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return None
-            ready, _, _ = select.select([descriptor], [], [], remaining)
-            if not ready:
-                return None
-            chunk = os.read(descriptor, 65536)
+            try:
+                ready, _, _ = select.select([descriptor], [], [], remaining)
+                if not ready:
+                    return None
+                chunk = os.read(descriptor, 65536)
+            except (OSError, ValueError) as error:  # closed by another thread's stop
+                raise WorkerDied(None) from error
             if not chunk:
                 raise WorkerDied(self.returncode())
             self._buffer += chunk
@@ -244,60 +349,97 @@ class IsolatedWorker:
         return json.loads(line)
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell``, from the worker or, when it failed, a row saying how."""
+        """The row of ``cell``, from the worker or, when it failed, a row saying how.
+
+        The wall-clock limit applies to each solver call the worker announces (``begin`` ...
+        ``end``: the warm-up and every timed repeat), OUTSIDE_SOLVE_ALLOWANCE_S to the rest.
+        """
         if not self.alive():
             self.stop()
             self.start()
         request = {"cell": cell.as_dict(), "limits": asdict(limits)}
         started = time.monotonic()
+        oom_kills_before = oom_kill_count()
+        cap = self._memory_cap_mb or limits.memory_limit_mb  # the worker reports what it applied
         try:
             self._send(request)
-            in_solve = False
+            phase = ""  # the solver call under way, "" between calls
             while True:
-                allowance = limits.timeout_s if in_solve else OUTSIDE_SOLVE_ALLOWANCE_S
+                allowance = limits.timeout_s if phase else OUTSIDE_SOLVE_ALLOWANCE_S
                 message = self._next_message(time.monotonic() + allowance)
                 if message is None:
                     self.stop()
-                    phase = "solver call" if in_solve else "setup or judging"
-                    return failure_row(cell, TIMEOUT, f"killed after {allowance:g} s in {phase}",
-                                       time_s=limits.timeout_s if in_solve else math.nan)
+                    return failure_row(
+                        cell, TIMEOUT,
+                        f"killed after {allowance:g} s in {phase or 'setup or judging'}",
+                        time_s=limits.timeout_s if phase else math.nan, memory_limit_mb=cap)
                 event = message.get("event")
                 if event == "begin":
-                    in_solve = True
+                    phase = "warm-up solve" if message.get("warm_up") else "solver call"
+                    self._memory_cap_mb = int(message.get("memory_limit_mb", cap) or 0)
+                    cap = self._memory_cap_mb
                 elif event == "end":
-                    in_solve = False
+                    phase = ""
                 elif event == "row":
                     row = message["row"]
                     row["cell_wall_s"] = time.monotonic() - started
                     return row
                 elif event == "error":  # the cell could not be set up or judged
-                    return failure_row(cell, ERROR, str(message.get("message"))[:500])
+                    return failure_row(cell, ERROR, str(message.get("message"))[:500],
+                                       memory_limit_mb=cap)
         except (WorkerDied, BrokenPipeError, ConnectionError) as error:
             code = error.returncode if isinstance(error, WorkerDied) else self.returncode()
             tail = self.stderr_tail()
             self.stop()
-            return failure_row(cell, *classify_death(code, tail))
+            oom_kills_after = oom_kill_count()
+            oom_killer_ran = (oom_kills_before is not None and oom_kills_after is not None
+                              and oom_kills_after > oom_kills_before)
+            return failure_row(cell, *classify_death(code, tail, cap, oom_killer_ran),
+                               memory_limit_mb=cap)
 
 
-def classify_death(returncode: int | None, stderr_tail: str) -> tuple[str, str]:
-    """(status, message) for a worker that died: SIGKILL that the runner did not send, or a
-    fatal allocation failure on stderr, is ``out-of-memory``; anything else ``crashed``."""
-    if returncode is not None and returncode < 0:
-        try:
-            cause = signal.Signals(-returncode).name
-        except ValueError:
-            cause = f"signal {-returncode}"
+def signal_name(number: int) -> str:
+    """``SIGSEGV`` for 11; ``signal 77`` for a number without a name."""
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
+def classify_death(returncode: int | None, stderr_tail: str, memory_cap_mb: int = 0,
+                   oom_killer_ran: bool = False) -> tuple[str, str]:
+    """(status, message) for a worker that died while solving a cell the runner did not kill.
+
+    * ``out-of-memory`` only on evidence: the log reports an allocation failure
+      (ALLOCATION_FAILURES) and an address-space cap was set (``memory_cap_mb`` > 0), or the
+      worker died of SIGKILL while the kernel's OOM killer ran (``oom_killer_ran``);
+    * ``killed``: any other death by a signal of OUTSIDE_SIGNALS (a user, another process);
+    * ``crashed``: any other signal or exit code.
+
+    The message names the signal or the exit code, then the log's last lines.
+    """
+    number = -returncode if returncode is not None and returncode < 0 else None
+    cause = f"exit code {returncode}" if number is None else f"killed by {signal_name(number)}"
+    allocation_failed = any(word in stderr_tail for word in ALLOCATION_FAILURES)
+    if number == signal.SIGKILL and oom_killer_ran:
+        status = OUT_OF_MEMORY
+        cause += " while the kernel's OOM killer ran (oom_kill in /proc/vmstat rose)"
+    elif allocation_failed and memory_cap_mb > 0:
+        status = OUT_OF_MEMORY
+        cause += f" after an allocation failed under the {memory_cap_mb} MiB cap"
+    elif number in OUTSIDE_SIGNALS:
+        status = KILLED
+        cause += ", a signal qpbench did not send (a user or another process)"
     else:
-        cause = f"exit code {returncode}"
-    memory_words = ("MemoryError", "bad_alloc", "Cannot allocate memory", "out of memory")
-    out_of_memory = returncode == -signal.SIGKILL or any(w in stderr_tail for w in memory_words)
+        status = CRASHED
     message = f"worker died: {cause}" + (f" ({stderr_tail})" if stderr_tail else "")
-    return (OUT_OF_MEMORY if out_of_memory else CRASHED), message[:500]
+    return status, message[:500]
 
 
-def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
-                ) -> dict[str, Any]:
-    """The row of a cell whose worker crashed, hung or ran out of memory: no answer."""
+def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan,
+                memory_limit_mb: int = 0) -> dict[str, Any]:
+    """The row of a cell whose worker died, hung or could not set it up: no answer.
+    ``memory_limit_mb`` is the worker's address-space cap (0: none)."""
     nan = math.nan
     return {
         "solver": cell.solver,
@@ -315,5 +457,6 @@ def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan
         "time_s": time_s,
         "time_median_s": time_s,
         "repeats": 0,
+        "memory_limit_mb": memory_limit_mb,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }

@@ -2,15 +2,25 @@
 or Dask; each cell solved in an isolated worker, ``qpbench.bench.isolation``), its rows
 written to the resumable result store as they arrive, and the checks that a resumed table
 belongs to the same problems and the same package lock.
+
+An interrupt (Ctrl-C, SIGINT; or SIGTERM, which a run takes as one) stops the workers, writes
+the rows received so far and compacts every part into the named table (atomically, with
+further interrupts held off until it is written), then leaves as KeyboardInterrupt, which the
+command line turns into exit status 130. A resume skips the cells stored; the cell that was
+under way is solved again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -19,7 +29,7 @@ from tqdm import tqdm
 from qpbench.bench.isolation import IsolatedWorker
 from qpbench.bench.lock import lock_label
 from qpbench.bench.provenance import provenance
-from qpbench.bench.settings import Cell, Limits, RunSettings, cells
+from qpbench.bench.settings import RETRIED_ON_RESUME, Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem, kind_of
@@ -117,16 +127,70 @@ def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
     return {path: files.load(path).summary() for path in problem_files}
 
 
+# --- interrupts ----------------------------------------------------------------------------
+INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, taken as an interrupt: the run ends as after Ctrl-C."""
+
+
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _raise_terminated(number: int, frame: FrameType | None) -> None:
+    raise Terminated(f"signal {signal.Signals(number).name}")
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) as Ctrl-C
+    does, so that a run stopped by ``kill`` keeps its rows too; the previous handler is put
+    back after. Only the main thread can take signals: elsewhere this does nothing."""
+    if not _in_main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
+    raised as KeyboardInterrupt when the block ends (so the block, writing the table, is never
+    cut short). Does nothing outside the main thread."""
+    if not _in_main_thread():
+        yield
+        return
+    arrived: list[int] = []
+    previous = {number: signal.signal(number, lambda number, frame: arrived.append(number))
+                for number in INTERRUPTS}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    if arrived:
+        raise (Terminated if arrived[0] == signal.SIGTERM else KeyboardInterrupt)()
+
+
 # --- the whole run -------------------------------------------------------------------------
 def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLike[str],
         executor: Any, progress: bool = True, batch_rows: int = 20,
         batch_seconds: float = 10.0, retry: Iterable[str] = ()) -> dict[str, int]:
-    """Runs every cell not yet in ``output`` (or stored with a status in ``retry``, e.g.
-    ``timeout`` after raising the limit) and stores its row; returns counts (``cells``,
-    ``skipped``, ``run`` and one count per status of the cells run).
+    """Runs every cell not yet in ``output`` (or stored with a status of RETRIED_ON_RESUME,
+    ``killed``, or of ``retry``, e.g. ``timeout`` after raising the limit) and stores its row;
+    returns counts (``cells``, ``skipped``, ``run`` and one count per status of the cells run).
 
     Rows are written in batches (``batch_rows`` rows or ``batch_seconds``), each batch one
-    atomically renamed part file; at the end the parts are compacted into ``output``.
+    atomically renamed part file; when the cells are done, and also when the run ends early
+    (an interrupt, SIGTERM, an error), the workers are stopped, the rows received are written
+    and the parts compacted into ``output``, with interrupts held off meanwhile; an interrupt
+    then propagates as KeyboardInterrupt.
     """
     from qpbench.bench.results import ResultStore
     from qpbench.solvers.registry import resolve
@@ -145,11 +209,11 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     digests = {path: digest for path, _, digest, _ in index}
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
                       for spec in specs}
-    with store.exclusive():
+    with store.exclusive(), terminate_as_interrupt():
         check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
                             store.path)
         check_same_lock(store.read(["lock_hash"]), store.path)
-        done = store.finished_keys(retry)
+        done = store.finished_keys({*RETRIED_ON_RESUME, *retry})
         pending = [cell for cell in matrix if cell.key not in done]
         problem_summaries = {path: {**summary, "problem_hash": digests[path]} for path, summary
                              in summaries(sorted({cell.problem_file for cell in pending})).items()}
@@ -157,8 +221,9 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
         bar = tqdm(total=len(matrix), initial=counts["skipped"], disable=not progress,
                    unit="solve", file=sys.stderr, dynamic_ncols=True)
         writer = store.writer(batch_rows=batch_rows, batch_seconds=batch_seconds)
+        results = executor.map(pending, settings.limits)
         try:
-            for cell, row in executor.map(pending, settings.limits):
+            for cell, row in results:
                 writer.add(complete_row(row, cell, problem_summaries[cell.problem_file],
                                         settings.limits, solver_columns.get(cell.solver_key)))
                 counts["run"] += 1
@@ -166,21 +231,28 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
                 counts[status] = counts.get(status, 0) + 1
                 bar.set_postfix_str(f"{cell.solver_key} {status}", refresh=False)
                 bar.update(1)
-        finally:
-            writer.flush()  # also on Ctrl-C or an error: every finished row is kept
-            bar.close()
-        store.compact()
+        finally:  # also on Ctrl-C, SIGTERM or an error: every finished row is kept, readable
+            with interrupts_held():
+                if hasattr(results, "close"):
+                    results.close()  # the executor stops its workers
+                bar.close()
+                writer.flush()
+                store.compact()
     return counts
 
 
 def solve_serially(cells_to_run: Iterable[Cell], limits: Limits,
                    worker: IsolatedWorker | None = None) -> Iterator[tuple[Cell, dict[str, Any]]]:
-    """(cell, row) for each cell, in order, on one isolated worker."""
+    """(cell, row) for each cell, in order, on one isolated worker. A worker of its own is
+    closed at the end and killed at once when the caller stops early (an interrupt); a
+    worker handed in is killed only then."""
     own = worker is None
     worker = worker or IsolatedWorker()
     try:
         for cell in cells_to_run:
             yield cell, worker.solve(cell, limits)
-    finally:
-        if own:
-            worker.close()
+    except BaseException:  # an interrupt, or the caller closing this generator early
+        worker.stop()
+        raise
+    if own:
+        worker.close()

@@ -14,13 +14,21 @@ from qpbench.errors import QpbenchError
 
 MODES = ("cold", "warm")
 
-# statuses the harness gives a cell whose solve did not return (beside the verdicts
-# solved / inaccurate / failed of qpbench.solvers.run.judge)
-CRASHED = "crashed"
-TIMEOUT = "timeout"
-OUT_OF_MEMORY = "out-of-memory"
-ERROR = "error"
-STATUSES = ("solved", "inaccurate", "failed", CRASHED, TIMEOUT, OUT_OF_MEMORY, ERROR)
+# the verdicts of qpbench.solvers.run.judge on an answer (no-solution: the problem has none)
+VERDICTS = ("solved", "inaccurate", "failed", "no-solution")
+# statuses the harness gives a cell whose solve did not return an answer to judge
+CRASHED = "crashed"  # the worker died of its own fault: a fatal signal or an exit code
+KILLED = "killed"  # the worker died of a signal sent from outside (SIGKILL, SIGTERM, ...)
+TIMEOUT = "timeout"  # the runner killed the worker at the wall-clock limit
+OUT_OF_MEMORY = "out-of-memory"  # an allocation failed under the cap, or the kernel's OOM kill
+ERROR = "error"  # the cell could not be set up (problem file, solver) or judged
+HARNESS_STATUSES = (CRASHED, KILLED, TIMEOUT, OUT_OF_MEMORY, ERROR)
+# every status a results row can carry, and so every status ``run --retry`` accepts
+STATUSES = (*VERDICTS, *HARNESS_STATUSES)
+# the statuses a plain resume solves again: a death the cell did not cause (a user's or
+# another process's signal) says nothing about the solver; every other status is a finished
+# cell, solved again only when named in ``--retry`` (after raising --timeout, say)
+RETRIED_ON_RESUME = (KILLED,)
 DEFAULT_ACCURACIES: tuple[float, ...] = (1e-4, 1e-8)
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_MEMORY_LIMIT_MB = 4096
@@ -103,11 +111,27 @@ class RunSettings:
             check_accuracy(accuracy)
 
 
+# the tightest level any command accepts (see check_accuracy)
+ACCURACY_FLOOR = 1e-14
+
+
 def check_accuracy(accuracy: float, option: str = "--accuracy") -> float:
-    """``accuracy`` when it is a residual bound in (0, 1); QpbenchError naming ``option``
-    otherwise (NaN, infinity, zero, negative, 1 or more)."""
+    """``accuracy`` when it is a residual bound in [ACCURACY_FLOOR, 1); QpbenchError naming
+    ``option`` otherwise (NaN, infinity, zero, negative, 1 or more, or below the floor).
+
+    The floor, 1e-14, is where a relative residual computed in double precision still
+    certifies the answer rather than the rounding (residual of docs/design.md section 2): each
+    entry of ``w = Q l + b`` sums k + 1 terms (k the contacts that share a body with that
+    one), and rounding alone moves it by up to about ``(k + 1) * 1.1e-16`` times the sum of
+    their magnitudes, which is at least ``||b||_inf`` once the impulses cancel the approach
+    velocity. With the tens of neighbours a contact has in a dense pile that bound reaches a
+    few 1e-15; 1e-14 stays above it, while 1e-15 and below would pass or fail on rounding.
+    """
     if not 0 < accuracy < 1:
         raise QpbenchError(f"{option}: accuracy levels must lie in (0, 1), got {accuracy}")
+    if not accuracy >= ACCURACY_FLOOR:
+        raise QpbenchError(f"{option}: {accuracy:g} is below {ACCURACY_FLOOR:g}, the smallest "
+                           "relative residual double precision can certify")
     return accuracy
 
 
@@ -118,13 +142,14 @@ def check_at_least(value: float, minimum: float, option: str) -> None:
 
 
 def parse_accuracies(text: str) -> tuple[float, ...]:
-    """``"1e-4,1e-8"`` -> (1e-4, 1e-8); raises QpbenchError on a value that is not a number."""
+    """``"1e-4,1e-8"`` -> (1e-4, 1e-8); raises QpbenchError on a value that is not a number
+    or not a level :func:`check_accuracy` accepts."""
     levels = []
     for part in text.split(","):
         if not part.strip():
             continue
         try:
-            levels.append(float(part))
+            levels.append(check_accuracy(float(part)))
         except ValueError as error:
             raise QpbenchError(f"--accuracy: '{part.strip()}' is not a number") from error
     if not levels:
@@ -144,13 +169,24 @@ def parse_modes(text: str) -> tuple[str, ...]:
 
 
 def parse_statuses(text: str) -> tuple[str, ...]:
-    """``"timeout,crashed"`` -> ("timeout", "crashed"); raises QpbenchError on an unknown one."""
+    """``"timeout,crashed"`` -> ("timeout", "crashed"); raises QpbenchError on a status no row
+    can carry (one not in STATUSES), listing the known ones."""
     statuses = tuple(part.strip() for part in text.split(",") if part.strip())
     for status in statuses:
         if status not in STATUSES:
             raise QpbenchError(f"--retry: unknown status '{status}' (known: "
                                f"{', '.join(STATUSES)})")
     return statuses
+
+
+def parse_solver_names(text: str) -> list[str]:
+    """``"pi-robust, osqp/dual"`` -> ["pi-robust", "osqp/dual"]; QpbenchError when the list
+    names no solver at all (``""``, ``","``)."""
+    names = [part.strip() for part in text.split(",") if part.strip()]
+    if not names:
+        raise QpbenchError(f"--solvers: no solver named in '{text}' (name one or more, "
+                           "comma-separated, or leave the option out for every usable one)")
+    return names
 
 
 def cells(problems: list[tuple[str, str]], solver_keys: list[str], settings: RunSettings

@@ -5,23 +5,28 @@ backend once (:func:`child_main`, messages over a Pipe), or, where a process may
 have children of its own (a daemonic Dask worker), started as the program
 ``python -m qpbench.bench.worker`` (:func:`main`, JSON lines on stdin/stdout). Solver
 output goes to a log file or stderr, never into the messages. For each request it
-says ``begin`` before and ``end`` after every timed solver call, so the runner can
-enforce the wall-clock limit per solve, then sends the ``row``.
+says ``begin`` before and ``end`` after every solver call (the warm-up and each timed
+repeat), so the runner can enforce the wall-clock limit per solve, then sends the ``row``.
+When the runner has gone (its end of the messages closed), the worker ends quietly.
+
+Before the first timed solve of a (problem, solver, formulation) the worker solves that
+same problem once untimed (:meth:`CellSolver.warm_up`), so that no accuracy level is
+charged for caches and lazy set-up that only the first call in a process pays.
 
 The address space of the process is limited with ``resource.setrlimit`` (an
 allocation beyond it raises MemoryError, which becomes the status
-``out-of-memory``). Numerical libraries are kept to one thread each (the runner
-sets OPENBLAS/OMP/MKL_NUM_THREADS) so times do not depend on how many workers share
-the cores.
+``out-of-memory``; without a cap a MemoryError is the solver's error, judged as such).
+Numerical libraries are kept to one thread each (the runner sets
+OPENBLAS/OMP/MKL_NUM_THREADS) so times do not depend on how many workers share the cores.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
 import math
 import os
-import resource
 import signal
 import statistics
 import sys
@@ -35,6 +40,8 @@ import numpy as np
 from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.bench.provenance import provenance
 from qpbench.bench.settings import OUT_OF_MEMORY, Cell, Limits
+from qpbench.memory import limit_memory
+from qpbench.memory import virtual_memory_mb as virtual_memory_mb  # imported from here too
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
@@ -51,33 +58,6 @@ def timer_overhead_s(samples: int = 2000) -> float:
         start = time.perf_counter()
         best = min(best, time.perf_counter() - start)
     return best
-
-
-def virtual_memory_mb() -> float:
-    """This process's address space (VmSize) in MiB, NaN where /proc is missing."""
-    try:
-        with open("/proc/self/status", encoding="utf-8") as stream:
-            for line in stream:
-                if line.startswith("VmSize:"):
-                    return float(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return math.nan
-
-
-def limit_memory(limit_mb: int) -> int:
-    """Caps the address space at ``limit_mb`` MiB (raised to VmSize + limit_mb if the loaded
-    process already exceeds it); returns the cap applied in MiB (0: no cap)."""
-    if limit_mb <= 0:
-        return 0
-    current = virtual_memory_mb()
-    applied = limit_mb if not current >= limit_mb else int(current) + limit_mb
-    _, hard = resource.getrlimit(resource.RLIMIT_AS)
-    cap = applied * 1024 * 1024
-    if hard != resource.RLIM_INFINITY:
-        cap = min(cap, hard)
-    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
-    return applied
 
 
 def warm_start_for(problem: ImpactProblem | FrictionalProblem) -> tuple[np.ndarray | None, str]:
@@ -112,13 +92,15 @@ def _finite(values: list[float]) -> list[float]:
 
 
 class CellSolver:
-    """Runs cells in this process, keeping the last problem loaded (cells come problem-major)."""
+    """Runs cells in this process, keeping the last problem loaded (cells come problem-major)
+    and warming each solver up on it once (:meth:`warm_up`)."""
 
     def __init__(self, announce: Callable[[dict[str, Any]], None] | None = None) -> None:
         self.announce = announce
         self._problem_file: str | None = None
         self._problem: ImpactProblem | None = None
         self._specs: dict[str, SolverSpec] = {}
+        self._warmed: set[str] = set()  # the solver keys warmed up on the loaded problem
         self.timer_overhead_s = timer_overhead_s()
         self.provenance = provenance()
         self.memory_limit_mb = 0
@@ -130,6 +112,7 @@ class CellSolver:
     def problem(self, path: str) -> ImpactProblem:
         if path != self._problem_file:
             self._problem, self._problem_file = None, None
+            self._warmed.clear()
             self._problem = files.load(path)
             self._problem_file = path
         assert self._problem is not None
@@ -140,18 +123,38 @@ class CellSolver:
             self._specs[key] = resolve([key])[0]
         return self._specs[key]
 
+    def warm_up(self, spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
+                accuracy: float, warm_start: np.ndarray | None) -> None:
+        """Solves ``problem`` once with ``spec``, exactly as the timed solves will (a blind
+        copy posed in the solver's formulation, the same warm start), and discards the
+        answer and its time, the first time this process meets the pair: the first call
+        fills the caches and does the lazy set-up (a backend's imports and code paths, the
+        problem's own arrays) that every later call finds done, so every timed level of the
+        pair sees the same state. The runner's wall-clock limit applies to it as to a timed
+        solve."""
+        if spec.key in self._warmed:
+            return
+        self._warmed.add(spec.key)
+        self.say("begin", warm_up=True, memory_limit_mb=self.memory_limit_mb)
+        call_solver(spec, problem, accuracy, warm_start)
+        self.say("end", warm_up=True)
+
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
         """The row of ``cell``: qpbench's judgement of the first repeat's answer, the times of
         all repeats (``time_s`` their minimum; up to ``limits.repeats``, fewer once they have
-        taken ``limits.repeat_budget_s`` in all, none after a failed solve)."""
+        taken ``limits.repeat_budget_s`` in all, none after a failed solve). The first cell of
+        a (problem, solver, formulation) in this process is preceded by :meth:`warm_up` at
+        its level."""
         problem = self.problem(cell.problem_file)
         spec = self.spec(cell.solver_key)
         warm_start, warm_source = (None, "cold")
         if cell.mode == "warm":
             warm_start, warm_source = warm_start_for(problem)
+        self.warm_up(spec, problem, cell.accuracy, warm_start)
         outputs: list[SolverOutput] = []
         for repeat in range(limits.repeats):
-            self.say("begin", repeat=repeat)  # the runner's clock for --timeout starts
+            # the runner's clock for --timeout starts
+            self.say("begin", repeat=repeat, memory_limit_mb=self.memory_limit_mb)
             output = call_solver(spec, problem, cell.accuracy, warm_start)
             self.say("end", repeat=repeat)
             outputs.append(output)
@@ -160,8 +163,9 @@ class CellSolver:
             if sum(done.time_s for done in outputs) >= limits.repeat_budget_s:
                 break
         row = judge(spec, problem, outputs[0], cell.accuracy)
-        if str(row.get("solver_status", "")).startswith("error: MemoryError"):
-            row["status"] = OUT_OF_MEMORY
+        if (self.memory_limit_mb > 0
+                and str(row.get("solver_status", "")).startswith("error: MemoryError")):
+            row["status"] = OUT_OF_MEMORY  # the allocation failed under the cap
         finite_times = _finite([output.time_s for output in outputs])
         row.update({
             "mode": cell.mode,
@@ -186,8 +190,17 @@ class CellSolver:
 def serve(receive: Callable[[], dict[str, Any] | None],
           send: Callable[[dict[str, Any]], None]) -> None:
     """Answers each request ``{"cell": ..., "limits": ...}`` (until ``receive`` gives None) with
-    begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up)."""
-    solver = CellSolver(announce=send)
+    begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up).
+    A message that cannot be sent (the runner closed its end: it stopped or was interrupted)
+    ends the process quietly (SystemExit 0), with no traceback in its log."""
+
+    def send_or_leave(message: dict[str, Any]) -> None:
+        try:
+            send(message)
+        except (OSError, EOFError, ValueError):  # BrokenPipeError, a closed connection
+            raise SystemExit(0) from None
+
+    solver = CellSolver(announce=send_or_leave)
     prepare_solvers()  # every backend imported and prepared before the memory cap and timing
     solver.say("ready", pid=os.getpid())
     while (request := receive()) is not None:
@@ -197,8 +210,12 @@ def serve(receive: Callable[[], dict[str, Any] | None],
             solver.memory_limit_mb = limit_memory(limits.memory_limit_mb)
         try:
             row = solver.solve(cell, limits)
-        except MemoryError:
-            solver.say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError"})
+        except MemoryError:  # outside the solver call: loading the problem or judging
+            if solver.memory_limit_mb > 0:
+                solver.say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError",
+                                       "memory_limit_mb": solver.memory_limit_mb})
+            else:
+                solver.say("error", message="MemoryError (no memory cap set)")
             continue
         except Exception as error:  # a problem file or solver that cannot be set up
             solver.say("error", message=f"{type(error).__name__}: {error}")
@@ -256,7 +273,12 @@ def child_main(connection: Connection, log_path: str, extra_solvers: str = "",
     """Entry point of a worker forked by the multiprocessing fork server: messages on
     ``connection``; stdout and stderr go to ``log_path``; the runner's current
     $QPBENCH_EXTRA_SOLVERS and module search path are taken over."""
-    log = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    try:  # never created here: a log that is gone means the runner has stopped this worker
+        log = os.open(log_path, os.O_WRONLY | os.O_APPEND)
+    except OSError:
+        os._exit(0)
+    with contextlib.suppress(OSError):  # the runner reads it through its own descriptor
+        os.unlink(log_path)
     os.dup2(log, 1)
     os.dup2(log, 2)
     die_with_parent()

@@ -1,8 +1,11 @@
 """``qpbench run [PROBLEMS...] [--solvers ...] [--accuracy ...] [--timeout S] [--repeats K]
 [--repeat-budget S] [--mode cold,warm] [--workers N]
-[--executor serial|processes|dask://HOST:PORT] -o FILE.parquet``.
+[--executor serial|processes|dask://HOST:PORT] [--retry STATUSES] -o FILE.parquet``.
 
-Re-running the same command resumes: cells already in FILE.parquet are skipped.
+Re-running the same command resumes: cells already in FILE.parquet are skipped, except those
+whose worker was killed by an outside signal (status ``killed``), which are solved again;
+``--retry`` names further statuses to solve again. An interrupt (Ctrl-C or SIGTERM) leaves
+FILE.parquet readable with every row finished so far, and exits 130.
 """
 
 from __future__ import annotations
@@ -19,11 +22,14 @@ from qpbench.bench.settings import (
     DEFAULT_REPEATS,
     DEFAULT_TIMEOUT_S,
     PROBLEM_KINDS,
+    RETRIED_ON_RESUME,
+    STATUSES,
     Limits,
     RunSettings,
     check_at_least,
     parse_accuracies,
     parse_modes,
+    parse_solver_names,
     parse_statuses,
 )
 
@@ -34,11 +40,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "run", help="solve problems x solvers x accuracy levels into one Parquet table",
         description="Every cell runs in an isolated worker process: a crash, hang or memory "
-                    "blow-up becomes a row (crashed, timeout, out-of-memory). Re-running the "
-                    "same command resumes where it stopped.")
+                    "blow-up becomes a row (crashed, timeout, out-of-memory; killed when a "
+                    "signal from outside ended the worker). Re-running the same command "
+                    "resumes where it stopped; an interrupt keeps every finished row.")
     parser.add_argument("problems", nargs="*", default=list(DEFAULT_PROBLEMS),
                         help="problem files (.npz) or folders of them (default: problems/)")
-    parser.add_argument("--solvers", default="",
+    parser.add_argument("--solvers", default=None,
                         help="NAME or NAME/FORMULATION, comma-separated (default: every usable)")
     parser.add_argument("--accuracy", default=",".join(f"{a:.0e}" for a in DEFAULT_ACCURACIES),
                         help="accuracy levels, comma-separated (default: %(default)s)")
@@ -59,9 +66,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="serial, processes or dask://HOST:PORT (default: serial, or "
                              "processes with --workers > 1)")
     parser.add_argument("--retry", default="",
-                        help="statuses to solve again although stored, comma-separated "
-                             "(e.g. timeout,crashed after raising --timeout); the new row "
-                             "replaces the old")
+                        help="statuses to solve again although stored, comma-separated, of "
+                             f"{', '.join(STATUSES)} (e.g. timeout,out-of-memory after "
+                             "raising --timeout or --memory-limit); the new row replaces the "
+                             f"old. A resume always solves {', '.join(RETRIED_ON_RESUME)} "
+                             "cells again")
     parser.add_argument("--batch", type=int, default=20,
                         help="rows per part file written (default: %(default)s)")
     parser.add_argument("--kind", default="all", choices=("all", *PROBLEM_KINDS),
@@ -75,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     check_at_least(args.workers, 1, "--workers")
     check_at_least(args.batch, 1, "--batch")
     retry = parse_statuses(args.retry)
+    solver_names = None if args.solvers is None else parse_solver_names(args.solvers)
     accuracies = parse_accuracies(args.accuracy)
     modes = parse_modes(args.mode)
     limits = Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
@@ -85,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         isolation.start_fork_server()
     from qpbench.solvers.registry import resolve, usable_solvers
 
-    specs = resolve(args.solvers) if args.solvers.strip() else usable_solvers()
+    specs = usable_solvers() if solver_names is None else resolve(solver_names)
     kinds = PROBLEM_KINDS if args.kind == "all" else (args.kind,)
     settings = RunSettings(solvers=tuple(spec.key for spec in specs), accuracies=accuracies,
                            modes=modes, limits=limits, kinds=kinds)
