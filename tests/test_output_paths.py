@@ -99,6 +99,16 @@ def test_a_file_output_that_is_a_folder_is_refused_up_front(tmp_path: Path) -> N
         writable_output(tmp_path)
 
 
+@pytest.mark.parametrize("command", ["run", "render", "speed"])
+def test_a_command_that_writes_a_file_refuses_a_folder_before_any_work(
+        command: str, problems: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(_commands(problems, tmp_path)[command]) == 2
+    assert _one_line(capsys) == f"qpbench {command}: {tmp_path}: is a folder, not a file " \
+        "qpbench can write"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_output_symbolic_link_is_refused_unless_links_are_followed(
         problems: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:

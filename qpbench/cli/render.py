@@ -9,6 +9,7 @@ from pathlib import Path
 
 from qpbench.bench.settings import check_at_least
 from qpbench.cli.guards import add_memory_option, guarded
+from qpbench.cli.output import writable_output
 from qpbench.cli.simulate import DEFAULT_STEPS, check_memory_failure, check_span
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
@@ -33,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_span(args)
     check_at_least(args.frames, 1, "--frames")
+    writable_output(args.output)
     output_folder = Path(args.output).parent
     with guarded(args, "render", f"rendering {args.scene}", [output_folder]):
         return draw(args, render)

@@ -32,6 +32,7 @@ from qpbench.bench.settings import (
     parse_solver_names,
     parse_statuses,
 )
+from qpbench.cli.output import writable_output
 
 DEFAULT_PROBLEMS = ("problems",)
 
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     solver_names = None if args.solvers is None else parse_solver_names(args.solvers)
     accuracies = parse_accuracies(args.accuracy)
     modes = parse_modes(args.mode)
+    writable_output(args.output)
     limits = Limits(timeout_s=args.timeout, memory_limit_mb=args.memory_limit,
                     repeats=args.repeats, repeat_budget_s=args.repeat_budget)
     executor = make_executor(args.executor, args.workers)
