@@ -14,6 +14,8 @@ from __future__ import annotations
 import html
 import json
 import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -403,11 +405,28 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
                            script=SCRIPT)
 
 
+# progress hooks (on_page): each is told the path of index.html as its building starts
+_page_listeners: list[Callable[[Path], None]] = []
+
+
+@contextmanager
+def on_page(listener: Callable[[Path], None]) -> Iterator[None]:
+    """Within the block, ``listener(path)`` as :func:`write_html` starts building a page: a
+    progress hook for the report."""
+    _page_listeners.append(listener)
+    try:
+        yield
+    finally:
+        _page_listeners.remove(listener)
+
+
 def write_html(everything: pd.DataFrame, folder: Path, source: str) -> Path:
     """Writes ``folder/index.html`` for the rows ``everything``; returns its path."""
     from plotly.offline import get_plotlyjs
 
     path = Path(folder) / "index.html"
+    for listener in list(_page_listeners):
+        listener(path)
     text = page(everything, source, get_plotlyjs())
     with atomic_path(path) as temporary:
         temporary.write_text(text, encoding="utf-8")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import matplotlib
@@ -53,7 +55,24 @@ def slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "all"
 
 
+# progress hooks (on_figure): each is told the path of every figure as its writing starts
+_figure_listeners: list[Callable[[Path], None]] = []
+
+
+@contextmanager
+def on_figure(listener: Callable[[Path], None]) -> Iterator[None]:
+    """Within the block, ``listener(path)`` as each figure of this module starts being written
+    (drawing it to PNG is most of a figure's time): a progress hook for the report."""
+    _figure_listeners.append(listener)
+    try:
+        yield
+    finally:
+        _figure_listeners.remove(listener)
+
+
 def _save(figure: plt.Figure, path: Path) -> Path:
+    for listener in list(_figure_listeners):
+        listener(path)
     try:
         with atomic_path(path) as temporary:
             figure.savefig(temporary, dpi=DPI, bbox_inches="tight", format="png")

@@ -12,9 +12,12 @@ from qpbench.bench.defaults import BREAKDOWN_REPEATS
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import QpbenchError
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes")
+    parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes",
+                                   epilog=JSON_FIELDS)
     parser.add_argument("--repeats", type=int, default=BREAKDOWN_REPEATS,
                         help=f"timed rounds, each part's fastest kept ({BREAKDOWN_REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")

@@ -19,10 +19,13 @@ from qpbench.bench.defaults import (
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "head-to-head", help="pi-robust against the fastest external pairs, per set, cold")
+        "head-to-head", help="pi-robust against the fastest external pairs, per set, cold",
+        epilog=JSON_FIELDS)
     parser.add_argument("folder", help="problem folder built from problems/head_to_head.toml")
     parser.add_argument("--results", required=True,
                         help="the main benchmark's table, which names the fastest pairs")

@@ -1,13 +1,18 @@
 """``qpbench scaling [--sizes 1000,10000] [--steps N] [--solver NAME] [--pile-sizes 1000,10000]
 [--box-pile-sizes 1000,10000] [--pile-steps N] [--pile-solve-budget S] [--no-piles]
--o results/scaling.json``."""
+[--[no-]progress] -o results/scaling.json``: the measurements as JSON, their Markdown on
+stdout, a bar over the measurements and a closing line on stderr."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from typing import Any
 
 from qpbench.bench.settings import check_at_least
+from qpbench.cli.guards import add_progress_option, progress_wanted
 from qpbench.cli.output import write_json
+from qpbench.cli.progress import Progress
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.simulation.scaling import (
@@ -15,10 +20,12 @@ from qpbench.simulation.scaling import (
     DEFAULT_PILE_STEPS,
     DEFAULT_SIZES,
     DEFAULT_STEPS,
+    measurement_count,
     scaling,
 )
 
 DEFAULT_SOLVER = "clarabel/dual"
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -32,7 +39,8 @@ def _sizes(text: str) -> tuple[int, ...]:
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("scaling", help="cost per ball per step of the simulator")
+    parser = subparsers.add_parser("scaling", help="cost per ball per step of the simulator",
+                                   epilog=JSON_FIELDS)
     parser.add_argument("--sizes", type=_sizes, default=DEFAULT_SIZES,
                         help="comma-separated ball counts (1000,10000)")
     parser.add_argument("--steps", type=int, default=DEFAULT_STEPS,
@@ -50,6 +58,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="seconds of inner solves after which a pile stops timing further "
                              f"steps; at least one is timed ({DEFAULT_PILE_SOLVE_BUDGET_S:g})")
     parser.add_argument("--no-piles", action="store_true", help="only the sparse box scenes")
+    add_progress_option(parser)
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
@@ -63,8 +72,29 @@ def run(args: argparse.Namespace) -> int:
     circles = args.pile_sizes or args.sizes
     boxes = args.box_pile_sizes or args.sizes
     piles = None if args.no_piles else {"circles": circles, "boxes": boxes}
-    report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed, piles,
-                     args.pile_steps, args.pile_solve_budget)
+    with Progress("scaling", progress_wanted(args), measurement_count(args.sizes, piles),
+                  "measurements") as progress:
+        report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed, piles,
+                         args.pile_steps, args.pile_solve_budget, progress.advance)
     write_json(args.output, report)
     print(report["markdown"], end="")
+    print(f"qpbench scaling: {closing_line(report)} -> {args.output}", file=sys.stderr)
     return 0
+
+
+def closing_line(report: dict[str, Any]) -> str:
+    """The verdicts of a scaling report in one line: the growth of the cost per ball per step
+    of the box scenes and, per kind of pile, of the simulator's own cost per body per step,
+    each against the target."""
+    rows = report["rows"]
+    parts = [f"cost per ball per step {rows[-1]['balls']} vs {rows[0]['balls']} balls "
+             f"{report['ratio']:.2f}x ({_verdict(report['meets_target'])})"]
+    for kind, entry in report.get("piles", {}).get("kinds", {}).items():
+        failed = "" if all(row["success"] for row in entry["rows"]) else ", an inner solve failed"
+        parts.append(f"{kind} pile own cost {entry['own_ratio']:.2f}x "
+                     f"({_verdict(entry['meets_target'])}{failed})")
+    return f"{'; '.join(parts)}; target <= {report['target_ratio']:g}x"
+
+
+def _verdict(met: bool) -> str:
+    return "met" if met else "missed"

@@ -15,10 +15,13 @@ from qpbench.bench.settings import check_accuracy
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "sequence", help="replay captured scenes, each solver warm from its own answers")
+        "sequence", help="replay captured scenes, each solver warm from its own answers",
+        epilog=JSON_FIELDS)
     parser.add_argument("scenes", nargs="*", metavar="SCENE",
                         help="scene files (simulated and captured) or capture folders "
                              "(default: the shared box and butterfly scenes)")

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import math
+from typing import Any
 
 from qpbench.bench.settings import check_accuracy
 from qpbench.cli.output import print_json
@@ -12,9 +14,25 @@ from qpbench.problem.friction import kind_of
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+# the keys of the text output, in order (the JSON has these and the answer itself)
+TEXT_KEYS = ("problem", "solver", "status", "solver_status", "residual", "v_error", "model",
+             "coulomb_residual", "model_error", "energy_gain", "iterations", "outer_iterations",
+             "time_s")
+NO_ANSWER = "none (no finite answer)"
+# what a missing value (None, NaN) means, per key of the text output, when the answer is finite
+MISSING = {
+    "v_error": "none (a ccp answer solves another model than the reference's)",
+    "model_error": "none (the formulation solves Coulomb's law itself)",
+    "iterations": "not reported by the solver",
+    "outer_iterations": "none (no outer loop)",
+    "time_s": "not measured",
+}
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("solve", help="solve one problem file and judge the answer")
+    parser = subparsers.add_parser("solve", help="solve one problem file and judge the answer",
+                                   epilog=JSON_FIELDS)
     parser.add_argument("problem", help="a problem file (.npz)")
     parser.add_argument("--solver", required=True, help="NAME or NAME/FORMULATION")
     parser.add_argument("--accuracy", type=float, default=1e-8, help="residual bound (1e-8)")
@@ -48,9 +66,36 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result)
     else:
-        for key in ("problem", "solver", "status", "solver_status", "residual", "v_error",
-                    "model", "coulomb_residual", "model_error", "energy_gain", "iterations",
-                    "outer_iterations", "time_s"):
+        answered = _finite(result["residual"])
+        for key in TEXT_KEYS:
             if key in result:
-                print(f"{key:>16}: {result[key]}")
+                print(f"{key:>16}: {plain(key, result[key], answered)}")
     return 0 if row["success"] else 1
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and math.isfinite(value)
+
+
+def plain(key: str, value: Any, answered: bool = True) -> str:
+    """One value of the text output in words and plain numbers: a time in a readable unit,
+    other numbers to 3 significant digits, and what a missing value (None, NaN) means: no
+    finite answer unless ``answered``, else as ``MISSING`` says."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return MISSING.get(key, "none") if answered or key == "time_s" else NO_ANSWER
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if key == "time_s":
+        return duration(float(value))
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    return str(value)
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` in a readable unit: ``12.3 us``, ``4.56 ms``, ``7.89 s``."""
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.3g} us"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.3g} ms"
+    return f"{seconds:.3g} s"

@@ -7,9 +7,12 @@ import argparse
 from qpbench.cli.output import print_json
 from qpbench.solvers.registry import all_solvers
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("solvers", help="list solvers, formulations and availability")
+    parser = subparsers.add_parser("solvers", help="list solvers, formulations and availability",
+                                   epilog=JSON_FIELDS)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=run)
 

@@ -11,6 +11,8 @@ from qpbench.bench.defaults import REPEATS, SPEED_SIZES
 from qpbench.bench.settings import check_at_least
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 
+JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+
 
 def _sizes(text: str) -> tuple[int, ...]:
     try:
@@ -24,7 +26,8 @@ def _sizes(text: str) -> tuple[int, ...]:
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "speed", help="pi-robust against one sparse factorization on box packings")
+        "speed", help="pi-robust against one sparse factorization on box packings",
+        epilog=JSON_FIELDS)
     parser.add_argument("--sizes", type=_sizes, default=SPEED_SIZES,
                         help="comma-separated ball counts "
                              f"({','.join(str(size) for size in SPEED_SIZES)})")

@@ -19,6 +19,7 @@ contacts (the arm the contact carries).
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +39,9 @@ from qpbench.scenes.model import Scene  # noqa: E402
 from qpbench.simulation.operators import ChooseSolve  # noqa: E402
 from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent  # noqa: E402
 
+# a progress hook, told (units done, a note or None) after every step simulated and every
+# frame drawn (the signature of qpbench.cli.progress.Progress.advance)
+Advance = Callable[[int, str | None], None]
 MAX_GIF_FRAMES = 80
 MAX_PATHS = 300
 SUFFIXES = (".png", ".gif")
@@ -95,15 +99,23 @@ class Recording:
 
 
 def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
-                        choose_solve: ChooseSolve | None, frames: int
+                        choose_solve: ChooseSolve | None, frames: int,
+                        progress: Advance | None = None
                         ) -> tuple[SimulationResult, Recording]:
-    """Runs the scene, recording about ``frames`` frames."""
+    """Runs the scene, recording about ``frames`` frames; ``progress`` is told after every
+    step."""
     simulator = Simulator(scene, choose_solve)
     total = simulator.step_count(end_time, steps)
     recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii,
                           theta=None if simulator.theta is None else simulator.theta.copy(),
                           simulator=simulator)
-    result = simulator.run(end_time=end_time, max_steps=steps, on_step=recording)
+
+    def on_step(event: StepEvent) -> None:
+        recording(event)
+        if progress is not None:
+            progress(1, None)
+
+    result = simulator.run(end_time=end_time, max_steps=steps, on_step=on_step)
     recording.simulator = None
     recording.frames.append(simulator.positions.copy())
     recording.frame_thetas.append(None if simulator.theta is None else simulator.theta.copy())
@@ -256,7 +268,10 @@ def render_png(scene: Scene, recording: Recording, result: SimulationResult, pat
     _save(figure, path, lambda target: figure.savefig(target, format="png"))
 
 
-def render_gif(scene: Scene, recording: Recording, result: SimulationResult, path: Path) -> None:
+def render_gif(scene: Scene, recording: Recording, result: SimulationResult, path: Path,
+               progress: Advance | None = None) -> None:
+    """The run as an animated gif, one frame per recorded frame; ``progress`` is told after
+    every frame drawn."""
     figure, (axes,), norm = _frame_axes(scene, recording)
     balls = _draw_balls(axes, scene, recording.frames[0], recording.frame_thetas[0],
                         facecolor="tab:blue", alpha=0.6, edgecolor="tab:blue")
@@ -278,7 +293,13 @@ def render_gif(scene: Scene, recording: Recording, result: SimulationResult, pat
         return [balls, title, *arrows]
 
     animation = FuncAnimation(figure, draw, frames=len(recording.frames), blit=False)
-    _save(figure, path, lambda target: animation.save(target, writer=PillowWriter(fps=10)))
+
+    def frame_written(done: int, total: int) -> None:
+        if progress is not None:
+            progress(1, f"frame {done + 1} of {total}")
+
+    _save(figure, path, lambda target: animation.save(target, writer=PillowWriter(fps=10),
+                                                      progress_callback=frame_written))
 
 
 def _save(figure: plt.Figure, path: Path, write) -> None:
@@ -292,15 +313,20 @@ def _save(figure: plt.Figure, path: Path, write) -> None:
 
 def render(scene: Scene, output: str | os.PathLike[str], end_time: float | None = None,
            steps: int | None = None, choose_solve: ChooseSolve | None = None,
-           frames: int = MAX_GIF_FRAMES) -> SimulationResult:
-    """Simulates ``scene`` and draws it to ``output`` (``.png`` or ``.gif``)."""
+           frames: int = MAX_GIF_FRAMES, progress: Advance | None = None
+           ) -> SimulationResult:
+    """Simulates ``scene`` and draws it to ``output`` (``.png`` or ``.gif``); ``progress`` is
+    told after every step and every frame drawn (:data:`Advance`)."""
     path = Path(output)
     if path.suffix.lower() not in SUFFIXES:
         raise QpbenchError(f"{path}: the output must end in .png or .gif")
     result, recording = simulate_and_record(scene, end_time, steps, choose_solve,
-                                            frames if path.suffix.lower() == ".gif" else 400)
+                                            frames if path.suffix.lower() == ".gif" else 400,
+                                            progress)
     if path.suffix.lower() == ".png":
         render_png(scene, recording, result, path)
+        if progress is not None:
+            progress(1, f"drew {path.name}")
     else:
-        render_gif(scene, recording, result, path)
+        render_gif(scene, recording, result, path, progress)
     return result

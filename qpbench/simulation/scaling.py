@@ -69,14 +69,36 @@ def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
     return row, simulator.solver_names
 
 
+# a progress hook, told (measurements done, what was measured) after each measurement, never
+# inside a timed window (the signature of qpbench.cli.progress.Progress.advance)
+Advance = Callable[[int, str | None], None]
+
+
+def _silent(count: int, note: str | None) -> None:
+    """A progress hook that says nothing."""
+
+
+def measurement_count(sizes: tuple[int, ...],
+                      pile_sizes: dict[str, tuple[int, ...]] | None = None) -> int:
+    """The measurements :func:`scaling` makes: one per box-scene size, and per kind of pile
+    one warm-up and one per size."""
+    return len(sizes) + sum(1 + len(kind_sizes) for kind_sizes in (pile_sizes or {}).values())
+
+
 def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
             steps: int = DEFAULT_STEPS, seed: int = 0,
             pile_sizes: dict[str, tuple[int, ...]] | None = None,
             pile_steps: int = DEFAULT_PILE_STEPS,
-            pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S) -> dict[str, Any]:
+            pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
+            progress: Advance | None = None) -> dict[str, Any]:
     """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table;
-    with ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``."""
-    measured = [measure(balls, steps, choose_solve, seed) for balls in sizes]
+    with ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``. ``progress``
+    is told after each of the :func:`measurement_count` measurements (:data:`Advance`)."""
+    told = progress or _silent
+    measured = []
+    for balls in sizes:
+        measured.append(measure(balls, steps, choose_solve, seed))
+        told(1, f"box scene, {balls} balls")
     rows = [row for row, _ in measured]
     solver = measured[0][1]
     first, last = rows[0], rows[-1]
@@ -89,7 +111,7 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
     }
     if pile_sizes:
         report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps,
-                                       pile_solve_budget_s)
+                                       pile_solve_budget_s, told)
     report["markdown"] = markdown(report)
     return report
 
@@ -267,17 +289,24 @@ def _accuracy_of(simulator: Simulator) -> dict[str, Any]:
 
 def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
                  steps: int = DEFAULT_PILE_STEPS,
-                 solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S) -> dict[str, Any]:
+                 solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
+                 progress: Advance | None = None) -> dict[str, Any]:
     """Every pile at every size (each kind warmed up once on a small pile); per kind, the
     growth of the simulator's own cost per body per step (largest size against the smallest,
-    target <= 1.5x) and of the inner solves'."""
+    target <= 1.5x) and of the inner solves'. ``progress`` is told after each warm-up and
+    each pile (:data:`Advance`)."""
+    told = progress or _silent
     warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
     report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
                               "warmup_bodies": warmup, "target_ratio": TARGET_RATIO,
                               "kinds": {}}
     for kind, kind_sizes in sizes.items():
         warm_up_pile(kind, warmup, choose_solve)
-        rows = [measure_pile(kind, n, steps, choose_solve, solve_budget_s) for n in kind_sizes]
+        told(1, f"{kind} pile warm-up, {warmup} bodies")
+        rows = []
+        for bodies in kind_sizes:
+            rows.append(measure_pile(kind, bodies, steps, choose_solve, solve_budget_s))
+            told(1, f"{kind} pile, {bodies} bodies")
         first, last = rows[0], rows[-1]
         own_ratio = last["own_per_body_step_us"] / max(first["own_per_body_step_us"], 1e-300)
         solve_ratio = (last["solve_per_body_step_us"]
