@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from qpbench.cli import COMMANDS, build_parser
+from qpbench.cli import COMMANDS, build_parser, main
 
 LISTING = """
 import contextlib, io, json, sys
@@ -42,3 +42,12 @@ def test_each_listed_command_builds_its_own_parser(name: str) -> None:
                        if isinstance(action, argparse._SubParsersAction))
     assert list(subcommands.choices) == [command]
     assert callable(subcommands.choices[command].get_default("handler"))
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_each_commands_help_renders(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """argparse formats every help string with %: a stray % would break ``COMMAND --help``."""
+    with pytest.raises(SystemExit) as ended:
+        main([name.replace("_", "-"), "--help"])
+    assert ended.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: qpbench {name.replace('_', '-')}")

@@ -22,7 +22,8 @@ SCENES = ROOT / "problems" / "scenes"
 HEADING = re.compile(r"^## `qpbench ([a-z-]+)")
 ROW = re.compile(r"^\| `([^`]+)` \|")
 # the commands whose --help names the page
-WITH_EPILOG = ("solvers", "solve", "scaling", "speed", "sequence", "breakdown", "head-to-head")
+WITH_EPILOG = ("solvers", "solve", "simulate", "scaling", "speed", "sequence", "breakdown",
+               "head-to-head")
 
 
 def documented() -> dict[str, list[str]]:

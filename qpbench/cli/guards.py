@@ -28,7 +28,7 @@ def add_memory_option(parser: argparse.ArgumentParser) -> None:
     available; 0: none)."""
     parser.add_argument(
         LIMIT_OPTION, type=int, default=None, metavar="MB", dest="memory_limit",
-        help=f"cap on the address space in MiB (default: {DEFAULT_FRACTION:.0%} of the "
+        help=f"cap on the address space in MiB (default: {DEFAULT_FRACTION:.0%}% of the "
              "memory available at the start; 0: none); a request that needs more is "
              "refused in one line")
 

@@ -30,6 +30,37 @@ def to_jsonable(value: Any) -> Any:
     return value
 
 
+def plain(value: Any, missing: str = "none", seconds: bool = False) -> str:
+    """``value`` for a command's text output, in words and plain numbers: ``missing`` for
+    None and NaN, yes/no for a flag, a duration in a readable unit when ``seconds``, other
+    floats to 3 significant digits, and a list or a mapping item by item (never a Python
+    repr)."""
+    if isinstance(value, np.generic | np.ndarray):
+        value = value.tolist()
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return missing
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, dict):
+        return "; ".join(f"{key} {plain(item)}" for key, item in value.items()) or missing
+    if isinstance(value, list | tuple):
+        return ", ".join(plain(item, seconds=seconds) for item in value) or missing
+    if seconds and isinstance(value, int | float):
+        return duration(float(value))
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    return str(value)
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` in a readable unit: ``12.3 us``, ``4.56 ms``, ``7.89 s``."""
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.3g} us"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.3g} ms"
+    return f"{seconds:.3g} s"
+
+
 def print_json(value: Any) -> None:
     """One JSON object on stdout."""
     print(json.dumps(to_jsonable(value)))

@@ -8,8 +8,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from qpbench.bench.settings import check_at_least
-from qpbench.cli.guards import add_memory_option, guarded
+from qpbench.cli.guards import add_memory_option, add_progress_option, guarded, progress_wanted
 from qpbench.cli.output import writable_output
+from qpbench.cli.progress import Progress
 from qpbench.cli.simulate import DEFAULT_STEPS, check_memory_failure, check_span
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
@@ -17,7 +18,7 @@ from qpbench.simulation.stepper import SimulationResult
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("render", help="simulate a scene and draw it (png or gif)")
+    parser = subparsers.add_parser("render")
     parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
     parser.add_argument("-o", "--output", required=True, help="FILE.png or FILE.gif")
     parser.add_argument("--end-time", type=float, default=None,
@@ -26,6 +27,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--solver", default=None, help="inner solver (default: the scene's)")
     parser.add_argument("--frames", type=int, default=80, help="frames of a gif (80)")
     add_memory_option(parser)
+    add_progress_option(parser)
     parser.set_defaults(handler=run)
 
 
@@ -50,8 +52,10 @@ def draw(args: argparse.Namespace, render: Callable[..., SimulationResult]) -> i
         steps = DEFAULT_STEPS
         print(f"qpbench render: note: {scene.path} has no <end_time>; drawing {DEFAULT_STEPS} "
               "steps (use --end-time or --steps)", file=sys.stderr)
-    result = render(scene, args.output, args.end_time, steps, choose_by_name(args.solver),
-                    args.frames)
+    with Progress("render", progress_wanted(args), None, "steps and frames") as progress:
+        result = render(scene, args.output, args.end_time, steps, choose_by_name(args.solver),
+                        args.frames, progress=progress.advance)
+        progress.summary = f"{result.steps} steps drawn to {args.output}"
     check_memory_failure(result)
     for note in result.notes:
         print(f"qpbench render: note: {note}", file=sys.stderr)

@@ -13,8 +13,8 @@ from qpbench.bench import html_report, plots, stats
 from qpbench.bench.report import split_kinds, write_report
 from qpbench.bench.results import ResultStore
 from qpbench.cli.guards import add_progress_option, progress_wanted
+from qpbench.cli.output import duration
 from qpbench.cli.progress import Progress
-from qpbench.cli.solve import duration
 
 # the columns the closing summary reads (html_report.frontier over every problem)
 SUMMARY_COLUMNS = ("problem", "family", "kind", "mode", "solver", "formulation", "backend",

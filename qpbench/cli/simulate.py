@@ -17,7 +17,7 @@ from pathlib import Path
 
 from qpbench.bench.settings import check_accuracy, check_at_least
 from qpbench.cli.guards import add_memory_option, add_progress_option, guarded, progress_wanted
-from qpbench.cli.output import print_json
+from qpbench.cli.output import plain, print_json
 from qpbench.cli.progress import Progress
 from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
@@ -29,7 +29,8 @@ DEFAULT_STEPS = 1000
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("simulate", help="simulate a SCISim 2D scene")
+    parser = subparsers.add_parser(
+        "simulate", epilog="Every JSON field, its unit and when it is null: docs/json-output.md")
     parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
     parser.add_argument("--end-time", type=float, default=None,
                         help="simulated seconds (default: the scene's <end_time>)")
@@ -105,7 +106,7 @@ def simulate(args: argparse.Namespace) -> int:
     else:
         for key, value in summary.items():
             if key not in ("x_final", "v_final", "theta_final", "omega_final"):
-                print(f"{key:>18}: {value}")
+                print(f"{key:>18}: {plain(value, seconds=key.endswith('_s'))}")
     if result.failure is not None:
         print(f"qpbench simulate: inner solve failed at step {result.failure['step']}: "
               f"{result.failure['reason']} ({result.failure['solver']})", file=sys.stderr)

@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 from qpbench.bench.settings import check_accuracy
-from qpbench.cli.output import print_json
+from qpbench.cli.output import plain, print_json
 from qpbench.problem import files
 from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.problem.friction import kind_of
@@ -69,33 +69,12 @@ def run(args: argparse.Namespace) -> int:
         answered = _finite(result["residual"])
         for key in TEXT_KEYS:
             if key in result:
-                print(f"{key:>16}: {plain(key, result[key], answered)}")
+                missing = MISSING.get(key, "none") if answered or key == "time_s" \
+                    else NO_ANSWER
+                text = plain(result[key], missing, seconds=key == "time_s")
+                print(f"{key:>16}: {text}")
     return 0 if row["success"] else 1
 
 
 def _finite(value: Any) -> bool:
     return isinstance(value, int | float) and math.isfinite(value)
-
-
-def plain(key: str, value: Any, answered: bool = True) -> str:
-    """One value of the text output in words and plain numbers: a time in a readable unit,
-    other numbers to 3 significant digits, and what a missing value (None, NaN) means: no
-    finite answer unless ``answered``, else as ``MISSING`` says."""
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return MISSING.get(key, "none") if answered or key == "time_s" else NO_ANSWER
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if key == "time_s":
-        return duration(float(value))
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    return str(value)
-
-
-def duration(seconds: float) -> str:
-    """``seconds`` in a readable unit: ``12.3 us``, ``4.56 ms``, ``7.89 s``."""
-    if seconds < 1e-3:
-        return f"{seconds * 1e6:.3g} us"
-    if seconds < 1.0:
-        return f"{seconds * 1e3:.3g} ms"
-    return f"{seconds:.3g} s"
