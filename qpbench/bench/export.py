@@ -40,13 +40,13 @@ import scipy.sparse as sp
 
 from qpbench.atomic import atomic_path, checked_target
 from qpbench.errors import InputError, OutputError, QpbenchError, UnsupportedError
-from qpbench.problem import files
+from qpbench.problem import fclib, files
 from qpbench.problem.files import AnyProblem
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 
-FORMATS = ("parquet", "mat")
+FORMATS = ("parquet", "mat", "fclib")
 FORMULATIONS = ("dual", "primal")
 QPBENCHMARK_KEYS = ("P", "q", "G", "h", "A", "b", "lb", "ub", "name")
 MAX_DENSE_ENTRIES = 50_000_000  # 400 MB of float64 per dense matrix in the Parquet list
@@ -129,6 +129,26 @@ def export_mat(problems: Iterable[AnyProblem], folder: Path, formulation: str) -
     return len(written)
 
 
+def export_fclib(problems: Iterable[AnyProblem], folder: Path) -> int:
+    """Writes ``folder/<name>.hdf5`` per problem in FCLIB's layout (qpbench.problem.fclib),
+    every file to a temporary one first and none renamed into place before all are written,
+    as :func:`export_mat`; returns the number written."""
+    written: dict[str, str] = {}
+    with ExitStack() as pending:
+        for problem in problems:
+            if problem.name in written:
+                raise InputError(problem.source or problem.name, f"problem name "
+                                 f"'{problem.name}' is also that of {written[problem.name]}; "
+                                 "each FCLIB file is named by its problem")
+            written[problem.name] = problem.source or problem.name
+            temporary = pending.enter_context(
+                atomic_path(folder / f"{problem.name}{fclib.SUFFIX}"))
+            fclib.write(problem, temporary)
+        if not written:
+            raise QpbenchError("no problems to export")
+    return len(written)
+
+
 def check_output(output: Path, fmt: str) -> None:
     """OutputError before any problem is read when ``output`` cannot take ``fmt``: for
     ``parquet`` anything but a regular file or nothing (:func:`checked_target`), for ``mat``
@@ -136,7 +156,7 @@ def check_output(output: Path, fmt: str) -> None:
     if fmt == "parquet":
         checked_target(output)
     elif checked_target(output, accept_folder=True).exists() and not output.is_dir():
-        raise OutputError(output, "is a file; --format mat writes a folder of .mat files")
+        raise OutputError(output, f"is a file; --format {fmt} writes a folder of files")
 
 
 def export(paths: Iterable[str | os.PathLike[str]], output: str | os.PathLike[str],
@@ -153,4 +173,6 @@ def export(paths: Iterable[str | os.PathLike[str]], output: str | os.PathLike[st
     problems = files.load_all(paths)
     if fmt == "parquet":
         return export_parquet(problems, output, formulation)
+    if fmt == "fclib":
+        return export_fclib(problems, output)
     return export_mat(problems, output, formulation)

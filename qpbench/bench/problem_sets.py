@@ -8,6 +8,12 @@ incline = { count = 2 }          # frictional families (qpbench.problem.friction
 [dumps]
 paths = ["dumps/*"]              # globs, relative to the set file
 
+[siconos]
+paths = ["../../shared/siconos/fc2d/*.dat"]   # Siconos' fc2d, gfc2d and lcp text files
+                                 # (qpbench.problem.siconos_import; a general LCP is skipped)
+[fclib]
+paths = ["fclib/*.hdf5"]         # FCLIB HDF5 files, 2D (qpbench.problem.fclib)
+
 [[scenes]]                       # simulate, capture every impact, keep at most max_problems
 path = "scenes/scisim/newtons_cradle.xml"   # or a glob: each scene it matches, alike
 steps = 2000                     # step cap (default: the scene's end time)
@@ -41,17 +47,20 @@ from typing import Any
 
 import numpy as np
 
-from qpbench.errors import InputError
+from qpbench.bench import reduced_reference
+from qpbench.errors import InputError, UnsupportedError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.memory import OutOfMemory, out_of_memory, require
-from qpbench.problem import files, friction_reference
+from qpbench.problem import fclib, files, friction_reference
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.friction_generate import FRICTION_FAMILIES
 from qpbench.problem.friction_generate import generate as generate_frictional
 from qpbench.problem.generate import FAMILIES, check_family_size, family_entry, generate
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reduced import ReducedFrictionalProblem
 from qpbench.problem.reference import attach_reference
+from qpbench.problem.siconos_import import import_siconos
 from qpbench.scenes import Scene, load_scene
 from qpbench.simulation.stepper import BODY_BYTES, Simulator
 from qpbench.solvers.registry import resolve
@@ -82,7 +91,8 @@ def read_set(path: str | Path) -> dict[str, Any]:
             raise InputError(str(path), "must be a table such as { count = 2 }", "families",
                              family)
         _check_entries(path, options, f"families.{family}", _FAMILY_KEYS)
-    _check_entries(path, definition.get("dumps", {}), "dumps", _DUMPS_KEYS)
+    for section in ("dumps", "siconos", "fclib"):
+        _check_entries(path, definition.get(section, {}), section, _DUMPS_KEYS)
     for index, scene in enumerate(definition.get("scenes", [])):
         if not isinstance(scene, dict):
             raise InputError(str(path), "must be a table ([[scenes]])", f"scenes[{index}]")
@@ -101,6 +111,8 @@ _Rule = tuple[str, Callable[[Any], bool]]
 _SECTIONS: dict[str, _Rule] = {
     "families": ("a table of families", lambda value: isinstance(value, dict)),
     "dumps": ("a table with paths", lambda value: isinstance(value, dict)),
+    "siconos": ("a table with paths", lambda value: isinstance(value, dict)),
+    "fclib": ("a table with paths", lambda value: isinstance(value, dict)),
     "scenes": ("an array of tables ([[scenes]])", lambda value: isinstance(value, list)),
 }
 _FAMILY_KEYS: dict[str, _Rule] = {
@@ -174,6 +186,21 @@ def _dump_problems(definition: dict[str, Any], root: Path, existing: set[str]
                 yield import_dump(path)
 
 
+def _imported_problems(definition: dict[str, Any], root: Path, existing: set[str]
+                       ) -> Iterator[ImpactProblem | FrictionalProblem]:
+    """The problems of the ``siconos`` and ``fclib`` sections' files; a general LCP is skipped
+    with one line (qpbench has no kind for it)."""
+    for section, read in (("siconos", import_siconos), ("fclib", fclib.read)):
+        for pattern in definition.get(section, {}).get("paths", []):
+            for path in sorted(glob.glob(str(root / pattern))):
+                if Path(path).stem in existing:
+                    continue
+                try:
+                    yield read(path)
+                except UnsupportedError as refused:
+                    print(f"qpbench build-set: skipped: {refused}", file=sys.stderr)
+
+
 def _scene_paths(root: Path, entry: dict[str, Any], index: int) -> list[Path]:
     """The scene files of one ``[[scenes]]`` entry: its path, or every file its glob matches
     (sorted); InputError for a glob that matches none."""
@@ -235,12 +262,16 @@ def build(set_file: str | Path, output: str | Path,
     sources = (
         _family_problems(definition, existing),
         _dump_problems(definition, root, existing),
+        _imported_problems(definition, root, existing),
         _scene_problems(scenes, existing, output),
     )
     for source in sources:
         for problem in source:
             if isinstance(problem, FrictionalProblem):
-                friction_reference.attach_reference(problem)
+                if isinstance(problem, ReducedFrictionalProblem):
+                    reduced_reference.attach(problem)
+                else:
+                    friction_reference.attach_reference(problem)
                 note = friction_reference.describe(problem.reference)
                 if note:
                     print(f"qpbench build-set: {problem.name}: {note}", file=sys.stderr)

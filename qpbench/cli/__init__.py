@@ -32,6 +32,8 @@ for _variable, _value in SINGLE_THREAD_ENV.items():
 COMMANDS = {
     "solvers": "list solvers, formulations and availability",
     "import_dump": "import SCISim LCP dumps as problems",
+    "import_siconos": "import Siconos' fc2d, gfc2d and LCP text files as problems",
+    "import_fclib": "import FCLIB HDF5 files (2D, local or global) as problems",
     "generate": "write seeded problems of a hard-case family",
     "build_set": "write the problems of a set file (families, dumps, captured scenes)",
     "solve": "solve one problem file and judge the answer",
@@ -46,6 +48,7 @@ COMMANDS = {
     "breakdown": "where pi-robust's time goes",
     "head_to_head": "pi-robust against the fastest external pairs, per set, cold",
     "fuzz": "run mutated scenes and problem files through qpbench, judge the errors",
+    "sim_precision": "what each level of inner accuracy costs in whole simulations",
 }
 
 EXIT_INPUT_ERROR = 2

@@ -1,4 +1,5 @@
-"""``qpbench export PROBLEMS... [--format parquet|mat] [--formulation dual|primal] -o PATH``."""
+"""``qpbench export PROBLEMS... [--format parquet|mat|fclib] [--formulation dual|primal]
+-o PATH``."""
 
 from __future__ import annotations
 
@@ -14,11 +15,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("problems", nargs="+", help="problem files (.npz) or folders of them")
     parser.add_argument("--format", choices=FORMATS, default="parquet",
                         help="parquet: qpbenchmark's problem list (one file); mat: one .mat per "
-                             "problem in a folder (default: parquet)")
+                             "problem in a folder; fclib: one FCLIB HDF5 file per problem "
+                             "in a folder, W, q, mu or M, H, f, w, mu as they stand "
+                             "(default: parquet)")
     parser.add_argument("--formulation", choices=FORMULATIONS, default="dual",
                         help="dual: P=Q, q=b, lb=0; primal: velocity-space QP (default: dual)")
     parser.add_argument("-o", "--output", required=True,
-                        help="the .parquet file, or the folder for .mat files")
+                        help="the .parquet file, or the folder for .mat or .hdf5 files")
     parser.set_defaults(handler=run)
 
 

@@ -4,7 +4,8 @@ Arrays are stored by name; G (and T) as CSC parts; metadata as UTF-8 JSON bytes.
 Files are written to a temporary name and renamed, so a reader never sees half
 a file. Format 2 adds the problem's ``kind``: ``impact`` (as format 1) or
 ``frictional`` (a :class:`FrictionalProblem`: T, mu, d_rel and its reference beside the
-normal problem's arrays). Both versions are read.
+normal problem's arrays) or ``frictional-reduced`` (a :class:`ReducedFrictionalProblem`: W as
+CSC parts, q, mu and its reference). Both versions are read.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from qpbench.errors import InputError
 from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
 from qpbench.problem.impact import ImpactProblem, Reference, check_vector
+from qpbench.problem.reduced import KIND as REDUCED
+from qpbench.problem.reduced import ReducedFrictionalProblem
 
 SUFFIX = ".npz"
 FORMAT_VERSION = 2
@@ -118,6 +121,8 @@ def save(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     if path.suffix != SUFFIX:
         path = path.with_name(path.name + SUFFIX)
+    if isinstance(problem, ReducedFrictionalProblem):
+        return _save_reduced(problem, path)
     frictional = problem if isinstance(problem, FrictionalProblem) else None
     if frictional is not None:
         problem = frictional.normal
@@ -164,6 +169,45 @@ def save(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
     return path
 
 
+def _save_reduced(problem: ReducedFrictionalProblem, path: Path) -> Path:
+    """Writes a reduced problem: W (CSC parts), q, mu, its reference and the header."""
+    arrays: dict[str, np.ndarray] = {**_csc_arrays("W", problem.W), "q": problem.q,
+                                     "mu": problem.mu}
+    header: dict[str, Any] = {"format": FORMAT_VERSION, "kind": REDUCED, "name": problem.name,
+                              "family": problem.family, "source": problem.source,
+                              "metadata": problem.metadata, "data": sorted(problem.data)}
+    for key, value in problem.data.items():
+        arrays[f"data_{key}"] = np.asarray(value)
+    if problem.reference is not None:
+        fref = problem.reference
+        arrays["fref_impulses"] = fref.impulses
+        header["frictional_reference"] = {"method": fref.method, "residual": fref.residual,
+                                          "unique": fref.unique, "solvable": fref.solvable}
+    arrays["header_json"] = _json_bytes(header)
+    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+        np.savez_compressed(stream, **arrays)
+    return path
+
+
+def _load_reduced(header: dict[str, Any], arrays: dict[str, np.ndarray], path: Path
+                  ) -> ReducedFrictionalProblem:
+    reference = None
+    if "frictional_reference" in header:
+        reference = FrictionalReference(
+            impulses=_vector(arrays, "fref_impulses", path), v_plus=np.zeros(0),
+            **{key: value for key, value in header["frictional_reference"].items()
+               if key in _FRICTIONAL_REFERENCE_FIELDS})
+    W = _csc_of("W", arrays, path)
+    problem = ReducedFrictionalProblem.from_local(
+        header["name"], W, _vector(arrays, "q", path), _vector(arrays, "mu", path),
+        family=header.get("family", ""), source=header.get("source", ""),
+        metadata=header.get("metadata", {}), reference=reference, where=str(path))
+    problem.normal.data.update(
+        {key: _array(arrays, f"data_{key}", path) for key in header.get("data", [])})
+    problem.validate(str(path))
+    return problem
+
+
 def load(path: str | os.PathLike[str]) -> AnyProblem:
     """Reads a problem file written by :func:`save` (an :class:`ImpactProblem` or a
     :class:`FrictionalProblem`, by its kind); raises InputError on a bad file."""
@@ -175,6 +219,10 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
         raise InputError(str(path), f"corrupt problem file header ({error})",
                          attribute="header_json") from error
     _check_header(header, path)
+    if header.get("kind") == REDUCED:
+        reduced = _load_reduced(header, arrays, path)
+        _check_carried(reduced, arrays, path)
+        return reduced
     reference = None
     if "reference" in header:
         reference = Reference(
@@ -296,9 +344,9 @@ def _check_header(header: Any, path: Path) -> None:
         readable = " and ".join(str(v) for v in READABLE_VERSIONS)
         raise InputError(str(path), f"format version {found}; this qpbench reads versions "
                          f"{readable}", attribute="format")
-    if header.get("kind", IMPACT) not in (IMPACT, FRICTIONAL):
+    if header.get("kind", IMPACT) not in (IMPACT, FRICTIONAL, REDUCED):
         raise InputError(str(path), f"unknown kind {header.get('kind')!r} (known: {IMPACT}, "
-                         f"{FRICTIONAL})", attribute="kind")
+                         f"{FRICTIONAL}, {REDUCED})", attribute="kind")
     if not isinstance(header.get("name"), str) or not header["name"]:
         raise InputError(str(path), "missing: every problem file names its problem",
                          attribute="name")

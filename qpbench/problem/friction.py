@@ -162,6 +162,14 @@ class FrictionalProblem:
     def mu_max(self) -> float:
         return float(np.max(self.mu, initial=0.0))
 
+    def contact_graph(self) -> sp.csr_matrix:
+        """Contacts k, j are adjacent when a body of finite mass carries both (W's 2x2 block
+        (k, j) may be nonzero)."""
+        pattern = (abs(self.normal.G) + abs(self.T)).tocsc()
+        pattern.data[:] = 1.0
+        moving = sp.diags((self.m_inv > 0).astype(float))
+        return sp.csr_matrix(pattern.T @ moving @ pattern)
+
     def blind_copy(self) -> FrictionalProblem:
         """What a solver may see (as :meth:`ImpactProblem.blind_copy`): fresh arrays, no
         reference, no stored data."""

@@ -96,7 +96,10 @@ def v_error(problem: FrictionalProblem, impulses: np.ndarray, v_plus_ref: np.nda
 
 def energy_gain(problem: FrictionalProblem, impulses: np.ndarray) -> float:
     """(KE+ - KE-) / KE-, signed. With mu > 0 and e > 0 Newton's law may add energy when slip
-    reverses, so it is a diagnostic there, not a verdict."""
+    reverses, so it is a diagnostic there, not a verdict. NaN for a problem without degrees
+    of freedom (a reduced one: W, q, mu only), whose energy is not known."""
+    if problem.v_minus.size == 0:
+        return math.nan
     before = problem.kinetic_energy(problem.v_minus)
     after = problem.kinetic_energy(problem.v_plus(impulses))
     return (after - before) / max(before, TINY)
@@ -142,3 +145,16 @@ def evaluate(problem: FrictionalProblem, impulses: np.ndarray | None, accuracy: 
         "solvable": solvable,
         "mu_max": problem.mu_max,
     }
+
+
+def fclib_merit(problem: FrictionalProblem, impulses: np.ndarray) -> float:
+    """FCLIB's MERIT_1 for 2D: ``||F||_2 / (1 + ||q||_2)`` with the unscaled natural map
+    ``F_k = r_k - P_K(r_k - u^_k)`` (De Saxce's ``u^``, no ``d_k`` weights), over all contacts.
+    (FCLIB's own 3D code divides by ``1 + sqrt(||q||_2)``; this is the documented form.)"""
+    normal, tangential = problem.split(impulses)
+    u_normal, u_tangential = problem.split(problem.u(impulses))
+    u_normal = u_normal + problem.mu * np.abs(u_tangential)
+    projected_normal, projected_tangential = project_on_cone(
+        normal - u_normal, tangential - u_tangential, problem.mu)
+    F = np.concatenate([normal - projected_normal, tangential - projected_tangential])
+    return float(np.linalg.norm(F)) / (1.0 + float(np.linalg.norm(problem.q)))

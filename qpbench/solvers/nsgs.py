@@ -48,12 +48,9 @@ VERSION = __version__
 
 
 def contact_graph(problem: FrictionalProblem) -> sp.csr_matrix:
-    """Contacts k, j are adjacent when a body of finite mass carries both (W's 2x2 block
-    (k, j) may be nonzero)."""
-    pattern = (abs(problem.normal.G) + abs(problem.T)).tocsc()
-    pattern.data[:] = 1.0
-    moving = sp.diags((problem.m_inv > 0).astype(float))
-    return sp.csr_matrix(pattern.T @ moving @ pattern)
+    """Contacts k, j are adjacent when W's 2x2 block (k, j) may be nonzero
+    (:meth:`FrictionalProblem.contact_graph`)."""
+    return problem.contact_graph()
 
 
 def start_in_cone(problem: FrictionalProblem, warm_start: np.ndarray | None) -> np.ndarray:

@@ -1,0 +1,96 @@
+"""References of problems imported from Siconos and FCLIB files (docs/design.md section 5b).
+
+A reduced frictional problem (W, q, mu) has no velocities, so its reference is the impulses
+``r`` alone, found one group of coupled contacts at a time: Lemke on the group's scaled
+Stewart-Trinkle LCP, polished (``friction_reference.lemke_solution``), for groups of at most
+``LEMKE_CONTACTS`` contacts; otherwise (or where Lemke finds nothing) the best, by the Coulomb
+residual, of the solvers in ``ITERATIVE`` run at accuracy 1e-12. Its
+uniqueness is never proven (``unique`` None), so it is flagged, and only a residual of at most
+1e-12 counts as a solution (written to FCLIB's ``/solution``). Global problems and
+frictionless ones get the references of every other problem of their kind. It runs solvers,
+so it lives in bench.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from qpbench.problem import friction_metrics, friction_reference
+from qpbench.problem.files import AnyProblem
+from qpbench.problem.formulations import pose
+from qpbench.problem.friction import FrictionalProblem, FrictionalReference, kind_of
+from qpbench.problem.reduced import ReducedFrictionalProblem, reduced_subproblem
+from qpbench.problem.reference import attach_reference as attach_impact_reference
+from qpbench.solvers.registry import get
+
+LEMKE_CONTACTS = 300
+ITERATIVE = ("pi-robust/staggered", "nsgs")
+ACCURACY = 1e-12
+
+
+def _iterative(problem: ReducedFrictionalProblem) -> tuple[np.ndarray, str]:
+    """The best answer, by the Coulomb residual, of the ``ITERATIVE`` solvers at 1e-12."""
+    n = problem.n_contacts
+    best, best_value, method = np.zeros(2 * n), np.inf, "none"
+    for name in ITERATIVE:
+        spec = get(name, kind_of(problem))
+        if not spec.usable or spec.solve is None:
+            continue
+        copy = problem.blind_copy()
+        pose(copy, spec.formulation)
+        output = spec.solve(copy, ACCURACY, None)
+        if friction_metrics.is_finite(output.impulses, problem):
+            value = friction_metrics.residual(problem, output.impulses)
+            if value < best_value:
+                best, best_value = np.asarray(output.impulses, dtype=float), value
+                method = spec.key
+        if best_value <= ACCURACY:
+            break
+    return best, method
+
+
+def reduced_reference(problem: ReducedFrictionalProblem) -> FrictionalReference:
+    """The reference of a reduced problem (module docstring), one group of coupled contacts
+    (``friction_reference.components``) at a time: Lemke where the group has at most
+    ``LEMKE_CONTACTS`` contacts and finds a solution to 1e-12, else the iterative solvers."""
+    n = problem.n_contacts
+    if n == 0:
+        return FrictionalReference(np.zeros(0), np.zeros(0), "none", 0.0, True)
+    impulses, methods = np.zeros(2 * n), set()
+    for contacts in friction_reference.components(problem):
+        part = reduced_subproblem(problem, contacts)
+        found = (friction_reference.lemke_solution(part)
+                 if part.n_contacts <= LEMKE_CONTACTS else None)
+        method = "lemke"
+        if found is None:
+            found, method = _iterative(part)
+        methods.add(method)
+        impulses[contacts] = found[:len(contacts)]
+        impulses[n + contacts] = found[len(contacts):]
+    method = "+".join(sorted(methods)) + " per component"
+    return FrictionalReference(impulses, np.zeros(0), method,
+                               friction_metrics.residual(problem, impulses), None)
+
+
+def attach(problem: AnyProblem) -> AnyProblem:
+    """Sets the reference of any imported problem and records whether it is verified."""
+    if isinstance(problem, ReducedFrictionalProblem):
+        problem.reference = reduced_reference(problem)
+        problem.metadata["reference_verified"] = problem.reference.verified
+        problem.metadata["reference_unique"] = None
+        problem.metadata["reference_solvable"] = True
+    elif isinstance(problem, FrictionalProblem):
+        friction_reference.attach_reference(problem)
+    else:
+        attach_impact_reference(problem)
+    return problem
+
+
+def flag(problem: AnyProblem) -> str:
+    """Why the reference of ``problem`` is not verified, in a few words ('' when it is)."""
+    reference = problem.reference
+    if reference is None:
+        return "no reference"
+    if isinstance(problem, FrictionalProblem):
+        return friction_reference.describe(reference)
+    return "" if reference.verified else f"references disagree ({reference.agreement:.1e})"

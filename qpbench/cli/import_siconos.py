@@ -1,0 +1,42 @@
+"""``qpbench import-siconos FILE... [--kind fc2d|gfc2d|lcp] [--no-reference] -o DIR``: Siconos'
+text files to problem files."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from qpbench.bench.reduced_reference import attach, flag
+from qpbench.errors import UnsupportedError
+from qpbench.problem import files, siconos_files
+from qpbench.problem.siconos_import import import_siconos
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "import-siconos", help="import Siconos' fc2d, gfc2d and LCP text files as problems")
+    parser.add_argument("files", nargs="+", metavar="FILE", help="Siconos .dat files")
+    parser.add_argument("--kind", choices=siconos_files.KINDS, default=None,
+                        help="the file kind (default: from the name: fc2d_*, gfc2d_*, lcp_*)")
+    parser.add_argument("--no-reference", action="store_true", help="skip reference solutions")
+    parser.add_argument("-o", "--output", required=True, help="output folder")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    # read and check every file before writing anything; a general LCP is skipped, one line
+    problems = []
+    for path in args.files:
+        try:
+            problems.append(import_siconos(path, args.kind))
+        except UnsupportedError as refused:
+            print(f"qpbench import-siconos: skipped: {refused}", file=sys.stderr)
+    for problem in problems:
+        if not args.no_reference:
+            attach(problem)
+            why = flag(problem)
+            if why:
+                print(f"qpbench import-siconos: {problem.name}: reference flagged: {why}",
+                      file=sys.stderr)
+        print(files.save(problem, f"{args.output}/{problem.name}"))
+    return 0
