@@ -277,15 +277,17 @@ def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.
                          + bench_rows("osqp", "osqp", "dump", [2e-4]))
     seconds = {"pi-robust/lcp": 1e-5, "daqp/dual": 1e-4, "osqp/dual": 1e-2}
 
-    def timed(spec, problem, repeats, accuracy=1e-8, pass_number=0):  # noqa: ANN001, ANN202
-        return {"problem": problem.name, "set": head_to_head.set_of(problem),
-                "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
-                "contacts": problem.n_contacts, "status": "solved", "success": True,
-                "residual": 0.0, "iterations": 1, "outer_iterations": None,
-                "time_s": seconds[spec.key]}
+    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0):  # noqa: ANN001, ANN202
+        return [{"problem": problem.name, "set": head_to_head.set_of(problem),
+                 "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
+                 "contacts": problem.n_contacts, "status": "solved", "success": True,
+                 "residual": 0.0, "iterations": 1, "outer_iterations": None,
+                 "time_s": seconds[spec.key], "time_cold_cache_s": seconds[spec.key]}
+                for spec, problem in pairs]
 
-    monkeypatch.setattr(head_to_head, "measure", timed)
-    result = head_to_head.head_to_head(folder, bench, repeats=1, passes=2)
+    monkeypatch.setattr(head_to_head, "measure_batch", timed)
+    # one problem per batch: the field is asked after every problem
+    result = head_to_head.head_to_head(folder, bench, repeats=1, passes=2, batch_problems=1)
     measured = sorted((one["solver"], one["pass"]) for one in result["rows"])
     assert measured.count(("osqp/dual", 0)) == 1 and ("osqp/dual", 1) not in measured
     assert measured.count(("daqp/dual", 0)) == measured.count(("daqp/dual", 1)) == 3
@@ -293,5 +295,5 @@ def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.
     assert entry["external"]["solver"] == "daqp/dual"
     assert entry["out_of_running"][0]["solver"] == "osqp/dual"
     everything = head_to_head.head_to_head(folder, bench, repeats=1, passes=1,
-                                           out_of_running=math.inf)
+                                           out_of_running=math.inf, batch_problems=1)
     assert sum(one["solver"] == "osqp/dual" for one in everything["rows"]) == 3

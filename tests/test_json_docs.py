@@ -23,7 +23,7 @@ HEADING = re.compile(r"^## `qpbench ([a-z-]+)")
 ROW = re.compile(r"^\| `([^`]+)` \|")
 # the commands whose --help names the page
 WITH_EPILOG = ("solvers", "solve", "simulate", "scaling", "speed", "sequence", "breakdown",
-               "head-to-head")
+               "head-to-head", "sim-precision")
 
 
 def documented() -> dict[str, list[str]]:
@@ -82,7 +82,7 @@ def written(tmp_path: Path, arguments: list[str]) -> dict[str, Any]:
 def test_every_table_has_rows_and_every_command_with_json_a_table() -> None:
     fields = documented()
     assert set(fields) == {"solvers", "solve", "simulate", "scaling", "speed", "sequence",
-                           "breakdown", "head-to-head"}
+                           "breakdown", "head-to-head", "sim-precision"}
     assert all(fields.values())
     assert "writes NaN, +infinity and -infinity as `null`" in PAGE.read_text()
     assert field_pattern("stopped.<pair>").fullmatch("stopped.osqp/dual")
@@ -144,6 +144,19 @@ def test_head_to_head_writes_only_documented_fields(tmp_path: Path) -> None:
                                 "--repeats", "1", "--passes", "2"])
     assert report["summary"][0]["external"]["solver"] == "daqp/dual"
     assert undocumented("head-to-head", report) == []
+
+
+def test_sim_precision_writes_only_documented_fields(tmp_path: Path) -> None:
+    friction = ROOT / "problems" / "scisim_fidelity" / "scenes" / "ball2d" / "tests_friction"
+    scenes = [SCENES / "ura" / "K3.xml",  # frictionless
+              friction / "ball_plane" / "mu_0p5" / "slope_test_posx"
+              / "ball_slide_at_threshold.xml",  # frictional, SCISim's state after 50 steps
+              friction.parent / "examples_gr" / "bernoullis_problem_gauss_seidel.xml"]  # none
+    report = written(tmp_path, ["sim-precision", *map(str, scenes), "--solvers", "pi-robust,nsgs",
+                                "--accuracy", "1e-4,1e-8", "--steps", "50", "--no-progress"])
+    assert {row["status"] for row in report["rows"]} == {"ok", "skipped"}
+    assert any(row["scisim_agrees"] is not None for row in report["rows"])
+    assert undocumented("sim-precision", report) == []
 
 
 @pytest.mark.parametrize("name, command", [("scaling", "scaling"), ("speed", "speed"),

@@ -37,16 +37,18 @@ def test_the_fastest_of_the_repeats_is_kept_each_from_the_same_warm_start(
         monkeypatch: pytest.MonkeyPatch) -> None:
     warm_starts = given_times(monkeypatch, [0.02, 0.005, 0.01])
     start = np.ones(1)
-    fastest = repeats.fastest_solve(None, None, 1e-8, repeats=3, warm_start=start)
-    assert fastest.time_s == 0.005
+    [outputs] = repeats.time_interleaved([repeats.Timing(None, None, start, unit="one")],
+                                         repeats=3, warm_up=False)
+    assert repeats.fastest_output(outputs).time_s == 0.005
     assert len(warm_starts) == 3 and all(warm is start for warm in warm_starts)
 
 
 def test_a_solve_slower_than_the_repeat_budget_is_not_repeated(
         monkeypatch: pytest.MonkeyPatch) -> None:
     warm_starts = given_times(monkeypatch, [2 * repeats.REPEAT_BUDGET_S, 0.001])
-    assert repeats.fastest_solve(None, None, 1e-8, repeats=5).time_s == \
-        2 * repeats.REPEAT_BUDGET_S
+    [outputs] = repeats.time_interleaved([repeats.Timing(None, None, unit="one")], repeats=5,
+                                         warm_up=False)
+    assert repeats.fastest_output(outputs).time_s == 2 * repeats.REPEAT_BUDGET_S
     assert len(warm_starts) == 1
 
 

@@ -77,17 +77,19 @@ def test_capture_stores_contact_keys_without_changing_the_problems(
 def test_each_solve_is_the_fastest_of_its_repeats_from_one_warm_start(
         captured: list[ImpactProblem], monkeypatch: pytest.MonkeyPatch) -> None:
     """Three repeats per solve (no repeat budget here, so no clock decides how many): every
-    step calls the solver three times cold and three times from the same warm start."""
+    step calls the solver once untimed (the warm-up, cold), then three times cold and three
+    times from the same warm start, the two alternating (never one repeat after another)."""
     from qpbench.bench import repeats
 
     monkeypatch.setattr(repeats, "REPEAT_BUDGET_S", math.inf)
     recorder = Recorder()
     rows = sequence.replay(recorder.spec(), captured[:4], 1e-8, "box", repeats=3)
-    assert len(rows) == 4 and len(recorder.calls) == 4 * 6
+    assert len(rows) == 4 and len(recorder.calls) == 4 * 7
     for step in range(4):
-        calls = recorder.calls[6 * step:6 * step + 6]
-        assert all(warm is None for warm, _ in calls[:3])
-        warm_starts = [warm for warm, _ in calls[3:]]
+        warm_up, *calls = recorder.calls[7 * step:7 * step + 7]
+        assert warm_up[0] is None
+        assert all(warm is None for warm, _ in calls[0::2])
+        warm_starts = [warm for warm, _ in calls[1::2]]
         assert all(warm is None for warm in warm_starts) or all(
             np.array_equal(warm, warm_starts[0]) for warm in warm_starts)
 
@@ -105,8 +107,9 @@ def test_sequence_warm_starts_each_step_from_the_solvers_own_previous_answer(
     rows = sequence.replay(recorder.spec(), captured, 1e-8, "box", repeats=1)
     assert [(row["solver"], row["index"]) for row in rows] == \
         [("test-recorder/lcp", k) for k in range(len(captured))]
-    assert len(recorder.calls) == 2 * len(captured)  # cold, then sequence, per step
-    cold_calls, sequence_calls = recorder.calls[0::2], recorder.calls[1::2]
+    assert len(recorder.calls) == 3 * len(captured)  # warm-up, cold, sequence per step
+    cold_calls, sequence_calls = recorder.calls[1::3], recorder.calls[2::3]
+    assert all(warm is None for warm, _ in recorder.calls[0::3])  # the warm-ups: cold
     assert all(warm is None for warm, _ in cold_calls)
     assert sequence_calls[0][0] is None  # the first step has no previous answer
     given = 0
@@ -143,14 +146,15 @@ def test_pairs_take_turns_step_by_step_each_from_its_own_answers(
         [(name, k) for k in range(len(captured)) for name in ("test-first/lcp", "test-second/lcp")]
     carried_any = False
     for recorder, other in ((first, second), (second, first)):
+        # each pair's own calls per step: its warm-up, its cold solve, its sequence solve
         for k in range(1, len(captured)):
-            warm = recorder.calls[2 * k + 1][0]
+            warm = recorder.calls[3 * k + 2][0]
             if warm is None:
                 continue
             carried_any = True
             before, now = captured[k - 1].data["contact_keys"], captured[k].data["contact_keys"]
-            own, _ = sequence.carried(before, recorder.calls[2 * k - 1][1], now)
-            others, _ = sequence.carried(before, other.calls[2 * k - 1][1], now)
+            own, _ = sequence.carried(before, recorder.calls[3 * k - 1][1], now)
+            others, _ = sequence.carried(before, other.calls[3 * k - 1][1], now)
             np.testing.assert_array_equal(warm, own)
             assert not np.array_equal(warm, others) or not np.any(warm)
     assert carried_any  # consecutive box steps share contacts
@@ -396,8 +400,10 @@ def test_breakdown_times_every_part_once_in_each_round(monkeypatch: pytest.Monke
     monkeypatch.setattr(breakdown, "call_solver", call_solver)
     monkeypatch.setattr(breakdown._FloorRounds, "round", floor_round)
     row = breakdown.measure(problem, trivial, repeats=2)
-    one_round = [f"{breakdown.HARNESS.name}:problem", "pi-robust:trivial",
-                 "pi-robust:problem", "pi-robust:problem", "pi-robust:problem"]
+    # the total and the instrumented solve of pi-robust never follow a solve of the problem
+    # by pi-robust: other parts run between them (docs/design.md section 7)
+    one_round = ["pi-robust:problem", "pi-robust:trivial", f"{breakdown.HARNESS.name}:problem",
+                 "pi-robust:problem"]
     assert calls == ["pi-robust:problem", *one_round, *one_round]  # (the first: untimed)
-    assert floor_rounds == [3, 8]  # after the trivial solve of each round
+    assert floor_rounds == [5, 9]  # at the end of each round
     assert row["kernel_s"] <= row["instrumented_total_s"]  # the kernel runs inside that call

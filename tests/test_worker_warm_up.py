@@ -27,6 +27,8 @@ class RecordingCellSolver(CellSolver):
                                    solve=self._solve, version="0")
 
     def _heard(self, message: dict[str, Any]) -> None:
+        if message["event"] == "load":  # setting a cell up, no solver call
+            return
         which = "warm-up" if message.get("warm_up") else message.get("repeat")
         self.log.append((message["event"], which))
 
@@ -64,5 +66,25 @@ def test_a_worker_warms_up_once_per_problem_and_solver_before_the_timed_levels(
     # the warm-up's answer (zeros, 99 iterations) is in no row: each row judges its own
     # first timed answer and counts only the timed repeats
     for row in rows:
+        assert row["status"] == "solved" and row["solver_status"] == "exact"
+        assert row["iterations"] == 1 and row["repeats"] == 2
+
+
+def test_a_batch_warms_each_problem_and_solver_up_once_before_any_timed_solve(
+        tmp_path: Path) -> None:
+    """The same four cells as one batch: both warm-ups (each at its problem's first level)
+    come first, then the timed solves, interleaved (tests/test_timing_protocol.py checks
+    their order in full)."""
+    row3, row4 = write_tiny_problems(tmp_path, count=2)
+    worker = RecordingCellSolver()
+    cells = [Cell(str(path), path.stem, "test-recorder", "lcp", level, "cold")
+             for path in (row3, row4) for level in (1e-4, 1e-8)]
+    rows = dict(worker.solve_batch(cells, Limits(repeats=2)))
+    warm_up = [("begin", "warm-up"), ("solve", 1e-4), ("end", "warm-up")]
+    assert worker.log[:6] == [*warm_up, *warm_up]
+    assert ("begin", "warm-up") not in worker.log[6:]
+    assert sum(entry == ("begin", 0) for entry in worker.log) == 4  # every cell's first
+    assert sum(entry == ("begin", 1) for entry in worker.log) == 4  # and second repeat
+    for row in rows.values():
         assert row["status"] == "solved" and row["solver_status"] == "exact"
         assert row["iterations"] == 1 and row["repeats"] == 2

@@ -10,18 +10,16 @@ rounds that each time every part below once, in turn:
 * ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
   formulation, stopwatch): what every solver pays;
 * ``trivial_s``: pi-robust's ``time_s`` on a one-contact problem (its fixed Python cost);
-* ``kernel_s``: the compiled call ``pi_robust_envelope.envelope_pi_robust`` alone (0 when the
-  compiled path is not taken), ``python_path_s``: the Python fallback ``pi_robust.pi_robust``
-  when it runs; ``outside_kernel_s = total_s - kernel_s - python_path_s`` (set-up in Python,
-  confirming the answer, the harness), never below 0;
+* ``kernel_s``: the compiled call ``pi_robust_kernel.entry.envelope_pi_robust`` alone (0
+  when the compiled path is not taken), ``python_path_s``: the Python fallback
+  ``pi_robust.pi_robust`` when it runs; ``outside_kernel_s = total_s - kernel_s -
+  python_path_s`` (set-up in Python, confirming the answer, the harness), never below 0;
 * ``kernel_back_to_back_s``: the same compiled call on the same posed arrays, repeated back to
   back with nothing in between, and ``cold_kernel_s = kernel_s - kernel_back_to_back_s``: what
   the kernel loses inside ``call_solver``, where other work (the blind copy, the posing) has
   run since its last call. Back to back, the caches hold the kernel's code and data and the
-  branch predictors have learned this very solve; other work in between wipes some of that
-  (on the 7x7 scenes, a 1 ms pure-Python loop between calls costs the kernel about half of
-  what the posing costs it, a 1 ms sleep nothing). ``time_s`` includes this loss for every
-  solver alike;
+  branch predictors have learned this very solve; other work in between wipes some of that.
+  ``time_s`` includes this loss for every solver alike;
 * ``product_s``: one product ``Q l`` over the problem's CSC Q in compiled code, and the
   counts the solver reports (linear solves, factorizations, interior iterations, its path);
 * ``floor_s``: one Cholesky of the final active block ``Q_AA + eps I``, the faster of dense
@@ -180,7 +178,8 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], floa
     """A function that times two compiled calls in a row on one copy of ``problem`` posed for
     ``spec`` and returns the second's time: the kernel back to back, with nothing in between
     (the caller has seen the compiled path run)."""
-    from qpbench.solvers import pi_robust, pi_robust_envelope
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_kernel import entry as kernel
 
     blind = problem.blind_copy()
     pose(blind, spec.formulation)
@@ -188,7 +187,7 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], floa
 
     def once() -> float:
         start = time.perf_counter()
-        pi_robust.kernel_call(pi_robust_envelope.envelope_pi_robust, blind, settings, None)
+        pi_robust.kernel_call(kernel.envelope_pi_robust, blind, settings, None)
         return time.perf_counter() - start
 
     def twice() -> float:
@@ -203,7 +202,8 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
     """The breakdown of one problem (module docstring). Each of ``repeats`` rounds times every
     part once, in turn, so that a burst of load on the host falls on all parts alike; each
     part keeps its fastest round."""
-    from qpbench.solvers import pi_robust, pi_robust_envelope
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_kernel import entry as kernel
 
     spec = get(SOLVER)
     first = call_solver(spec, problem, ACCURACY)  # untimed: its answer and counts are reported
@@ -214,21 +214,20 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
     parts: dict[str, list[float]] = {name: [] for name in (
         "total", "instrumented", "kernel", "python", "back_to_back", "harness", "trivial")}
     for _ in range(repeats):
-        parts["harness"].append(call_solver(HARNESS, problem, ACCURACY).time_s)
-        parts["trivial"].append(call_solver(spec, trivial, ACCURACY).time_s)
-        floor_rounds.round()
-        # pi-robust's own parts as head-to-head's repeats find it: its last solve was this
-        # problem's (one untimed), with a blind copy and a posing since
-        call_solver(spec, problem, ACCURACY)
+        # pi-robust's own parts as the timing protocol (docs/design.md section 7) finds them:
+        # never right after a solve of this problem by pi-robust, other parts ran since
         parts["total"].append(call_solver(spec, problem, ACCURACY).time_s)
+        parts["trivial"].append(call_solver(spec, trivial, ACCURACY).time_s)
+        parts["harness"].append(call_solver(HARNESS, problem, ACCURACY).time_s)
         kernel_calls: list[float] = []
         python_calls: list[float] = []
-        with _timed(pi_robust_envelope, "envelope_pi_robust", kernel_calls), \
+        with _timed(kernel, "envelope_pi_robust", kernel_calls), \
                 _timed(pi_robust, "pi_robust", python_calls):
             parts["instrumented"].append(call_solver(spec, problem, ACCURACY).time_s)
         parts["kernel"].append(sum(kernel_calls))
         parts["python"].append(sum(python_calls))
         parts["back_to_back"].append(back_to_back_call() if back_to_back_call else 0.0)
+        floor_rounds.round()  # between the back-to-back calls and the next round's total
     total, kernel_s, python_s, back_to_back = (
         min(parts[name]) for name in ("total", "kernel", "python", "back_to_back"))
     measured = metrics.evaluate(problem, impulses, ACCURACY)

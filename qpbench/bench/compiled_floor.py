@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 from numba.extending import get_cython_function_address
 
-from qpbench.solvers.pi_robust_envelope import matvec_into
+from qpbench.solvers.pi_robust_kernel.residual import matvec_into
 
 # per timed round: repetitions inside the one compiled call, about ROUND_SECONDS of them
 MAX_REPETITIONS = 100

@@ -1,10 +1,10 @@
 """Where the cells run: in order on one worker, on N local workers, or on a Dask cluster.
 
-Every executor hands each cell to an :class:`~qpbench.bench.isolation.IsolatedWorker`
-(a child process), so all three give the same rows; they differ only in how many
-cells run at once and on which machine. Cells are grouped (by problem file and
-solver locally, by problem file for Dask tasks) so a worker loads a problem once per
-group. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any order; when
+Every executor hands batches of cells (``qpbench.bench.runner.batches``: a few problems,
+every pair and level of them) to an :class:`~qpbench.bench.isolation.IsolatedWorker`
+(a child process), which interleaves each batch's timed solves (docs/design.md section 7),
+so all three give the same rows; they differ only in how many batches run at once and on
+which machine. ``map(cells, limits)`` yields ``(cell, row)`` as cells finish, in any order; when
 the caller stops early (an interrupt, or closing the iterator) the local workers are killed
 at once, and no new one is started.
 """
@@ -16,11 +16,10 @@ import contextlib
 import queue
 import threading
 from collections.abc import Iterator
-from itertools import groupby
 from typing import Any, Protocol
 
 from qpbench.bench.isolation import IsolatedWorker
-from qpbench.bench.runner import solve_serially
+from qpbench.bench.runner import batches, solve_serially
 from qpbench.bench.settings import Cell, Limits
 from qpbench.errors import QpbenchError
 
@@ -33,20 +32,8 @@ class Executor(Protocol):
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]: ...
 
 
-def by_problem(cells: list[Cell]) -> list[list[Cell]]:
-    """The cells in consecutive groups of one problem file each."""
-    return [list(group) for _, group in groupby(cells, key=lambda cell: cell.problem_file)]
-
-
-def by_problem_and_solver(cells: list[Cell]) -> list[list[Cell]]:
-    """Consecutive groups of one problem file and one solver: small enough to keep every
-    worker busy on a set of few problems, large enough to load a problem once per group."""
-    return [list(group) for _, group in
-            groupby(cells, key=lambda cell: (cell.problem_file, cell.solver_key))]
-
-
 class SerialExecutor:
-    """One worker process, cells in matrix order."""
+    """One worker process, batches in matrix order."""
 
     name = "serial"
 
@@ -70,7 +57,7 @@ class ProcessExecutor:
 
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
         chunks: queue.Queue[list[Cell] | None] = queue.Queue()
-        for chunk in by_problem_and_solver(cells):
+        for chunk in batches(cells):
             chunks.put(chunk)
         results: queue.Queue[Result | BaseException | None] = queue.Queue()
         stop = threading.Event()
@@ -83,10 +70,10 @@ class ProcessExecutor:
                         chunk = chunks.get_nowait()
                     except queue.Empty:
                         break
-                    for cell in chunk:
+                    for result in worker.solve_batch(chunk, limits):
                         if stop.is_set():
-                            break
-                        results.put((cell, worker.solve(cell, limits)))
+                            break  # closing the batch kills the worker
+                        results.put(result)
             except BaseException as error:  # reported to the caller, which stops the run
                 results.put(error)
             finally:
@@ -131,8 +118,8 @@ atexit.register(_close_dask_workers)
 
 
 def solve_chunk(chunk: list[Cell], limits: Limits) -> list[Result]:
-    """A Dask task: the cells of one problem on this thread's isolated worker (kept for the
-    next task, so the worker process starts once per Dask worker thread)."""
+    """A Dask task: one batch of cells on this thread's isolated worker (kept for the next
+    task, so the worker process starts once per Dask worker thread)."""
     key = threading.get_ident()
     with _DASK_LOCK:
         worker = _DASK_WORKERS.setdefault(key, IsolatedWorker())
@@ -140,7 +127,7 @@ def solve_chunk(chunk: list[Cell], limits: Limits) -> list[Result]:
 
 
 class DaskExecutor:
-    """Cells grouped by problem, one Dask task per group, on the scheduler at ``address``."""
+    """One Dask task per batch of cells, on the scheduler at ``address``."""
 
     name = "dask"
 
@@ -165,7 +152,7 @@ class DaskExecutor:
         client = self.client()
         try:
             futures = [client.submit(solve_chunk, chunk, limits, pure=False)
-                       for chunk in by_problem(cells)]
+                       for chunk in batches(cells)]
             for future in as_completed(futures):
                 yield from future.result()
         finally:

@@ -1,4 +1,5 @@
-"""Head to head, cold: pi-robust against the fastest external pairs on the sets that matter.
+"""Head to head, no warm start: pi-robust against the fastest external pairs on the sets
+that matter, timed interleaved and, beside it, with the CPU caches flushed (cold).
 
 The sets (``problems/head_to_head.toml``, built with ``qpbench build-set``): the SCISim
 research fork's 50 dumps of its 5x5 grid scene, the first impacts of its 50 7x7 grid scenes,
@@ -20,24 +21,28 @@ that set (:class:`Running`): it cannot be the fastest, and on the large box pack
 solver's minute-long solves were most of the benchmark's time. The report names every such
 pair, after how many problems it left and how much slower it was.
 
-Every solve goes through the one stopwatch (``call_solver``), the fastest of ``repeats``
-(``qpbench.bench.repeats``), and the whole measurement runs ``passes`` times, one pass after
-another: the machine's speed drifts over minutes (a shared host), and the pairs of a problem
-run back to back, so each pass alone gives a speedup, and their spread shows how far the drift
-moves it. The set's figures below are each problem's fastest over all passes;
-every answer is judged by qpbench's residual at ``accuracy``; problems without a solution
-(``no-solution``) are left out of the sets' figures, as the report does. Per set and pair:
-the shifted geometric mean (``qpbench.bench.stats``: shift on the set's own time scale) of
-times charged with the largest time of the set where a solve failed, and
-``speedup = SGM(fastest external) / SGM(pi-robust)`` (above 1: pi-robust faster), against the
-target of 3, met when every pass alone gives at least 3 too and pi-robust solves every
-problem the external pair solves. The
-frictional problems form two sets, one per formulation (``staggered``, ``ccp``), so that each
-compares pairs that solve the same model; a problem that neither pair solves (staggered
-projections need not converge) is charged to both and named. Staggered pairs run here up to
-``STAGGERED_MAX_OUTER`` rounds, every pair alike, instead of the accuracy table's cap: at
-1e-8 rough-box-30 needs about 1,700 rounds, and under the table's 200 no pair solves it, so
-the set would compare nothing there.
+Every solve goes through the one stopwatch (``call_solver``) under the timing protocol
+(docs/design.md section 7, ``qpbench.bench.repeats.time_interleaved``): the problems are taken
+in small batches of one set (:func:`problem_batches`), and the solves of every running pair on
+every problem of a batch are timed together, one untimed warm-up each, then rounds of one timed
+call each in a rotated order, so that no repeat follows a repeat of the same (problem, pair);
+``time_s`` is the fastest of ``repeats``. Beside it, the cold variant (``time_cold_cache_s``,
+``cold_cache`` in a set's summary) is the fastest of ``cold_repeats`` calls, each made after
+flushing the CPU caches (outside the stopwatch), in the same schedule. The whole measurement
+runs ``passes`` times, one pass after another: the machine's speed drifts over minutes (a
+shared host), so each pass alone gives a speedup, and their spread shows how far the drift
+moves it. The set's figures below are each problem's fastest over all passes; every answer is
+judged by qpbench's residual at ``accuracy``; problems without a solution (``no-solution``) are
+left out of the sets' figures, as the report does. Per set and pair: the shifted geometric mean
+(``qpbench.bench.stats``: shift on the set's own time scale) of times charged with the largest
+time of the set where a solve failed, and ``speedup = SGM(fastest external) / SGM(pi-robust)``
+(above 1: pi-robust faster), against the target of 3, met when every pass alone gives at least
+3 too and pi-robust solves every problem the external pair solves. The frictional problems form
+two sets, one per formulation (``staggered``, ``ccp``), so that each compares pairs that solve
+the same model; a problem that neither pair solves (staggered projections need not converge) is
+charged to both and named. Staggered pairs run here up to ``STAGGERED_MAX_OUTER`` rounds, every
+pair alike, instead of the accuracy table's cap: at 1e-8 rough-box-30 needs about 1,700 rounds,
+and under the table's 200 no pair solves it, so the set would compare nothing there.
 """
 
 from __future__ import annotations
@@ -53,13 +58,16 @@ import pandas as pd
 
 from qpbench.bench import stats
 from qpbench.bench.defaults import (
+    HEAD_TO_HEAD_BATCH_PROBLEMS,
     HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_COLD_REPEATS,
     HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
     TARGET_SPEEDUP,
 )
-from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
+from qpbench.bench.repeats import REPEAT_BUDGET_S, Timing, fastest_output, time_interleaved
+from qpbench.bench.schedule import flush_bytes
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
@@ -69,6 +77,8 @@ from qpbench.solvers.run import NO_SOLUTION, judge
 
 ACCURACY = 1e-8
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
+# contacts of a batch of problems timed together, at most (a larger problem is timed alone)
+BATCH_CONTACTS = 1_000
 OWN_IMPACT = ("pi-robust/lcp",)
 OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")
 FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
@@ -158,25 +168,43 @@ def ranked(frame: pd.DataFrame) -> list[str]:
     return sorted(sgm, key=sgm.get)
 
 
-def measure(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, repeats: int,
-            accuracy: float = ACCURACY, pass_number: int = 0) -> dict[str, Any]:
-    """One problem, one pair, in pass ``pass_number``: the fastest of ``repeats`` solves
-    (``fastest_solve``), judged by qpbench."""
-    fastest = fastest_solve(spec, problem, accuracy, repeats)
-    row = judge(spec, problem, fastest, accuracy)
-    return {"problem": problem.name, "set": set_of(problem, spec.formulation),
+def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalProblem]],
+                  repeats: int, accuracy: float = ACCURACY, pass_number: int = 0,
+                  cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS) -> list[dict[str, Any]]:
+    """One row per (pair, problem) of ``pairs``, in pass ``pass_number``: their solves timed
+    together under the timing protocol (``qpbench.bench.repeats.time_interleaved``: one
+    untimed warm-up each, then up to ``repeats`` interleaved timed calls, ``time_s`` the
+    fastest), and beside them up to ``cold_repeats`` calls with the CPU caches flushed
+    before each (``time_cold_cache_s``, the fastest; NaN with none), in the same schedule.
+    The first interleaved answer is judged by qpbench."""
+    timings = [Timing(spec, problem) for spec, problem in pairs]
+    if cold_repeats > 0:
+        timings += [Timing(spec, problem, cold=True, repeats=cold_repeats)
+                    for spec, problem in pairs]
+    outputs = time_interleaved(timings, max(repeats, cold_repeats), accuracy)
+    rows = []
+    for number, (spec, problem) in enumerate(pairs):
+        warm = outputs[number]
+        cold = outputs[len(pairs) + number] if cold_repeats > 0 else []
+        row = judge(spec, problem, warm[0], accuracy)
+        rows.append({
+            "problem": problem.name, "set": set_of(problem, spec.formulation),
             "solver": spec.key, "pass": pass_number,
             "own": spec.backend == stats.OWN_BACKEND, "contacts": problem.n_contacts,
             "status": row["status"], "success": bool(row["success"]),
             "residual": row["residual"], "iterations": row["iterations"],
-            "outer_iterations": row["outer_iterations"], "time_s": fastest.time_s}
+            "outer_iterations": row["outer_iterations"],
+            "time_s": fastest_output(warm).time_s,
+            "time_cold_cache_s": fastest_output(cold).time_s if cold else math.nan})
+    return rows
 
 
 @dataclass
 class Running:
-    """Which external pairs are still in the running on each set. After each problem,
-    :meth:`update` sums each running external pair's ``time_s`` over the set's rows so far (the
-    same problems for all of them: a problem's pairs run back to back) and takes out every pair
+    """Which external pairs are still in the running on each set. After each batch of
+    problems, :meth:`update` sums each running external pair's ``time_s`` over the set's rows
+    so far (the same problems for all of them: a batch times every running pair on each of
+    its problems) and takes out every pair
     whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
     one of those problems (those without a solution, which the figures leave out, aside);
     ``out[set][pair]`` keeps after how many problems it left, how many times slower it was and
@@ -213,7 +241,7 @@ class Running:
 
 def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
     """Each (problem, pair)'s row with the smallest ``time_s`` over all passes, as
-    ``fastest_solve`` keeps the fastest of its repeats."""
+    each solve keeps the fastest of its repeats."""
     if "pass" not in frame or frame.empty:
         return frame
     fastest = frame.loc[frame.groupby(["problem", "solver"], sort=False)["time_s"].idxmin()]
@@ -236,6 +264,9 @@ def summarize(rows: Sequence[dict[str, Any]],
     for name in [s for s in SETS if s in set(frame["set"])]:
         group = frame[frame["set"] == name]
         entry = _set_summary(name, fastest_over_passes(group))
+        cold_cache = cold_cache_summary(name, group)
+        if cold_cache:
+            entry["cold_cache"] = cold_cache
         if "speedup" in entry and len(passes) > 1:
             entry["pass_speedups"] = [
                 _set_summary(name, group[group["pass"] == number]).get("speedup", math.nan)
@@ -247,6 +278,19 @@ def summarize(rows: Sequence[dict[str, Any]],
                                        for solver, left in sorted(out[name].items())]
         summary.append(entry)
     return summary
+
+
+def cold_cache_summary(name: str, group: pd.DataFrame) -> dict[str, Any]:
+    """The set's figures from the cold variant (``time_cold_cache_s``: the caches flushed
+    before each timed call) in place of ``time_s``: pi-robust's best pair, the fastest
+    external pair and the speedup (empty when the variant was not measured)."""
+    if "time_cold_cache_s" not in group or not group["time_cold_cache_s"].notna().any():
+        return {}
+    cold = _set_summary(name, fastest_over_passes(
+        group.assign(time_s=group["time_cold_cache_s"]).dropna(subset=["time_s"])))
+    if "speedup" not in cold:
+        return {}
+    return {"own": cold["own"], "external": cold["external"], "speedup": cold["speedup"]}
 
 
 def _set_summary(name: str, group: pd.DataFrame) -> dict[str, Any]:
@@ -296,11 +340,18 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
 
 
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
-             out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING) -> str:
+             out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
+             cold_repeats: int = 0) -> str:
     lines = [
-        "## Head to head, cold: pi-robust against the fastest external pairs per set\n",
+        "## Head to head, no warm start: pi-robust against the fastest external pairs per "
+        "set\n",
         f"Accuracy {ACCURACY:g}; `time_s` of the one stopwatch, the fastest of {repeats} "
-        f"repeats (fewer once they took {REPEAT_BUDGET_S:g} s)"
+        f"repeats (fewer once they took {REPEAT_BUDGET_S:g} s), never back to back: the "
+        "solves of a few problems by every pair are timed together, one round of every "
+        "(problem, pair) after another in a rotated order, after one untimed warm-up each"
+        + (f"; *caches flushed*: the same speedup from the fastest of {cold_repeats} calls "
+           "each made after writing a buffer as large as the last-level cache (outside the "
+           "stopwatch)" if cold_repeats > 0 else "")
         + (f", in each of {passes} passes over the whole set, one after another; each "
            "problem's fastest over the passes makes the table, and *per pass* is the range of "
            "the speedups that each pass alone gives (the machine's speed drifts between them)"
@@ -320,14 +371,15 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         "the median over the problems both solve of the external pair's time over "
         "pi-robust's.\n",
         "| set | problems | contacts | pi-robust pair | SGM [ms] | solved | fastest external "
-        "pair | SGM [ms] | solved | speedup | per pass | per problem | target |",
-        "|---|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---|",
+        "pair | SGM [ms] | solved | speedup | per pass | per problem | caches flushed | "
+        "target |",
+        "|---|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for entry in summary:
         own, external = entry.get("own"), entry.get("external")
         if own is None or external is None:
             lines.append(f"| {entry['set']} | {entry['problems']} | | (not measured) "
-                         "| | | | | | | | | |")
+                         "| | | | | | | | | | |")
             continue
         lines.append(
             f"| {entry['set']} | {entry['problems']} | {entry['contacts_min']}-"
@@ -335,7 +387,7 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"{100 * own['success_rate']:.0f}% | `{external['solver']}` | "
             f"{1e3 * external['sgm_s']:.3f} | {100 * external['success_rate']:.0f}% | "
             f"{entry['speedup']:.2f}x | {pass_range(entry)} | "
-            f"{entry['median_problem_speedup']:.2f}x | "
+            f"{entry['median_problem_speedup']:.2f}x | {flushed(entry)} | "
             f"{'met' if entry['target_met'] else 'not met'} |")
     held = [entry["set"] for entry in summary if entry.get("target_met")]
     missed = [entry["set"] for entry in summary if "target_met" in entry
@@ -364,6 +416,18 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
     return "\n".join(lines) + "\n"
 
 
+def flushed(entry: dict[str, Any]) -> str:
+    """The speedup of a set's cold variant (caches flushed before each timed call), with the
+    pairs it compares when they differ from the table's; empty when not measured."""
+    cold = entry.get("cold_cache")
+    if not cold:
+        return ""
+    pairs = (cold["own"]["solver"], cold["external"]["solver"])
+    named = "" if pairs == (entry["own"]["solver"], entry["external"]["solver"]) else \
+        f" (`{pairs[0]}` / `{pairs[1]}`)"
+    return f"{cold['speedup']:.2f}x{named}"
+
+
 def pass_range(entry: dict[str, Any]) -> str:
     """``lowest-highest x`` of the per-pass speedups (``pass_speedups``) of a set's or a
     scene's summary (empty with one pass)."""
@@ -383,13 +447,36 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
            f"{', '.join(missed)}."
 
 
+def problem_batches(problems: Sequence[ImpactProblem | FrictionalProblem], size: int,
+                    max_contacts: int = BATCH_CONTACTS
+                    ) -> list[list[ImpactProblem | FrictionalProblem]]:
+    """Consecutive problems in batches whose solves are timed together: each of one set, at
+    most ``size`` problems, and no more than ``max_contacts`` contacts in all unless it holds
+    a single problem (a large problem's pairs are timed with each other only: its solves take
+    milliseconds, and a pair far slower than the fastest leaves the set after each batch)."""
+    grouped: list[list[ImpactProblem | FrictionalProblem]] = []
+    for problem in problems:
+        last = grouped[-1] if grouped else []
+        if (last and len(last) < size and set_of(last[0]) == set_of(problem)
+                and sum(one.n_contacts for one in last) + problem.n_contacts <= max_contacts):
+            last.append(problem)
+        else:
+            grouped.append([problem])
+    return grouped
+
+
 def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO_HEAD_REPEATS,
                  candidates: int = HEAD_TO_HEAD_CANDIDATES,
                  progress: Callable[[str], None] | None = None,
                  passes: int = HEAD_TO_HEAD_PASSES,
-                 out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING) -> dict[str, Any]:
+                 out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
+                 cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS,
+                 batch_problems: int = HEAD_TO_HEAD_BATCH_PROBLEMS) -> dict[str, Any]:
     """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary,
-    ``markdown``; external pairs leave a set as :class:`Running` says, with ``limit =
+    ``markdown``. The problems are timed in batches (:func:`problem_batches` of
+    ``batch_problems``), every running pair on every problem of a batch in one interleaved
+    schedule (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside);
+    external pairs leave a set after a batch as :class:`Running` says, with ``limit =
     out_of_running`` (infinite: every pair runs on every problem)."""
     from qpbench.solvers.registry import get
 
@@ -401,23 +488,31 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                             for key in (*OWN_FRICTIONAL, *chosen["frictional"])]}
     rows: list[dict[str, Any]] = []
     running = Running(out_of_running)
+    batches = problem_batches(problems, batch_problems)
     with accuracy_table.overridden("staggered", max_outer=STAGGERED_MAX_OUTER):
         for pass_number in range(passes):
-            for number, problem in enumerate(problems):
-                kind = "frictional" if isinstance(problem, FrictionalProblem) else "impact"
+            done = 0
+            for batch in batches:
+                done += len(batch)
                 if progress is not None:
-                    progress(f"pass {pass_number + 1}/{passes} [{number + 1}/{len(problems)}] "
-                             f"{problem.name}")
-                measured = [measure(spec, problem, repeats, pass_number=pass_number)
-                            for spec in specs[kind] if spec.solve is not None
-                            and running.running(set_of(problem, spec.formulation), spec.key)]
+                    progress(f"pass {pass_number + 1}/{passes} [{done}/{len(problems)}] "
+                             f"{batch[-1].name}")
+                pairs = [(spec, problem) for problem in batch for spec in specs[
+                    "frictional" if isinstance(problem, FrictionalProblem) else "impact"]
+                    if spec.solve is not None
+                    and running.running(set_of(problem, spec.formulation), spec.key)]
+                measured = measure_batch(pairs, repeats, pass_number=pass_number,
+                                         cold_repeats=cold_repeats)
                 rows += measured
                 for set_name in {one["set"] for one in measured}:
                     running.update(rows, set_name)
     summary = summarize(rows, running.out)
-    return {"accuracy": ACCURACY, "repeats": repeats, "passes": passes, "candidates": chosen,
+    return {"accuracy": ACCURACY, "repeats": repeats, "cold_repeats": cold_repeats,
+            "batch_problems": batch_problems, "flush_bytes": flush_bytes() if cold_repeats
+            else 0, "passes": passes, "candidates": chosen,
             "staggered_max_outer": STAGGERED_MAX_OUTER, "out_of_running": out_of_running,
             "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
-            "markdown": markdown(summary, repeats, passes, out_of_running) if rows else "",
+            "markdown": markdown(summary, repeats, passes, out_of_running, cold_repeats)
+            if rows else "",
             "problems": len(problems),
             "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}

@@ -1,7 +1,8 @@
 """Process isolation: each cell solved in a worker process, whatever happens to it.
 
 An :class:`IsolatedWorker` is a child process (see ``qpbench.bench.worker``) that lives
-across cells and is replaced when it dies. How it died is the row's status
+across batches of cells and is replaced when it dies (the rest of a batch then runs again in
+the new process). How it died is the row's status
 (:func:`classify_death`, :func:`failure_row`), named by what happened:
 
 * ``timeout``: the runner killed it at the wall-clock limit;
@@ -40,6 +41,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Generator, Iterator, Sequence
 from dataclasses import asdict
 from typing import Any
 
@@ -349,44 +351,90 @@ class IsolatedWorker:
         return json.loads(line)
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell``, from the worker or, when it failed, a row saying how.
+        """The row of ``cell`` alone (:meth:`solve_batch` of one cell)."""
+        [(_, row)] = list(self.solve_batch([cell], limits))
+        return row
+
+    def solve_batch(self, cells: Sequence[Cell], limits: Limits
+                    ) -> Iterator[tuple[Cell, dict[str, Any]]]:
+        """(cell, row) of every cell of the batch as it finishes: from the worker, which
+        runs the batch under the timing protocol (``qpbench.bench.worker``), or, for a cell
+        whose worker died or hung, a row saying how.
 
         The wall-clock limit applies to each solver call the worker announces (``begin`` ...
         ``end``: the warm-up and every timed repeat), OUTSIDE_SOLVE_ALLOWANCE_S to the rest.
-        """
+        A death or a timeout is the row of the cell that was running (the one whose set-up,
+        solver call or judging was under way); the rows received before are kept, and the
+        batch's other unfinished cells run again, from their warm-up, in a new worker
+        process. A caller that stops early (closing the iterator) kills the worker."""
+        pending = list(cells)
+        try:
+            while pending:
+                answered = yield from self._one_process(pending, limits)
+                pending = [cell for number, cell in enumerate(pending) if number not in answered]
+        except BaseException:  # an interrupt, or the caller closing this iterator early
+            self.stop()
+            raise
+
+    def _one_process(self, cells: Sequence[Cell], limits: Limits
+                     ) -> Generator[tuple[Cell, dict[str, Any]], None, set[int]]:
+        """:meth:`solve_batch` in one worker process, until the batch is done or the process
+        died or was killed at the limit; returns the indices of the cells answered."""
         if not self.alive():
             self.stop()
             self.start()
-        request = {"cell": cell.as_dict(), "limits": asdict(limits)}
-        started = time.monotonic()
+        request = {"cells": [cell.as_dict() for cell in cells], "limits": asdict(limits)}
+        answered: set[int] = set()
+        running = 0  # the cell whose set-up, solver call or judging is under way
+        call_started = time.monotonic()
+        wall = dict.fromkeys(range(len(cells)), 0.0)
         oom_kills_before = oom_kill_count()
         cap = self._memory_cap_mb or limits.memory_limit_mb  # the worker reports what it applied
+
+        def victim() -> int:
+            """The cell a death or a timeout is charged to."""
+            if running not in answered:
+                return running
+            return min(set(range(len(cells))) - answered)
+
         try:
             self._send(request)
             phase = ""  # the solver call under way, "" between calls
-            while True:
+            while len(answered) < len(cells):
                 allowance = limits.timeout_s if phase else OUTSIDE_SOLVE_ALLOWANCE_S
                 message = self._next_message(time.monotonic() + allowance)
                 if message is None:
                     self.stop()
-                    return failure_row(
-                        cell, TIMEOUT,
+                    charged = victim()
+                    answered.add(charged)
+                    yield cells[charged], failure_row(
+                        cells[charged], TIMEOUT,
                         f"killed after {allowance:g} s in {phase or 'setup or judging'}",
                         time_s=limits.timeout_s if phase else math.nan, memory_limit_mb=cap)
+                    return answered
                 event = message.get("event")
-                if event == "begin":
+                index = int(message.get("cell", 0))
+                if event == "load":
+                    running = index
+                elif event == "begin":
+                    running = index
                     phase = "warm-up solve" if message.get("warm_up") else "solver call"
+                    call_started = time.monotonic()
                     self._memory_cap_mb = int(message.get("memory_limit_mb", cap) or 0)
                     cap = self._memory_cap_mb
                 elif event == "end":
                     phase = ""
+                    wall[index] += time.monotonic() - call_started
                 elif event == "row":
                     row = message["row"]
-                    row["cell_wall_s"] = time.monotonic() - started
-                    return row
+                    row["cell_wall_s"] = wall[index]
+                    answered.add(index)
+                    yield cells[index], row
                 elif event == "error":  # the cell could not be set up or judged
-                    return failure_row(cell, ERROR, str(message.get("message"))[:500],
-                                       memory_limit_mb=cap)
+                    answered.add(index)
+                    yield cells[index], failure_row(cells[index], ERROR,
+                                                    str(message.get("message"))[:500],
+                                                    memory_limit_mb=cap)
         except (WorkerDied, BrokenPipeError, ConnectionError) as error:
             code = error.returncode if isinstance(error, WorkerDied) else self.returncode()
             tail = self.stderr_tail()
@@ -394,8 +442,12 @@ class IsolatedWorker:
             oom_kills_after = oom_kill_count()
             oom_killer_ran = (oom_kills_before is not None and oom_kills_after is not None
                               and oom_kills_after > oom_kills_before)
-            return failure_row(cell, *classify_death(code, tail, cap, oom_killer_ran),
-                               memory_limit_mb=cap)
+            charged = victim()
+            answered.add(charged)
+            yield cells[charged], failure_row(
+                cells[charged], *classify_death(code, tail, cap, oom_killer_ran),
+                memory_limit_mb=cap)
+        return answered
 
 
 def signal_name(number: int) -> str:

@@ -1,16 +1,25 @@
-"""Repeated timing of one solve: the fastest of a few, as the head-to-head and the sequence
-mode time their solves (the main benchmark has its own ``--repeats``).
+"""Timed repeats under the timing protocol (docs/design.md section 7), as the head-to-head, the
+sequence mode and ``speed`` time their solves (the main benchmark's workers run the same
+protocol over their batches of cells, ``qpbench.bench.worker``).
 
 A solve's ``time_s`` varies from run to run with what else the machine does; the fastest of a
-few repeats is the least disturbed. Repeats stop once they have taken ``REPEAT_BUDGET_S`` in
-all: a slow solve varies little, and repeating it would only take the benchmark's time.
+few repeats is the least disturbed. The repeats of one (problem, pair) are never timed back to
+back: :func:`time_interleaved` hands every timed call of a batch to a
+:class:`~qpbench.bench.schedule.Schedule`, so that other pairs' and other problems' solves run
+between them, in an order rotated from round to round. Repeats of one timing stop once they
+have taken ``REPEAT_BUDGET_S`` in all: a slow solve varies little, and repeating it would
+only take the benchmark's time.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass
+
 import numpy as np
 
 from qpbench.bench.defaults import REPEATS
+from qpbench.bench.schedule import Schedule, flush_caches
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput, SolverSpec
@@ -19,13 +28,63 @@ from qpbench.solvers.run import call_solver
 REPEAT_BUDGET_S = 0.2
 
 
-def fastest_solve(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
-                  accuracy: float, repeats: int = REPEATS,
-                  warm_start: np.ndarray | None = None) -> SolverOutput:
-    """The output of the fastest of up to ``repeats`` solves of ``problem`` by ``spec``
-    through the one stopwatch (``call_solver``), each from the same warm start; fewer once
-    they have taken ``REPEAT_BUDGET_S`` in all."""
-    outputs = [call_solver(spec, problem, accuracy, warm_start)]
-    while len(outputs) < repeats and sum(output.time_s for output in outputs) < REPEAT_BUDGET_S:
-        outputs.append(call_solver(spec, problem, accuracy, warm_start))
+@dataclass(frozen=True)
+class Timing:
+    """One thing to time: ``spec`` on ``problem`` from ``warm_start``.
+
+    ``cold``: the cold variant, the CPU caches flushed before each timed call (outside the
+    stopwatch). ``repeats``: this timing's own number of timed calls (None: the batch's).
+    ``unit``: the (problem, pair) it belongs to, which the schedule keeps apart from itself
+    (None: the problem's name and the pair's key)."""
+
+    spec: SolverSpec
+    problem: ImpactProblem | FrictionalProblem
+    warm_start: np.ndarray | None = None
+    cold: bool = False
+    repeats: int | None = None
+    unit: Hashable = None
+
+    def unit_key(self) -> Hashable:
+        """The (problem, pair) this timing is a repeat of."""
+        if self.unit is not None:
+            return self.unit
+        return (self.problem.name, self.spec.key)
+
+
+def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
+                     accuracy: float = 1e-8, warm_up: bool = True,
+                     budget_s: float = REPEAT_BUDGET_S,
+                     flush: Callable[[], None] | None = None,
+                     accuracies: Sequence[float] | None = None) -> list[list[SolverOutput]]:
+    """The outputs of every timed call of each of ``timings``, through the one stopwatch
+    (``call_solver``) at ``accuracy`` (or ``accuracies[i]`` for the i-th), in the order of a
+    :class:`~qpbench.bench.schedule.Schedule`: with ``warm_up``, one untimed solve per unit
+    first (on its first timing; its output discarded), then rounds of one timed call of each
+    timing still running. A timing stops after its ``repeats`` (or the batch's), after a
+    failed solve, or once its calls have taken ``budget_s`` in all. A cold timing's every
+    timed call follows a call of ``flush`` (outside the stopwatch; None:
+    :func:`~qpbench.bench.schedule.flush_caches`)."""
+    levels = list(accuracies) if accuracies is not None else [accuracy] * len(timings)
+    wanted = [timing.repeats or repeats for timing in timings]
+    schedule = Schedule(range(len(timings)), max(wanted, default=1),
+                        unit=lambda index: timings[index].unit_key(), warm_up=warm_up)
+    outputs: list[list[SolverOutput]] = [[] for _ in timings]
+    for call in schedule:
+        timing = timings[call.item]
+        if not call.timed:
+            call_solver(timing.spec, timing.problem, levels[call.item], timing.warm_start)
+            continue
+        if timing.cold:
+            (flush or flush_caches)()
+        output = call_solver(timing.spec, timing.problem, levels[call.item], timing.warm_start)
+        done = outputs[call.item]
+        done.append(output)
+        if (output.impulses is None or len(done) >= wanted[call.item]
+                or sum(one.time_s for one in done) >= budget_s):
+            schedule.retire(call.index)
+    return outputs
+
+
+def fastest_output(outputs: Sequence[SolverOutput]) -> SolverOutput:
+    """The output of the fastest of a timing's timed calls."""
     return min(outputs, key=lambda output: output.time_s)

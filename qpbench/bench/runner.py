@@ -241,16 +241,40 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     return counts
 
 
+# problems per batch a worker runs under the timing protocol (docs/design.md section 7):
+# enough that the repeats of a cell are separated by other problems' solves as well as other
+# pairs', few enough that a worker holds few problems and a batch cut short by a timeout or
+# a crash costs little to run again
+BATCH_PROBLEMS = 3
+
+
+def batches(cells_to_run: Iterable[Cell], problems: int = BATCH_PROBLEMS) -> list[list[Cell]]:
+    """The cells in consecutive batches of at most ``problems`` problem files each (cells come
+    problem-major, so a batch holds every pending cell of its problems: all their pairs and
+    levels)."""
+    grouped: list[list[Cell]] = []
+    files_in_batch: set[str] = set()
+    for cell in cells_to_run:
+        if not grouped or (cell.problem_file not in files_in_batch
+                           and len(files_in_batch) >= problems):
+            grouped.append([])
+            files_in_batch = set()
+        grouped[-1].append(cell)
+        files_in_batch.add(cell.problem_file)
+    return grouped
+
+
 def solve_serially(cells_to_run: Iterable[Cell], limits: Limits,
                    worker: IsolatedWorker | None = None) -> Iterator[tuple[Cell, dict[str, Any]]]:
-    """(cell, row) for each cell, in order, on one isolated worker. A worker of its own is
-    closed at the end and killed at once when the caller stops early (an interrupt); a
-    worker handed in is killed only then."""
+    """(cell, row) for each cell as it finishes, batch after batch (:func:`batches`), on one
+    isolated worker, which interleaves each batch's timed solves (docs/design.md section 7).
+    A worker of its own is closed at the end and killed at once when the caller stops early
+    (an interrupt); a worker handed in is killed only then."""
     own = worker is None
     worker = worker or IsolatedWorker()
     try:
-        for cell in cells_to_run:
-            yield cell, worker.solve(cell, limits)
+        for batch in batches(cells_to_run):
+            yield from worker.solve_batch(batch, limits)
     except BaseException:  # an interrupt, or the caller closing this generator early
         worker.stop()
         raise

@@ -17,10 +17,14 @@ the machine's speed during a scene falls on all pairs alike):
   them (those solve l = 0 and change nothing the solver could carry).
 
 Every solve goes through the one stopwatch (``qpbench.solvers.run.call_solver``: ``time_s``),
-the fastest of ``repeats`` (``qpbench.bench.repeats``: fewer once they have taken
-``REPEAT_BUDGET_S``), and is judged by qpbench (``judge``: residual at the requested
-accuracy). A solver that does not take warm starts (``SolverSpec.warm_start`` false) gets the
-same vector and ignores it, so its sequence times are cold times measured again.
+the fastest of ``repeats`` (fewer once they have taken ``REPEAT_BUDGET_S``) timed under the
+timing protocol of docs/design.md section 7 (``qpbench.bench.repeats.time_interleaved``):
+the cold and sequence solves of a step by every pair are timed together, after one untimed
+warm-up per pair, in rounds whose order rotates, so that no repeat follows a repeat of the
+same pair (with a single pair, its two solves alternate); it is judged by qpbench
+(``judge``: residual at the requested accuracy). A solver that does not take warm starts
+(``SolverSpec.warm_start`` false) gets the same vector and ignores it, so its sequence times
+are cold times measured again.
 
 The whole replay of every scene runs ``passes`` times, one pass after another (the captures
 are made once), each pass from cold: a host's speed drifts over minutes, so each pass alone
@@ -55,7 +59,7 @@ from qpbench.bench.defaults import (
     SEQUENCE_STEPS,
     TARGET_SPEEDUP,
 )
-from qpbench.bench.repeats import REPEAT_BUDGET_S, fastest_solve
+from qpbench.bench.repeats import REPEAT_BUDGET_S, Timing, fastest_output, time_interleaved
 from qpbench.errors import InputError
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
@@ -161,52 +165,66 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
                         ) -> list[dict[str, Any]]:
     """:func:`replay` of every pair of ``specs`` at once, step by step: each step is solved by
     every pair before the next step is, so that a change in the machine's speed during a scene
-    falls on all pairs alike rather than on the pairs replayed at that moment. Each pair keeps
-    its own previous answer and its own budget (a pair past ``budget_s`` stops there)."""
+    falls on all pairs alike rather than on the pairs replayed at that moment, and the step's
+    cold and sequence solves of every pair are timed together under the timing protocol
+    (:func:`replayed_step`). Each pair keeps its own previous answer and its own budget (a
+    pair past ``budget_s`` stops there)."""
     rows = []
     previous: dict[str, tuple[ImpactProblem, np.ndarray | None]] = {}
     spent = dict.fromkeys((spec.key for spec in specs), 0.0)
     for index, problem in enumerate(problems):
         if progress is not None:
             progress(f"{scene}: step {index + 1} of {len(problems)}")
-        for spec in specs:
-            if spent[spec.key] > budget_s:
-                continue
-            row, answer, seconds = _replayed_step(spec, problem, index, previous.get(spec.key),
-                                                  accuracy, scene, repeats)
+        running = [spec for spec in specs if spent[spec.key] <= budget_s]
+        for spec, (row, answer, seconds) in zip(running, replayed_step(
+                running, problem, index, previous, accuracy, scene, repeats), strict=True):
             rows.append(row)
             spent[spec.key] += seconds
             previous[spec.key] = (problem, answer)
     return rows
 
 
-def _replayed_step(spec: SolverSpec, problem: ImpactProblem, index: int,
-                   previous: tuple[ImpactProblem, np.ndarray | None] | None, accuracy: float,
-                   scene: str, repeats: int
-                   ) -> tuple[dict[str, Any], np.ndarray | None, float]:
-    """(row, the answer to carry, time_s spent) of one step of one pair: its cold solve and its
-    sequence solve from its own ``previous`` (problem, finite answer or None)."""
-    cold_output = fastest_solve(spec, problem, accuracy, repeats)
-    cold = judge(spec, problem, cold_output, accuracy)
-    warm, persisting = None, 0
-    if previous is not None and previous[1] is not None:
-        warm, persisting = carried(previous[0].data[KEYS], previous[1], problem.data[KEYS])
-        if not persisting:
-            warm = None
-    output = fastest_solve(spec, problem, accuracy, repeats, warm)
-    sequence = judge(spec, problem, output, accuracy)
-    answer = output.impulses
-    finite = answer is not None and answer.shape == (problem.n_contacts,) \
-        and bool(np.all(np.isfinite(answer)))
-    row = {
-        "scene": scene, "problem": problem.name, "index": index, "step": step_of(problem),
-        "contacts": problem.n_contacts, "persisting": persisting,
-        "solver": f"{spec.name}/{spec.formulation}", "warm_startable": spec.warm_start,
-        "warm_start_given": warm is not None,
-        **{f"cold_{name}": value for name, value in _figures(cold).items()},
-        **{f"sequence_{name}": value for name, value in _figures(sequence).items()},
-    }
-    return row, (answer.copy() if finite else None), cold_output.time_s + output.time_s
+def replayed_step(specs: Sequence[SolverSpec], problem: ImpactProblem, index: int,
+                  previous: dict[str, tuple[ImpactProblem, np.ndarray | None]],
+                  accuracy: float, scene: str, repeats: int
+                  ) -> list[tuple[dict[str, Any], np.ndarray | None, float]]:
+    """Per pair of ``specs``: (row, the answer to carry, time_s spent) of one step, its cold
+    solve and its sequence solve from its own ``previous`` (problem, finite answer or None),
+    each the fastest of ``repeats``, all of the step's timed calls in one interleaved
+    schedule (``qpbench.bench.repeats.time_interleaved``: one untimed warm-up per pair, then
+    rounds in a rotated order; the two solves of a pair are one (problem, pair) unit)."""
+    starts: list[tuple[np.ndarray | None, int]] = []
+    for spec in specs:
+        warm, persisting = None, 0
+        earlier = previous.get(spec.key)
+        if earlier is not None and earlier[1] is not None:
+            warm, persisting = carried(earlier[0].data[KEYS], earlier[1], problem.data[KEYS])
+            if not persisting:
+                warm = None
+        starts.append((warm, persisting))
+    timings = [Timing(spec, problem) for spec in specs] + [
+        Timing(spec, problem, warm) for spec, (warm, _) in zip(specs, starts, strict=True)]
+    outputs = time_interleaved(timings, repeats, accuracy)
+    results = []
+    for number, (spec, (warm, persisting)) in enumerate(zip(specs, starts, strict=True)):
+        cold_output = fastest_output(outputs[number])
+        output = fastest_output(outputs[len(specs) + number])
+        cold = judge(spec, problem, cold_output, accuracy)
+        sequence = judge(spec, problem, output, accuracy)
+        answer = output.impulses
+        finite = answer is not None and answer.shape == (problem.n_contacts,) \
+            and bool(np.all(np.isfinite(answer)))
+        row = {
+            "scene": scene, "problem": problem.name, "index": index, "step": step_of(problem),
+            "contacts": problem.n_contacts, "persisting": persisting,
+            "solver": f"{spec.name}/{spec.formulation}", "warm_startable": spec.warm_start,
+            "warm_start_given": warm is not None,
+            **{f"cold_{name}": value for name, value in _figures(cold).items()},
+            **{f"sequence_{name}": value for name, value in _figures(sequence).items()},
+        }
+        results.append((row, (answer.copy() if finite else None),
+                        cold_output.time_s + output.time_s))
+    return results
 
 
 # --- summaries ------------------------------------------------------------------------------
@@ -344,7 +362,9 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
         "warm-started from its own answer of the previous step on the contacts that persist "
         f"(zero on new contacts), at accuracy {accuracy:g}, judged by qpbench's residual. "
         f"Times are `time_s` of the one stopwatch, the fastest of {repeats} repeats (fewer "
-        f"once they took {REPEAT_BUDGET_S:g} s)"
+        f"once they took {REPEAT_BUDGET_S:g} s), never back to back: a step's cold and "
+        "sequence solves by every pair are timed together, after one untimed warm-up per "
+        "pair, in rounds of one call each whose order rotates"
         + (f", in each of {passes} replays of every scene, one after another; each step's "
            "fastest over the replays makes the table, in each mode, and *per pass* is the "
            "range of the speedups that each replay alone gives (the machine's speed drifts "

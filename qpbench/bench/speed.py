@@ -12,13 +12,16 @@ side by side in one process:
 * ``ratio = solve_s / factorization_s`` against the target ``TARGET_RATIO`` (5x), with
   qpbench's residual and v_error (against a verified reference) of pi-robust's answer.
 
+Every part of every packing is timed under the timing protocol of docs/design.md section 7
+(:func:`timed_parts`): one untimed call each, then rounds of one call each in a rotated order,
+never two calls of one part in a row.
+
 Times depend on BLAS threads: the ``speed`` command runs in a process with single-threaded
 BLAS (``SINGLE_THREAD_ENV``), and the JSON says whether it was.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Sequence
@@ -30,10 +33,12 @@ import scipy.sparse.linalg as spla
 
 from qpbench import SINGLE_THREAD_ENV
 from qpbench.bench.defaults import REPEATS, SPEED_SIZES
+from qpbench.bench.schedule import Schedule
 from qpbench.problem import metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
+from qpbench.solvers.base import SolverOutput
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
 
@@ -54,32 +59,46 @@ def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
     return sp.csc_matrix(problem.Q + shift * sp.identity(problem.n_contacts, format="csc"))
 
 
-def factorization_times(problem: ImpactProblem, repeats: int) -> dict[str, float]:
-    """ordering -> the minimum over ``repeats`` of one ``splu`` of Q + eps I (seconds); the
-    matrix is built outside the timed window."""
-    matrix = shifted_matrix(problem)
-    times: dict[str, float] = {}
-    for name, settings in ORDERINGS.items():
-        best = math.inf
-        for _ in range(repeats):
-            start = time.perf_counter()
-            spla.splu(matrix, **settings)
-            best = min(best, time.perf_counter() - start)
-        times[name] = best
-    return times
+def factorize(matrix: sp.csc_matrix, ordering: str) -> float:
+    """The time (seconds) of one ``splu`` of ``matrix`` with ``ordering`` (ORDERINGS)."""
+    start = time.perf_counter()
+    spla.splu(matrix, **ORDERINGS[ordering])
+    return time.perf_counter() - start
 
 
-def solver_figures(problem: ImpactProblem, repeats: int) -> dict[str, Any]:
-    """pi-robust at 1e-8: minimum solve time over ``repeats``, status, residual and v_error of
-    the first answer (judged by qpbench's metrics, not by the solver's claim)."""
+def timed_parts(problems: Sequence[ImpactProblem], repeats: int
+                ) -> tuple[dict[tuple[int, str], list[float]], dict[int, SolverOutput]]:
+    """(times of every timed call of each (problem index, part), pi-robust's first timed
+    output on each problem). The parts are pi-robust (through ``call_solver``) and one
+    ``splu`` per ordering of ORDERINGS (of :func:`shifted_matrix`, built outside the timed
+    window); every (problem, part) is timed ``repeats`` times under the timing protocol of
+    docs/design.md section 7 (``qpbench.bench.schedule.Schedule``): one untimed call of each
+    first, then rounds of one call each, in an order that rotates from round to round, so no
+    part is timed twice in a row."""
     spec = get(SOLVER)
-    times = []
-    first = None
-    for _ in range(repeats):
-        output = call_solver(spec, problem, ACCURACY)
-        first = first or output
-        times.append(output.time_s)
-    assert first is not None
+    matrices = [shifted_matrix(problem) for problem in problems]
+    items = [(number, part) for number in range(len(problems))
+             for part in (SOLVER, *ORDERINGS)]
+    times: dict[tuple[int, str], list[float]] = {item: [] for item in items}
+    first: dict[int, SolverOutput] = {}
+    for call in Schedule(items, repeats, unit=lambda item: item, warm_up=True):
+        number, part = call.item
+        if part == SOLVER:
+            output = call_solver(spec, problems[number], ACCURACY)
+            seconds = output.time_s
+            if call.timed:
+                first.setdefault(number, output)
+        else:
+            seconds = factorize(matrices[number], part)
+        if call.timed:
+            times[call.item].append(seconds)
+    return times, first
+
+
+def solver_figures(problem: ImpactProblem, first: SolverOutput, times: Sequence[float]
+                   ) -> dict[str, Any]:
+    """pi-robust at 1e-8: minimum solve time over ``times``, status, residual and v_error of
+    the ``first`` timed answer (judged by qpbench's metrics, not by the solver's claim)."""
     measured = metrics.evaluate(problem, first.impulses, ACCURACY)
     return {"solve_s": float(np.nanmin(times)), "solver_status": first.status,
             "claimed_success": first.claimed_success, "success": bool(measured["success"]),
@@ -87,18 +106,24 @@ def solver_figures(problem: ImpactProblem, repeats: int) -> dict[str, Any]:
             "iterations": first.iterations, "path": first.info.get("path", "")}
 
 
-def measure(size: int, seed: int, repeats: int) -> dict[str, Any]:
-    """The figures of one box packing of ``size`` balls."""
-    problem = attach_reference(generate("box", size, seed=seed)[0])
-    factor = factorization_times(problem, repeats)
-    solver = solver_figures(problem, repeats)
-    fastest = min(factor, key=factor.get)
-    ratio = solver["solve_s"] / factor[fastest]
-    return {"problem": problem.name, "balls": size, "contacts": problem.n_contacts,
+def measure_all(sizes: Sequence[int], seed: int, repeats: int) -> list[dict[str, Any]]:
+    """The figures of one box packing per size of ``sizes`` (in that order), all timed
+    together (:func:`timed_parts`)."""
+    problems = [attach_reference(generate("box", size, seed=seed)[0]) for size in sizes]
+    times, first = timed_parts(problems, repeats)
+    rows = []
+    for number, (size, problem) in enumerate(zip(sizes, problems, strict=True)):
+        factor = {name: min(times[(number, name)]) for name in ORDERINGS}
+        solver = solver_figures(problem, first[number], times[(number, SOLVER)])
+        fastest = min(factor, key=factor.get)
+        ratio = solver["solve_s"] / factor[fastest]
+        rows.append({
+            "problem": problem.name, "balls": size, "contacts": problem.n_contacts,
             "nonzeros": int(problem.Q.nnz), "factorization_s": factor[fastest],
             "factorization_ordering": fastest, "factorization_s_by_ordering": factor,
             **solver, "ratio": ratio,
-            "target_met": bool(solver["success"] and ratio <= TARGET_RATIO)}
+            "target_met": bool(solver["success"] and ratio <= TARGET_RATIO)})
+    return rows
 
 
 def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
@@ -108,7 +133,9 @@ def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
         f"Target: `{SOLVER}`'s solve time at accuracy {ACCURACY:g} within {TARGET_RATIO:g}x "
         f"the time of ONE sparse factorization of Q + eps I (eps = {FACTOR_SHIFT:g} max diag Q; "
         "SuperLU `splu`, the faster of the MMD_AT_PLUS_A and COLAMD orderings). Minimum of "
-        f"{repeats} repeats each, single-threaded BLAS, one process.\n",
+        f"{repeats} repeats each, interleaved (one untimed call of each part first, then "
+        "rounds of one call of every part of every packing, in a rotated order), "
+        "single-threaded BLAS, one process.\n",
         "| problem | contacts | nnz(Q) | factorization [ms] | pi-robust [ms] | ratio | "
         "residual | v_error | target |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---|",
@@ -135,7 +162,7 @@ def speed(sizes: Sequence[int] = SPEED_SIZES, seed: int = 0,
           repeats: int = REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench speed``: per-size figures (largest first), whether the
     target is met on every size, and a ready ``markdown`` section."""
-    rows = [measure(size, seed, repeats) for size in sorted(set(sizes), reverse=True)]
+    rows = measure_all(sorted(set(sizes), reverse=True), seed, repeats)
     return {"solver": SOLVER, "accuracy": ACCURACY, "target_ratio": TARGET_RATIO,
             "factor_shift": FACTOR_SHIFT, "repeats": repeats, "seed": seed,
             "single_threaded_blas": single_threaded(), "rows": rows,

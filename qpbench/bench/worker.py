@@ -4,14 +4,19 @@ A worker is forked by a multiprocessing fork server that has imported every solv
 backend once (:func:`child_main`, messages over a Pipe), or, where a process may not
 have children of its own (a daemonic Dask worker), started as the program
 ``python -m qpbench.bench.worker`` (:func:`main`, JSON lines on stdin/stdout). Solver
-output goes to a log file or stderr, never into the messages. For each request it
-says ``begin`` before and ``end`` after every solver call (the warm-up and each timed
-repeat), so the runner can enforce the wall-clock limit per solve, then sends the ``row``.
-When the runner has gone (its end of the messages closed), the worker ends quietly.
+output goes to a log file or stderr, never into the messages. Each request is a batch of
+cells (several problems and pairs), run under the timing protocol of docs/design.md
+section 7 (:meth:`CellSolver.solve_batch`): no cell's repeats back to back, but round after
+round of every cell in a rotated order. The worker says ``load`` before setting a cell up,
+``begin`` before and ``end`` after every solver call (the warm-up and each timed repeat),
+each naming the cell, so the runner can enforce the wall-clock limit per solve and knows
+which cell was running when the process died, and sends each cell's ``row`` once the cell
+is done. When the runner has gone (its end of the messages closed), the worker ends quietly.
 
 Before the first timed solve of a (problem, solver, formulation) the worker solves that
-same problem once untimed (:meth:`CellSolver.warm_up`), so that no accuracy level is
-charged for caches and lazy set-up that only the first call in a process pays.
+same problem once untimed (:meth:`CellSolver.warm_up`), in the batch's warm-up round, so
+that no accuracy level is charged for caches and lazy set-up that only the first call in a
+process pays.
 
 The address space of the process is limited with ``resource.setrlimit`` (an
 allocation beyond it raises MemoryError, which becomes the status
@@ -28,10 +33,9 @@ import json
 import math
 import os
 import signal
-import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -39,6 +43,7 @@ import numpy as np
 
 from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.bench.provenance import provenance
+from qpbench.bench.schedule import Schedule, fastest
 from qpbench.bench.settings import OUT_OF_MEMORY, Cell, Limits
 from qpbench.memory import limit_memory
 from qpbench.memory import virtual_memory_mb as virtual_memory_mb  # imported from here too
@@ -92,15 +97,17 @@ def _finite(values: list[float]) -> list[float]:
 
 
 class CellSolver:
-    """Runs cells in this process, keeping the last problem loaded (cells come problem-major)
-    and warming each solver up on it once (:meth:`warm_up`)."""
+    """Runs batches of cells in this process under the timing protocol (docs/design.md
+    section 7, ``qpbench.bench.schedule``): every (problem, solver/formulation) of a batch
+    warmed up once (:meth:`warm_up`), then round after round of one timed solve of each cell
+    still running, in the schedule's interleaved, rotated order."""
 
     def __init__(self, announce: Callable[[dict[str, Any]], None] | None = None) -> None:
         self.announce = announce
-        self._problem_file: str | None = None
-        self._problem: ImpactProblem | None = None
+        self._problems: dict[str, ImpactProblem | FrictionalProblem] = {}
         self._specs: dict[str, SolverSpec] = {}
-        self._warmed: set[str] = set()  # the solver keys warmed up on the loaded problem
+        # the (problem file, solver key) pairs warmed up in this process
+        self._warmed: set[tuple[str, str]] = set()
         self.timer_overhead_s = timer_overhead_s()
         self.provenance = provenance()
         self.memory_limit_mb = 0
@@ -109,14 +116,11 @@ class CellSolver:
         if self.announce is not None:
             self.announce({"event": event, **fields})
 
-    def problem(self, path: str) -> ImpactProblem:
-        if path != self._problem_file:
-            self._problem, self._problem_file = None, None
-            self._warmed.clear()
-            self._problem = files.load(path)
-            self._problem_file = path
-        assert self._problem is not None
-        return self._problem
+    def problem(self, path: str) -> ImpactProblem | FrictionalProblem:
+        """The problem of ``path``, loaded once per batch."""
+        if path not in self._problems:
+            self._problems[path] = files.load(path)
+        return self._problems[path]
 
     def spec(self, key: str) -> SolverSpec:
         if key not in self._specs:
@@ -124,57 +128,107 @@ class CellSolver:
         return self._specs[key]
 
     def warm_up(self, spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
-                accuracy: float, warm_start: np.ndarray | None) -> None:
+                accuracy: float, warm_start: np.ndarray | None, problem_file: str = "",
+                cell_index: int = 0) -> None:
         """Solves ``problem`` once with ``spec``, exactly as the timed solves will (a blind
         copy posed in the solver's formulation, the same warm start), and discards the
-        answer and its time, the first time this process meets the pair: the first call
-        fills the caches and does the lazy set-up (a backend's imports and code paths, the
-        problem's own arrays) that every later call finds done, so every timed level of the
-        pair sees the same state. The runner's wall-clock limit applies to it as to a timed
-        solve."""
-        if spec.key in self._warmed:
+        answer and its time, the first time this process meets the pair on
+        ``problem_file``: the first call fills the caches and does the lazy set-up (a
+        backend's imports and code paths, the problem's own arrays) that every later call
+        finds done, so every timed level of the pair sees the same state. The runner's
+        wall-clock limit applies to it as to a timed solve (announced for the batch's
+        ``cell_index``-th cell)."""
+        if (problem_file, spec.key) in self._warmed:
             return
-        self._warmed.add(spec.key)
-        self.say("begin", warm_up=True, memory_limit_mb=self.memory_limit_mb)
+        self._warmed.add((problem_file, spec.key))
+        self.say("begin", cell=cell_index, warm_up=True, memory_limit_mb=self.memory_limit_mb)
         call_solver(spec, problem, accuracy, warm_start)
-        self.say("end", warm_up=True)
+        self.say("end", cell=cell_index, warm_up=True)
 
-    def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell``: qpbench's judgement of the first repeat's answer, the times of
-        all repeats (``time_s`` their minimum; up to ``limits.repeats``, fewer once they have
-        taken ``limits.repeat_budget_s`` in all, none after a failed solve). The first cell of
-        a (problem, solver, formulation) in this process is preceded by :meth:`warm_up` at
-        its level."""
-        problem = self.problem(cell.problem_file)
-        spec = self.spec(cell.solver_key)
-        warm_start, warm_source = (None, "cold")
-        if cell.mode == "warm":
-            warm_start, warm_source = warm_start_for(problem)
-        self.warm_up(spec, problem, cell.accuracy, warm_start)
-        outputs: list[SolverOutput] = []
-        for repeat in range(limits.repeats):
+    def solve_batch(self, cells: Sequence[Cell], limits: Limits
+                    ) -> Iterator[tuple[int, dict[str, Any] | Exception]]:
+        """(index in ``cells``, row) of each cell as it finishes, or (index, the exception)
+        of a cell that could not be set up or judged.
+
+        Each cell's problem is loaded and its solver resolved (announced as ``load``), then
+        a :class:`~qpbench.bench.schedule.Schedule` of the cells, with units (problem file,
+        solver key), orders the calls: round 0 warms up each unit not yet warmed in this
+        process on its first cell, at that cell's level and warm start; each later round
+        times every cell still running once, announced as ``begin`` / ``end`` with the
+        cell's index and repeat. A cell is done, and judged, after ``limits.repeats`` timed
+        solves, or fewer once they have taken ``limits.repeat_budget_s`` in all, or after a
+        failed solve (never repeated). Its row judges the first timed answer; ``time_s`` is
+        the minimum over its interleaved repeats, ``time_median_s`` their median."""
+        ready: dict[int, tuple[SolverSpec, ImpactProblem | FrictionalProblem,
+                               np.ndarray | None, str]] = {}
+        try:
+            for index, cell in enumerate(cells):
+                self.say("load", cell=index)
+                try:
+                    problem = self.problem(cell.problem_file)
+                    spec = self.spec(cell.solver_key)
+                except Exception as error:  # MemoryError included: the caller says which
+                    yield index, error
+                    continue
+                warm_start, warm_source = (None, "cold")
+                if cell.mode == "warm":
+                    warm_start, warm_source = warm_start_for(problem)
+                ready[index] = (spec, problem, warm_start, warm_source)
+            yield from self._timed(cells, limits, ready)
+        finally:
+            self._problems.clear()
+
+    def _timed(self, cells: Sequence[Cell], limits: Limits,
+               ready: dict[int, tuple[SolverSpec, ImpactProblem | FrictionalProblem,
+                                      np.ndarray | None, str]]
+               ) -> Iterator[tuple[int, dict[str, Any] | Exception]]:
+        """The schedule of :meth:`solve_batch` over the cells set up (``ready``)."""
+        schedule = Schedule(sorted(ready), limits.repeats, warm_up=True,
+                            unit=lambda index: (cells[index].problem_file,
+                                                cells[index].solver_key))
+        outputs: dict[int, list[SolverOutput]] = {index: [] for index in ready}
+        for call in schedule:
+            index = call.item
+            cell = cells[index]
+            spec, problem, warm_start, warm_source = ready[index]
+            if not call.timed:
+                self.warm_up(spec, problem, cell.accuracy, warm_start, cell.problem_file, index)
+                continue
+            done = outputs[index]
             # the runner's clock for --timeout starts
-            self.say("begin", repeat=repeat, memory_limit_mb=self.memory_limit_mb)
+            self.say("begin", cell=index, repeat=len(done), memory_limit_mb=self.memory_limit_mb)
             output = call_solver(spec, problem, cell.accuracy, warm_start)
-            self.say("end", repeat=repeat)
-            outputs.append(output)
-            if output.impulses is None:
-                break  # a failed solve is not repeated
-            if sum(done.time_s for done in outputs) >= limits.repeat_budget_s:
-                break
+            self.say("end", cell=index, repeat=len(done))
+            done.append(output)
+            if (output.impulses is None  # a failed solve is not repeated
+                    or len(done) >= limits.repeats
+                    or sum(one.time_s for one in done) >= limits.repeat_budget_s):
+                schedule.retire(call.index)
+                try:
+                    yield index, self.row(cell, spec, problem, outputs.pop(index), warm_start,
+                                          warm_source)
+                except Exception as error:  # judging failed (MemoryError included)
+                    yield index, error
+
+    def row(self, cell: Cell, spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
+            outputs: list[SolverOutput], warm_start: np.ndarray | None, warm_source: str
+            ) -> dict[str, Any]:
+        """The row of a cell from its timed ``outputs``: qpbench's judgement of the first
+        answer and the times of all (``time_s`` their minimum)."""
         row = judge(spec, problem, outputs[0], cell.accuracy)
         if (self.memory_limit_mb > 0
                 and str(row.get("solver_status", "")).startswith("error: MemoryError")):
             row["status"] = OUT_OF_MEMORY  # the allocation failed under the cap
-        finite_times = _finite([output.time_s for output in outputs])
+        time_s, time_median_s = fastest([output.time_s for output in outputs])
         row.update({
             "mode": cell.mode,
             "warm_start_source": warm_source,
             "warm_start_used": bool(warm_start is not None and spec.warm_start),
             "repeats": len(outputs),
-            "time_s": min(finite_times) if finite_times else math.nan,
-            "time_median_s": statistics.median(finite_times) if finite_times else math.nan,
-            "time_max_s": max(finite_times) if finite_times else math.nan,
+            "time_s": time_s,
+            "time_median_s": time_median_s,
+            "time_max_s": max(_finite([output.time_s for output in outputs]),
+                              default=math.nan),
             "formulation_time_s": min(_finite([o.formulation_time_s for o in outputs]),
                                       default=math.nan),
             **{column: min(_finite([o.backend_times.get(column, math.nan) for o in outputs]),
@@ -186,13 +240,24 @@ class CellSolver:
         })
         return row
 
+    def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
+        """The row of ``cell`` alone (a batch of one; its repeats then follow one another,
+        as nothing else is there to run between them); the exception of a cell that could
+        not be set up or judged is raised."""
+        [(_, outcome)] = list(self.solve_batch([cell], limits))
+        if isinstance(outcome, Exception):
+            raise outcome
+        return outcome
+
 
 def serve(receive: Callable[[], dict[str, Any] | None],
           send: Callable[[dict[str, Any]], None]) -> None:
-    """Answers each request ``{"cell": ..., "limits": ...}`` (until ``receive`` gives None) with
-    begin/end events and a row (or ``{"event": "error"}`` if the cell could not be set up).
-    A message that cannot be sent (the runner closed its end: it stopped or was interrupted)
-    ends the process quietly (SystemExit 0), with no traceback in its log."""
+    """Answers each request ``{"cells": [...], "limits": ...}`` (or ``{"cell": ...}``, a batch
+    of one; until ``receive`` gives None) with ``load`` and ``begin``/``end`` events and one
+    ``row`` per cell (or ``{"event": "error"}`` for a cell that could not be set up), each
+    naming the cell's index in the batch. A message that cannot be sent (the runner closed
+    its end: it stopped or was interrupted) ends the process quietly (SystemExit 0), with no
+    traceback in its log."""
 
     def send_or_leave(message: dict[str, Any]) -> None:
         try:
@@ -204,23 +269,35 @@ def serve(receive: Callable[[], dict[str, Any] | None],
     prepare_solvers()  # every backend imported and prepared before the memory cap and timing
     solver.say("ready", pid=os.getpid())
     while (request := receive()) is not None:
-        cell = Cell(**request["cell"])
+        cells = [Cell(**cell) for cell in request.get("cells", [request.get("cell")])]
         limits = Limits(**request["limits"])
         if not solver.memory_limit_mb and limits.memory_limit_mb:
             solver.memory_limit_mb = limit_memory(limits.memory_limit_mb)
+        answered: set[int] = set()
         try:
-            row = solver.solve(cell, limits)
-        except MemoryError:  # outside the solver call: loading the problem or judging
-            if solver.memory_limit_mb > 0:
-                solver.say("row", row={"status": OUT_OF_MEMORY, "solver_status": "MemoryError",
-                                       "memory_limit_mb": solver.memory_limit_mb})
-            else:
-                solver.say("error", message="MemoryError (no memory cap set)")
-            continue
-        except Exception as error:  # a problem file or solver that cannot be set up
-            solver.say("error", message=f"{type(error).__name__}: {error}")
-            continue
-        solver.say("row", row=row)
+            for index, outcome in solver.solve_batch(cells, limits):
+                answered.add(index)
+                report(solver, index, outcome)
+        except Exception as error:  # outside any one cell: every cell not answered yet
+            for index in range(len(cells)):
+                if index not in answered:
+                    report(solver, index, error)
+
+
+def report(solver: CellSolver, index: int, outcome: dict[str, Any] | Exception) -> None:
+    """Sends the row of the batch's ``index``-th cell, or for an exception the row of an
+    allocation that failed under the memory cap (``out-of-memory``) or an ``error`` event."""
+    if isinstance(outcome, dict):
+        solver.say("row", cell=index, row=outcome)
+    elif isinstance(outcome, MemoryError) and solver.memory_limit_mb > 0:
+        # outside the solver call: loading the problem or judging
+        solver.say("row", cell=index, row={"status": OUT_OF_MEMORY,
+                                           "solver_status": "MemoryError",
+                                           "memory_limit_mb": solver.memory_limit_mb})
+    elif isinstance(outcome, MemoryError):
+        solver.say("error", cell=index, message="MemoryError (no memory cap set)")
+    else:  # a problem file or solver that cannot be set up
+        solver.say("error", cell=index, message=f"{type(outcome).__name__}: {outcome}")
 
 
 def die_with_parent() -> None:

@@ -1,6 +1,7 @@
 """``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 20] [--passes 3]
-[--candidates 6] [--out-of-running 30] -o results/head_to_head.json``: pi-robust against the
-fastest external pairs of the main benchmark, cold, per set of ``problems/head_to_head.toml``
+[--candidates 6] [--out-of-running 30] [--cold-repeats 3] -o results/head_to_head.json``:
+pi-robust against the fastest external pairs of the main benchmark, no warm start, timed
+interleaved and with the CPU caches flushed, per set of ``problems/head_to_head.toml``
 (built into FOLDER by ``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with
 single-threaded BLAS, in a child process unless this one already has it."""
 
@@ -12,6 +13,7 @@ from pathlib import Path
 
 from qpbench.bench.defaults import (
     HEAD_TO_HEAD_CANDIDATES,
+    HEAD_TO_HEAD_COLD_REPEATS,
     HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
@@ -43,6 +45,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "are more than this many times the fastest external pair's is "
                              "measured no further on that set; inf: every pair on every "
                              f"problem ({HEAD_TO_HEAD_OUT_OF_RUNNING:g})")
+    parser.add_argument("--cold-repeats", type=int, default=HEAD_TO_HEAD_COLD_REPEATS,
+                        help="timed calls per solve with the CPU caches flushed before each, "
+                             "minimum kept, beside the interleaved figure; 0: none "
+                             f"({HEAD_TO_HEAD_COLD_REPEATS})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
@@ -50,6 +56,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1 or args.passes < 1 or args.candidates < 1:
         raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
+    if args.cold_repeats < 0:
+        raise QpbenchError(f"--cold-repeats must be at least 0, got {args.cold_repeats}")
     if not args.out_of_running >= 1:  # NaN too
         raise QpbenchError("--out-of-running must be at least 1 (inf: never)")
     if not Path(args.folder).is_dir():
@@ -58,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     child = single_threaded_rerun(
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
          "--passes", str(args.passes), "--candidates", str(args.candidates),
-         "--out-of-running", repr(args.out_of_running), "-o", str(args.output)])
+         "--out-of-running", repr(args.out_of_running), "--cold-repeats",
+         str(args.cold_repeats), "-o", str(args.output)])
     if child is not None:
         return child
     from qpbench.bench.head_to_head import BENCH_COLUMNS, head_to_head
@@ -73,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
                              "main benchmark")
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
                           progress=lambda text: print(text, file=sys.stderr),
-                          passes=args.passes, out_of_running=args.out_of_running)
+                          passes=args.passes, out_of_running=args.out_of_running,
+                          cold_repeats=args.cold_repeats)
     if not report["rows"]:
         raise InputError(args.folder, "no problem of a head-to-head set")
     write_json(output, report)

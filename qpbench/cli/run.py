@@ -53,7 +53,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
                         help="wall-clock limit per solve in seconds (default: %(default)s)")
     parser.add_argument("--repeats", type=int, default=DEFAULT_REPEATS,
-                        help="timed repeats per cell; time_s is the minimum (default: 1)")
+                        help="timed repeats per cell, in rounds interleaved with the other "
+                             "cells of a worker's batch; time_s is the minimum (default: 1)")
     parser.add_argument("--repeat-budget", type=float, default=math.inf, metavar="S",
                         help="stop repeating a cell once its repeats have taken S seconds of "
                              "time_s in all (default: no budget)")

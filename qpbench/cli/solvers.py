@@ -8,6 +8,9 @@ from qpbench.cli.output import print_json
 from qpbench.solvers.registry import all_solvers
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
+# the problem kinds as the output names them (``SolverSpec.kinds`` calls frictionless
+# impact problems ``impact``)
+KIND_NAMES = {"impact": "frictionless", "frictional": "frictional"}
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -20,7 +23,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     rows = [
         {"name": s.name, "formulation": s.formulation, "backend": s.backend,
-         "version": s.version, "usable": s.usable, "reason": s.reason}
+         "version": s.version, "usable": s.usable, "reason": s.reason,
+         "kinds": [KIND_NAMES[kind] for kind in KIND_NAMES if kind in s.kinds]}
         for s in all_solvers()
     ]
     if args.json:
