@@ -26,7 +26,7 @@ from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
 
 if TYPE_CHECKING:  # (the kernel's module is imported inside each test that runs it)
-    from qpbench.solvers.pi_robust_envelope import Csc, OrderedLcp
+    from qpbench.solvers.pi_robust_kernel.structures import Csc, OrderedLcp
 
 
 @pytest.fixture
@@ -203,7 +203,7 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
     first is never below it."""
     from qpbench.solvers.lcp import Lcp
     from qpbench.solvers.pi_robust import csc_arrays
-    from qpbench.solvers.pi_robust_envelope import (
+    from qpbench.solvers.pi_robust_kernel.residual import (
         _loose_rounding_bound,
         natural_residual,
         residual_rounding_bound,
@@ -228,20 +228,20 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
 def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor() -> None:
     """A block that Cholesky refuses (here: a kernel made to raise) sends the solve to the
     Python path, which still converges and says so."""
-    from qpbench.solvers import pi_robust_envelope
+    from qpbench.solvers.pi_robust_kernel import entry
 
     problem = hard_problem("grid", 5, seed=0)
-    pi_robust_envelope.warm_up()  # its own call of the kernel comes before the patch
-    kernel = pi_robust_envelope.envelope_pi_robust
+    entry.warm_up()  # its own call of the kernel comes before the patch
+    kernel = entry.envelope_pi_robust
 
     def refusing(*args: object, **kwargs: object) -> None:
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
-    pi_robust_envelope.envelope_pi_robust = refusing
+    entry.envelope_pi_robust = refusing
     try:
         row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     finally:
-        pi_robust_envelope.envelope_pi_robust = kernel
+        entry.envelope_pi_robust = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
@@ -250,7 +250,7 @@ def test_pi_robust_returns_a_certified_answer_as_confirmed_would() -> None:
     """solve() returns the kernel's certified answer itself, without calling _confirmed: the
     output is the one _confirmed gives that answer (same l, status, count and info)."""
     from qpbench.solvers import pi_robust
-    from qpbench.solvers.pi_robust_envelope import envelope_pi_robust
+    from qpbench.solvers.pi_robust_kernel.entry import envelope_pi_robust
 
     settings = pi_robust.settings_for(1e-8)
     for problem in [hard_problem("grid", 5, seed=0), generate("grid", 7, seed=0)[0]]:
@@ -335,7 +335,7 @@ def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decid
     answer is judged like any other. Both failures are forced here, so the test holds whatever
     arithmetic the CPU's kernel does."""
     from qpbench.solvers import lemke
-    from qpbench.solvers import pi_robust_envelope as kernel
+    from qpbench.solvers.pi_robust_kernel import entry as kernel
 
     def failed_in_full(*args: object) -> tuple:
         b = args[3]
@@ -396,10 +396,17 @@ def test_pi_robust_start_sweeps_run_before_the_envelope_is_measured(
 UNCOUNTED_RETURN_TYPES = """
 import json
 from numba.core import types
-from qpbench.solvers import pi_robust_envelope as kernel
-kernel.warm_up()
+import importlib
+import pkgutil
+from qpbench.solvers import pi_robust_kernel
+from qpbench.solvers.pi_robust_kernel import entry
+entry.warm_up()
+functions = {}
+for module in pkgutil.iter_modules(pi_robust_kernel.__path__):
+    kernel = importlib.import_module(f"{pi_robust_kernel.__name__}.{module.name}")
+    functions.update(vars(kernel))
 returned = {}
-for name, function in vars(kernel).items():
+for name, function in functions.items():
     if getattr(function, "targetoptions", {}).get("_nrt") is False:
         returned[name] = []
         for signature in function.signatures:
@@ -430,12 +437,8 @@ def test_a_blocks_envelope_factor_from_the_upper_triangle_is_the_dense_blocks() 
     with it is L's: all read from Q's upper triangle alone (a copy, or Q's own sorted columns'
     leading entries), from a first row on as well (the rows before it kept from an earlier
     factor)."""
-    from qpbench.solvers.pi_robust_envelope import (
-        _backward_substitution,
-        _factor_rows,
-        _leading_upper,
-        _upper,
-    )
+    from qpbench.solvers.pi_robust_kernel.factor import _backward_substitution, _factor_rows
+    from qpbench.solvers.pi_robust_kernel.ordering import _leading_upper, _upper
 
     Q = generate("grid", 10, seed=0)[0].Q
     csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
@@ -483,7 +486,8 @@ def test_an_envelope_factor_of_random_patterns_is_numpys_cholesky() -> None:
     time with each row's newest entries subtracted last, are those of numpy's Cholesky factor."""
     import scipy.sparse as sp
 
-    from qpbench.solvers.pi_robust_envelope import _factor_rows, _upper
+    from qpbench.solvers.pi_robust_kernel.factor import _factor_rows
+    from qpbench.solvers.pi_robust_kernel.ordering import _upper
 
     rng = np.random.default_rng(11)
     for size, density in ((1, 1.0), (2, 1.0), (7, 0.3), (30, 0.1), (61, 0.05), (61, 0.5)):
@@ -515,7 +519,9 @@ def test_a_block_factor_counts_its_dependent_contacts() -> None:
     reports its count again."""
     import scipy.sparse as sp
 
-    from qpbench.solvers.pi_robust_envelope import _block_solve, _upper, _work
+    from qpbench.solvers.pi_robust_kernel.factor import _block_solve
+    from qpbench.solvers.pi_robust_kernel.ordering import _upper
+    from qpbench.solvers.pi_robust_kernel.structures import _work
 
     G = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 1.0]])  # contacts 1 and 2 are one contact twice
     for Q, expected in ((G.T @ G, 1), (np.diag([2.0, 1.0, 3.0]), 0)):
@@ -549,7 +555,7 @@ def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_b
     formed) leaves a lower-triangular L' with positive diagonal and ``L' L'^T = H`` without
     that row and column (H = Q_II + rho D_I); deleting a second contact from that, the same
     for H without both."""
-    from qpbench.solvers.pi_robust_envelope import _delete_contact, _factor_rows
+    from qpbench.solvers.pi_robust_kernel.factor import _delete_contact, _factor_rows
 
     Q, _, order, _, _, (starts, rows, data) = ordered_grid(7, 0)
     upper = (starts, starts[1:], rows, data)
@@ -598,7 +604,8 @@ def test_deleting_a_contacts_row_from_a_factor_gives_the_factor_of_the_smaller_b
 def posed_order_lcp(Q: sp.csc_matrix, b: np.ndarray) -> tuple[OrderedLcp, Csc, np.ndarray]:
     """(the kernel's OrderedLcp of LCP(Q, b) in the posed order (no ordering, scale 1), Q's
     CSC arrays with 64-bit indices, diag(Q)); Q's row indices are sorted in place first."""
-    from qpbench.solvers.pi_robust_envelope import OrderedLcp, Posed, _upper
+    from qpbench.solvers.pi_robust_kernel.ordering import _upper
+    from qpbench.solvers.pi_robust_kernel.structures import OrderedLcp, Posed
 
     Q.sort_indices()
     A = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
@@ -612,7 +619,8 @@ def test_a_policy_that_fixes_contacts_of_the_last_one_is_solved_by_deleting_thei
     fixed is solved from that factor with their rows deleted, with no factorization: x_F
     solves ``(Q_FF + rho D_F) x_F = -q_F`` and is zero off F; the updated factor is kept for
     that policy, so solving it again takes it from the cache, to the same x."""
-    from qpbench.solvers.pi_robust_envelope import _policy_solve, _work
+    from qpbench.solvers.pi_robust_kernel.factor import _policy_solve
+    from qpbench.solvers.pi_robust_kernel.structures import _work
 
     Q = generate("grid", 7, seed=1)[0].Q.tocsc()
     n, rho = Q.shape[0], 1e-5
@@ -648,7 +656,9 @@ def test_block_pivoting_hands_a_nearly_singular_block_to_the_active_set_method()
     left x is the method's feasible start max(x, 0), where block pivoting alone (no
     active-set method) would exchange them next and stops at its x, with negative entries.
     Given the solves it needs, the active-set method solves the prox LCP."""
-    from qpbench.solvers.pi_robust_envelope import Prox, _gauss_seidel, _inner_lcp, _work
+    from qpbench.solvers.pi_robust_kernel.entry import _gauss_seidel
+    from qpbench.solvers.pi_robust_kernel.pivoting import _inner_lcp
+    from qpbench.solvers.pi_robust_kernel.structures import Prox, _work
 
     problem = import_dump(CYCLING_DUMP)
     Q = problem.Q.tocsc()
@@ -679,7 +689,7 @@ def test_block_pivoting_hands_a_nearly_singular_block_to_the_active_set_method()
 def test_the_diagonal_spread_that_gates_row_updates_ignores_contacts_that_move_nothing() -> None:
     """max D_i / min D_i over D_i > 0: a contact with D_i = 0 moves nothing and does not count;
     with none left the spread is 1."""
-    from qpbench.solvers.pi_robust_envelope import _diagonal_spread
+    from qpbench.solvers.pi_robust_kernel.active_set import _diagonal_spread
 
     assert _diagonal_spread(np.array([0.0, 2.0, 1e-7, 5.0])) == pytest.approx(5e7)
     assert _diagonal_spread(np.array([3.0, 3.0])) == 1.0
@@ -691,7 +701,7 @@ def test_the_active_set_methods_objective_without_products_is_the_objective() ->
     f(s) = q^T s / 2, f(max(s, 0)) = f(s) + d^T H d / 2 with d = max(-s, 0), and for x zero
     off F, f(x + t (s - x)) = f(s) + (1 - t)^2 (f(x) - f(s)): the values the active-set
     method uses instead of products with Q."""
-    from qpbench.solvers.pi_robust_envelope import _clipped_curvature, _objective
+    from qpbench.solvers.pi_robust_kernel.active_set import _clipped_curvature, _objective
 
     problem = generate("grid", 7, seed=0)[0]
     Q = problem.Q.tocsc()
@@ -734,7 +744,7 @@ def test_the_active_set_method_frees_violators_not_coupled_to_one_freed_before(
     The kernel and the Python path free the same contacts."""
     from qpbench.solvers.lcp import Lcp
     from qpbench.solvers.pi_robust import _violators_to_free
-    from qpbench.solvers.pi_robust_envelope import _free_violators
+    from qpbench.solvers.pi_robust_kernel.active_set import _free_violators
 
     Q = sp.csc_matrix(np.array([[1.0, 0.5, 0.01, 0.0], [0.5, 1.0, 0.0, 0.0],
                                 [0.01, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]))
@@ -754,7 +764,7 @@ def test_the_active_set_method_frees_violators_not_coupled_to_one_freed_before(
 def test_the_active_set_method_frees_nothing_without_a_violator() -> None:
     """No fixed contact's slack below -tol_w: nothing is freed, and the method is told the
     point is the solution."""
-    from qpbench.solvers.pi_robust_envelope import _free_violators
+    from qpbench.solvers.pi_robust_kernel.active_set import _free_violators
 
     Q = sp.identity(3, format="csc")
     csc = (Q.indptr.astype(np.int64), Q.indices.astype(np.int64), Q.data)
@@ -775,7 +785,7 @@ def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, Csc, np.ndarray, 
     """A generated grid's Q, its 64-bit CSC arrays, its reverse Cuthill-McKee order, and
     _permuted's arrays for that order: (Q, (indptr, indices, data), order, permuted CSC,
     envelope offsets, upper triangle)."""
-    from qpbench.solvers.pi_robust_envelope import _permuted, reverse_cuthill_mckee
+    from qpbench.solvers.pi_robust_kernel.ordering import _permuted, reverse_cuthill_mckee
 
     Q = generate("grid", size, seed=seed)[0].Q
     n = Q.shape[0]
@@ -788,7 +798,7 @@ def ordered_grid(size: int, seed: int) -> tuple[sp.csc_matrix, Csc, np.ndarray, 
 
 
 def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
-    from qpbench.solvers.pi_robust_envelope import _envelope_widths
+    from qpbench.solvers.pi_robust_kernel.ordering import _envelope_widths
 
     Q, posed, order, _, ordered, _ = ordered_grid(10, seed=0)
     assert sorted(order) == list(range(Q.shape[0]))
@@ -800,7 +810,7 @@ def test_reverse_cuthill_mckee_is_a_permutation_that_narrows_a_grid() -> None:
 def test_the_permutation_copies_its_upper_triangle_and_envelope_in_the_same_pass() -> None:
     """_permuted fills the permuted matrix's upper triangle and envelope offsets as
     _upper_into and _envelope_widths would from its CSC arrays."""
-    from qpbench.solvers.pi_robust_envelope import _envelope_widths, _upper_into
+    from qpbench.solvers.pi_robust_kernel.ordering import _envelope_widths, _upper_into
 
     Q, _, order, permuted, widths, upper = ordered_grid(7, seed=1)
     n = Q.shape[0]
@@ -823,7 +833,7 @@ def test_the_permutation_copies_its_upper_triangle_and_envelope_in_the_same_pass
 def test_the_kernels_packed_options_unpack_to_the_accuracy_table_row() -> None:
     """Options travel to the compiled kernel as one array; unpacked they are the row's."""
     from qpbench.solvers import accuracy
-    from qpbench.solvers.pi_robust_envelope import options_of, unpacked
+    from qpbench.solvers.pi_robust_kernel.structures import options_of, unpacked
 
     row = accuracy.options_for("pi-robust", 1e-6)
     options = unpacked(options_of(row))
@@ -864,7 +874,8 @@ def test_a_prox_steps_drift_is_followed_to_the_first_free_contact_at_zero(compil
     null space), moves the centre z to where the first free contact falling along d reaches
     zero; fixed contacts stay. A d that shrinks by 1% a step (a slow contraction) moves
     nothing, nor does a drift along which no free contact falls. Compiled and Python alike."""
-    from qpbench.solvers import pi_robust, pi_robust_envelope
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_kernel import prox
 
     def moved(centre: list[float], drift: list[float], previous: list[float],
               policy: list[bool]) -> np.ndarray | None:
@@ -872,7 +883,7 @@ def test_a_prox_steps_drift_is_followed_to_the_first_free_contact_at_zero(compil
                                 np.array(policy))
         if not compiled:
             return pi_robust._drifted(z, d, d_before, free)
-        return z if pi_robust_envelope._extrapolate_drift(z, d, d_before, free) else None
+        return z if prox._extrapolate_drift(z, d, d_before, free) else None
 
     free = [True, True, True, False]
     drift = [-0.5, 1.0, -1.0, -6.0]

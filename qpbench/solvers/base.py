@@ -111,10 +111,9 @@ class Stopwatch:
 
     Python's cyclic garbage collector is paused inside the block (as ``timeit`` does) and
     restored after it: a collection there would be triggered by garbage the harness left
-    behind (posing, judging, result tables), not by the timed solve. Measured with objects
-    allocated between solves, as the harness does: with it running, the fastest of 20 repeats
-    of a 10-60 us solve varied by up to 2.5x from one round to the next; paused, mostly within
-    1.6x. Reference counting still frees every object outside a cycle inside the block."""
+    behind (posing, judging, result tables), not by the timed solve, and would make the
+    repeated timings of a solve of tens of microseconds vary from one round to the next.
+    Reference counting still frees every object outside a cycle inside the block."""
 
     def __enter__(self) -> Stopwatch:
         self.collecting = gc.isenabled()

@@ -1,7 +1,8 @@
 """A stable counting sort of small non-negative integer keys, compiled (numba): the order of
-contacts by colour (``colouring``) and by degree (``pi_robust_envelope``'s reverse
-Cuthill-McKee seeds). O(n + largest key) where ``np.argsort(kind="stable")`` is a merge
-sort, O(n log n): on a 4,000-ball packing that sort was most of the ordering's time."""
+contacts by colour (``colouring``) and by degree (the reverse Cuthill-McKee seeds of
+``pi_robust_kernel.ordering``). It takes O(n + largest key) operations where
+``np.argsort(kind="stable")``, a merge sort, takes O(n log n) (Knuth, "The Art of Computer
+Programming", vol. 3, section 5.2, algorithm D)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ columns ``n + mu t`` and ``n - mu t`` (:meth:`FrictionalProblem.relaxed`), so ea
 ``X`` gets a twin ``X/ccp`` that hands ``problem.relaxed()`` to X's own solve function, with
 X's own accuracy row, and maps its answer back with :meth:`FrictionalProblem.from_relaxed`.
 The twin is judged by the ccp model's natural map; its Coulomb residual is the model error.
-Its claim is X's claim on the relaxed problem, whose residual is measured with other weights
+Its claim is X's claim on the relaxed problem, whose residual is computed with other weights
 (the relaxed problem's ``diag(Q)`` and scale), so it is not qpbench's ccp verdict by
 construction.
 

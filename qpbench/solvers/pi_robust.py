@@ -19,7 +19,7 @@ and adds published safeguards:
    that change to the first free contact that reaches zero (at most
    ``drift_steps`` times a run: a wrong policy on a singular Q_FF drifts along
    its null space by about ``D^-1 r / rho`` a step, r the part of -b_F outside
-   its range; see ``pi_robust_envelope._extrapolate_drift``).
+   its range; see ``pi_robust_kernel.prox._extrapolate_drift``).
 2. Block principal pivoting with a backup rule (Judice and Pires, Comput. Oper.
    Res. 21(5), 1994; Kim and Park, SIAM J. Sci. Comput. 33(6), 2011) for each
    prox LCP: the policy-iteration exchange of every infeasible contact while
@@ -28,12 +28,10 @@ and adds published safeguards:
    step, as the QP ``min x^T H x / 2 + q^T x, x >= 0`` (Lawson and Hanson 1974;
    Nocedal and Wright 2006, section 16.5), from the feasible part of the best
    exchange's x: contacts fixed or freed per solve, the objective never
-   rising, so it cannot cycle. Block pivoting cycles on nearly singular H (the
-   fork's grids, rho = 1e-5): the active-set method ends those prox steps in
-   tens of solves where single exchanges (Murty 1974) did not end them in
-   hundreds.
+   rising, so it cannot cycle where block pivoting does (nearly singular H,
+   as on grids at small rho).
 3. A safe path when that is slow: policy iteration gets ``pi_budget`` linear
-   solves (enough on the impacts measured here: boxes, cradles, K3/K4, grids). Then a
+   solves (enough on boxes, cradles, K3/K4 and grids). Then a
    Mehrotra interior point (``qpbench.solvers.lcp_interior``, Jacobi-scaled,
    ``ipm_iters`` at most) runs, and every iterate whose residual is below
    ``finish_below`` (then ten times lower than the last try) is handed back to
@@ -52,12 +50,11 @@ and adds published safeguards:
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
 by LU) or sparse SuperLU, a sparse block over the degrees of freedom its contacts move
 when there are fewer of them than contacts (``lcp_interior.WoodburyFactor``, refined
-once: a later step of a dense 10,000-box pile took 67 s with blocks over the contacts,
-14 s so); the last factors of policy blocks are kept, so prox steps on a settled policy
+once); the last factors of policy blocks are kept, so prox steps on a settled policy
 cost triangular solves only.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
-(``qpbench.solvers.pi_robust_envelope``: numba, contacts in reverse Cuthill-McKee order,
+(``qpbench.solvers.pi_robust_kernel``: numba, contacts in reverse Cuthill-McKee order,
 envelope Cholesky factors, a start improved by ``start_sweeps`` projected Gauss-Seidel
 sweeps, new factors that copy the rows they share with a kept one); its answer is reported
 when a rounding bound or qpbench's own residual confirms it, otherwise (or when a factor
@@ -98,36 +95,22 @@ from qpbench.solvers.lcp_interior import (
     moving_rows,
     symmetric_splu,
 )
+from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
 
 NAME = "pi-robust"
-# a settled prox step's change of l is taken for a drift along Q_FF's null space, and followed
-# to the first free contact that reaches zero (_drifted), when it is at least this fraction of
-# the step before's (a drift keeps its length; a slow contraction shrinks it, by about 1% a
-# step on large mass ratios)
-DRIFT_RATIO = 0.999
-# the active-set method frees every violating contact at once except those coupled to one
-# freed before them: Q_ij above this fraction of sqrt(D_i D_j) (the cosine between the two
-# contacts' rows of J M^-1/2; on the fork's grids and the grid captures the positive
-# couplings are about 0.35, or below 0.02 for nearly perpendicular contacts)
-COUPLED = 0.1
 # iterative-refinement steps of a policy block solved over the degrees of freedom
 # (lcp_interior.WoodburyFactor)
 BLOCK_REFINEMENTS = 1
 # the proximal weight of the interior point where it runs first (Jacobi-scaled units: Q~ has a
-# unit diagonal); its answer then misses the LCP by at most 1e-10 max(l~). Measured on dense
-# box piles and the large set's 40 x 40 grids against the plain interior point (which stalls
-# on the piles): 1e-8 and 1e-9 leave a floor above 1e-8 on the 10,000-box pile, 1e-11 and
-# 1e-12 converge slowly near the end (the matrix nearly singular again)
+# unit diagonal); its answer then misses the LCP by at most 1e-10 max(l~). A larger weight
+# leaves a residual floor above the finest accuracy level on dense piles; a smaller one makes
+# the Newton matrix nearly singular again near the end (docs/notes/pi-robust.md)
 INTERIOR_PROX = 1e-10
 # where the interior point runs first, its iterates are handed to policy iteration from this
-# residual on (or from the accuracy table's finish_below, when lower). A trade-off, measured
-# (best of 3): on what the compiled kernel declines, the 40 x 40 grids and the dense piles,
-# tries from 1e-3 mostly fail, each costing factorizations (grids 0.12 s against 0.16-0.18 s),
-# and with no tries before the floor the answers are the interior point's own and the grids
-# and the 10,000-circle pile are slower; on easy large problems that the kernel solves (box
-# packings, balls in a box: forced onto this path) a try at 1e-3 succeeds in one solve, and
-# waiting for 1e-6 costs them 20-45% (box-5000 34 ms against 46)
+# residual on (or from the accuracy table's finish_below, when lower): a try far from the
+# solution mostly fails, each costing factorizations; waiting for the floor leaves the answer
+# the interior point's own (docs/notes/pi-robust.md)
 FIRST_FINISH_BELOW = 1e-6
 
 
@@ -201,8 +184,15 @@ def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.nda
 def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray,
                tol_l: np.ndarray, tol_w: float, backup_steps: int, budget: int,
                active_set: bool = True) -> tuple[np.ndarray, np.ndarray, int, bool]:
-    """Block principal pivoting on LCP(Q + rho D, q) from ``policy``:
-    (x, final policy, linear solves, solved)."""
+    """Solve one prox step's LCP(Q + rho D, q) by block principal pivoting from ``policy``.
+
+    Every infeasible contact (free with ``x_i < -tol_l[i]``, or fixed with a slack below
+    ``-tol_w``) is exchanged while their number falls, with at most ``backup_steps`` exchanges
+    in a row that do not cut it (Judice and Pires, Comput. Oper. Res. 21(5), 1994); then, when
+    ``active_set``, :func:`_primal_active_set` goes on from the feasible part of the best
+    exchange's x, else the step stops unsolved. Returns (x, final policy, linear solves,
+    solved), within ``budget`` solves.
+    """
     shift = rho * lcp.safe_diag
     best = lcp.n + 1
     backup = backup_steps
@@ -261,9 +251,12 @@ def _violators_to_free(lcp: Lcp, violated: np.ndarray, gradient: np.ndarray,
 def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
                        feasible: np.ndarray, tol_l: np.ndarray, tol_w: float, budget: int
                        ) -> tuple[np.ndarray, np.ndarray, int, bool]:
-    """The primal active-set method of ``pi_robust_envelope._primal_active_set`` (its rules
-    there) on LCP(Q + rho D, q), from the point ``feasible`` (>= 0) with free set
-    ``{feasible > 0}``, within ``budget`` linear solves: (x, free set, solves, solved)."""
+    """Solve LCP(Q + rho D, q) by the primal active-set method, from a feasible point.
+
+    The method and its rules are those of ``pi_robust_kernel.active_set._primal_active_set``.
+    It starts from ``feasible`` (>= 0) with the free set ``{feasible > 0}`` and makes at most
+    ``budget`` linear solves. Returns (x, free set, solves, solved).
+    """
     shift = rho * lcp.safe_diag
 
     def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -364,7 +357,7 @@ def _drifted(centre: np.ndarray, drift: np.ndarray, previous_drift: np.ndarray,
     ``g = d_F . d'_F / d'_F . d'_F`` to the step before's d' at least ``DRIFT_RATIO``):
     ``max(z_F + t d_F, 0)``, t the step to the first free contact that reaches zero (set to
     exactly 0) or ``g / (1 - g)`` when smaller; None when it does not move (as
-    ``pi_robust_envelope._extrapolate_drift``)."""
+    ``pi_robust_kernel.prox._extrapolate_drift``)."""
     along = float(drift[policy] @ previous_drift[policy])
     before = float(previous_drift[policy] @ previous_drift[policy])
     if not along >= DRIFT_RATIO * before or before == 0.0:
@@ -394,25 +387,45 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
               finish_below: float, ipm_iters: int, lemke_limit: int,
               lemke_answer: LemkeAnswer | None = None
               ) -> tuple[np.ndarray, bool, str, int, dict]:
-    """(l, converged, status, linear solves, info) for the LCP, from ``start`` (l >= 0);
-    ``lemke_answer``: Lemke's method's answer when it has run on this LCP already.
+    """Solve the LCP by pi-robust's Python path.
 
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP (dense or sparse).
+    blocks : BlockSolver
+        The policy blocks' solver and its kept factors.
+    start : np.ndarray
+        The start, l >= 0.
+    tol, rho, rho_min, rho_decrease, stall_ratio, stall_steps, backup_steps, active_set, drift_steps
+        The prox safeguards (module docstring, item 1 and 2).
+    pi_budget, finish_budget : int
+        Linear solves of the first policy iteration and of each finishing one.
+    finish_below : float
+        The interior point's residual below which its iterates are finished.
+    ipm_iters : int
+        The interior point's iterations at most.
+    lemke_limit : int
+        The most contacts on which Lemke's method runs.
+    lemke_answer : LemkeAnswer or None
+        Lemke's answer when it has run on this LCP already.
+
+    Returns
+    -------
+    tuple
+        (l, converged, status, linear solves, info).
+
+    Notes
+    -----
     Dense LCPs, and any from a warm start (``start`` not 0): policy iteration from ``start``,
-    then the interior point. Sparse ones (above ``dense_limit`` contacts, where each policy
-    solve is a sparse factorization of a block of contacts) from a cold start: the interior
-    point first (its Newton matrix over the degrees of freedom when fewer of them move than
-    there are contacts, :func:`_normal_matrix`), proximal (``INTERIOR_PROX``), ended at its
-    floor or a stall, then policy iteration from its best iterate. Measured against policy
-    iteration first on problems the compiled path declines (best of two solves at 1e-8, all
-    converged either way): dense piles of 1,000 and 10,000 boxes 1.94 s -> 0.31 s and
-    177 s -> 11.5 s (the 1,000-box pile's next two steps 1.07 and 1.61 s -> 0.64 and
-    0.79 s), a pile of 10,000 circles 1.88 s -> 0.88 s, the five 40 x 40 grids of the large
-    set 0.26-0.51 s -> 0.14-0.20 s. The plain interior point stalls on the dense box piles
-    (they have no strictly feasible point); the proximal one, with policy blocks over the
-    degrees of freedom, then took the 10,000-box pile's three steps from 11.5, about 67 and
-    125 s (the last 3.4e-8: inaccurate) to 4.1, 14.6 and 26.4 s (all below 1e-8), the
-    1,000-box pile's from 0.32, 0.61 and 0.75 s to 0.19, 0.37 and 0.37 s, the grids to
-    0.11-0.13 s and the circles to 0.80 s."""
+    then the interior point, its iterates finished by policy iteration. Sparse ones (above
+    ``dense_limit`` contacts, where each policy solve is a sparse factorization) from a cold
+    start: the interior point first, proximal (``INTERIOR_PROX``, so that dense piles, which
+    have no strictly feasible point, do not stall it), its Newton matrix over the degrees of
+    freedom when fewer of them move than there are contacts (:func:`_normal_matrix`), ended at
+    its floor or a stall, then policy iteration from its best iterate. When all of that fails,
+    Lemke's method (:func:`_lemke_fallback`).
+    """
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
         return start, True, "converged", 0, {"path": "start"}
@@ -536,12 +549,13 @@ _kernel: ModuleType | None = None
 
 
 def _kernel_module() -> ModuleType:
-    """``pi_robust_envelope``, imported on first use (it loads numba)."""
+    """The compiled kernel's entry module (``pi_robust_kernel.entry``), imported on first use
+    (it loads numba)."""
     global _kernel
     if _kernel is None:
-        from qpbench.solvers import pi_robust_envelope
+        from qpbench.solvers.pi_robust_kernel import entry
 
-        _kernel = pi_robust_envelope
+        _kernel = entry
     return _kernel
 
 
@@ -556,7 +570,7 @@ def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 class Settings(NamedTuple):
     """pi-robust's accuracy-table row at one level, split by who reads it."""
 
-    kernel: np.ndarray  # the compiled path's options, packed (pi_robust_envelope.options_of)
+    kernel: np.ndarray  # the compiled path's options, packed (pi_robust_kernel.entry.options_of)
     python: dict  # the Python path's keyword arguments (without tol's scale: it is relative)
     dense_limit: int
     compiled_limit: int
@@ -624,9 +638,8 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
     if path == envelope.PATH_INTERIOR:
         info["interior_iterations"] = interior
-    # (impulses, status, claimed_success, iterations, backend_times, info): positional, as keyword
-    # arguments and the default factory cost about 1% of a 5x5 dump's time_s (measured through
-    # call_solver)
+    # (impulses, status, claimed_success, iterations, backend_times, info): positional, with
+    # no keyword arguments and no default factory, on the path every solve takes
     return SolverOutput(impulses, "converged", True, solves, {}, info)
 
 
@@ -668,7 +681,7 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
     """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``), its
     warm start mapped in, swept contact by contact (each contact's (z+, z-) as one block) and
     its answer r mapped back inside the one compiled call
-    (``pi_robust_envelope.relaxed_pi_robust``); when that fails in full,
+    (``pi_robust_kernel.entry.relaxed_pi_robust``); when that fails in full,
     :func:`_after_kernel_failure` on the relaxed problem, mapped back; None when the compiled
     path declines, so that the ccp twin's general path runs."""
     relaxed = problem.relaxed()
@@ -694,15 +707,32 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
-    """pi-robust: the compiled path (``pi_robust_envelope``) straight from the posed problem,
-    up to the accuracy table's ``compiled_limit`` contacts, its answer returned when its
-    rounding bound certifies it (the usual case, here, with no further call: the layers of
-    calls this went through before, through :func:`kernel_call` and :func:`_confirmed`, cost
-    about 1 us, 5% of a 5x5 dump's solve, measured through ``call_solver`` after posing as the
-    benchmark times it) or qpbench's residual confirms it (:func:`_unconfirmed`); otherwise
-    the Python path."""
+    """Solve an impact problem by pi-robust: the compiled kernel first, else the Python path.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The posed problem.
+    eps : float
+        The accuracy level.
+    warm_start : np.ndarray or None
+        A start l.
+
+    Returns
+    -------
+    SolverOutput
+        The answer, its status, linear solves and path.
+
+    Notes
+    -----
+    Up to the accuracy table's ``compiled_limit`` contacts the compiled kernel
+    (``pi_robust_kernel.entry.envelope_pi_robust``) runs straight from the posed problem. Its
+    answer is returned when its rounding bound certifies it (the usual case, built here without
+    further calls, as :func:`_confirmed` would build it) or when qpbench's residual confirms it
+    (:func:`_unconfirmed`); otherwise the Python path (:func:`pi_robust`) runs.
+    """
     settings = settings_for(eps)
-    # b's size is the number of contacts (b is posed; n_contacts reads G's shape, 0.1 us)
+    # b's size is the number of contacts (b is posed; n_contacts would read G's shape)
     compiled = 0 < problem.b.size <= settings.compiled_limit
     if compiled:
         kernel = _kernel or _kernel_module()

@@ -2,7 +2,7 @@
 
 The loop of ``qpbench.solvers.friction_staggered.staggered``, round for round, with pi-robust
 inside: the normal QP by pi-robust's compiled kernel
-(``qpbench.solvers.pi_robust_envelope.envelope_pi_robust``) and the friction box QP by the
+(``qpbench.solvers.pi_robust_kernel.entry.envelope_pi_robust``) and the friction box QP by the
 compiled projected Gauss-Seidel (``qpbench.solvers.box_sweeps``), so that no round returns to
 Python. Each round, from (l_N, l_T):
 
@@ -34,10 +34,10 @@ from numba import njit
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import accuracy, pi_robust
-from qpbench.solvers import pi_robust_envelope as kernel
 from qpbench.solvers.base import SolverOutput
 from qpbench.solvers.box_sweeps import box_gauss_seidel
 from qpbench.solvers.colouring import colour_order
+from qpbench.solvers.pi_robust_kernel import entry as kernel
 
 # how a call ends
 CONVERGED, MAX_OUTER, WARM_START, FALLBACK = 0, 1, 2, 3

@@ -1,0 +1,127 @@
+"""Problem groups and a timed run of pi-robust, shared by the pi-robust notes' scripts.
+
+Each script prints, per group, the linear solves, factorizations, failures and the sum of
+each problem's fastest ``time_s`` (the harness's stopwatch, ``call_solver``), for every
+variant it compares. Times depend on the machine; solve counts do not.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from qpbench.problem import files
+from qpbench.problem.dumps import import_dump
+from qpbench.problem.generate import generate
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.metrics import residual
+from qpbench.solvers import accuracy
+from qpbench.solvers.pi_robust import settings_for
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+ROOT = Path(__file__).resolve().parents[3]
+ACCURACY = 1e-8
+
+
+def groups(quick: bool) -> Iterator[tuple[str, list[ImpactProblem]]]:
+    """(name, problems) of the groups the notes quote; ``quick``: a few problems of each.
+
+    With ``--folder DIR`` (the head-to-head problems, ``qpbench build-set
+    problems/head_to_head.toml -o DIR``) the captured impacts of the research fork's 7x7 grid
+    scenes and of the grid scenes come first."""
+    seeds = range(2) if quick else range(20)
+    folder = folder_argument()
+    if folder is not None:
+        captured: dict[str, list[ImpactProblem]] = {}
+        for path in sorted(folder.rglob("*.npz")):
+            problem = files.load(path)
+            family = str(getattr(problem, "family", "") or "")
+            name = ("fork 7x7 scenes" if family.startswith("scene:grid7_") else
+                    "grid scene captures" if family.startswith("scene:grid") else None)
+            if name is not None and isinstance(problem, ImpactProblem):
+                captured.setdefault(name, []).append(problem)
+        for name, problems in sorted(captured.items()):
+            yield name, problems[:3] if quick else problems
+    dumps = sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out"))
+    yield "fork 5x5 dumps", [import_dump(path) for path in dumps[:3 if quick else None]]
+    for size in (7, 10):
+        yield f"grid {size}", [generate("grid", size, seed=seed)[0] for seed in seeds]
+    for ratio in (5, 10):
+        yield f"mass ratio {ratio}", [generate("mass-ratio", ratio, seed=seed)[0]
+                                      for seed in seeds]
+    yield "near-duplicate", [generate("near-duplicate", None, seed=seed)[0] for seed in seeds]
+    yield "box packings", [generate("box", size, seed=0)[0]
+                           for size in ((1000,) if quick else (1000, 4000))]
+
+
+def run(problems: list[ImpactProblem], repeats: int) -> dict[str, float]:
+    """pi-robust at ``ACCURACY`` on ``problems``: summed solves, factorizations, failures
+    (qpbench's residual above the level) and each problem's fastest time."""
+    spec = get("pi-robust")
+    spec.prepare()
+    totals = {"solves": 0, "factorizations": 0, "failed": 0, "time_s": 0.0}
+    for problem in problems:
+        outputs = [call_solver(spec, problem, ACCURACY) for _ in range(repeats)]
+        first = outputs[0]
+        totals["solves"] += first.iterations or 0
+        totals["factorizations"] += first.info.get("factorizations", 0)
+        totals["failed"] += residual(problem, first.impulses) > ACCURACY
+        totals["time_s"] += min(output.time_s for output in outputs)
+    return totals
+
+
+def with_row(key: str, value: object, action: Callable[[], dict[str, float]]
+             ) -> dict[str, float]:
+    """``action()`` with pi-robust's accuracy-table entry ``key`` set to ``value``."""
+    row = accuracy.OPTIONS["pi-robust"]
+    saved = row[key]
+    row[key] = value
+    settings_for.cache_clear()
+    try:
+        return action()
+    finally:
+        row[key] = saved
+        settings_for.cache_clear()
+
+
+def table(title: str, variants: list[str], results: dict[tuple[str, str], dict[str, float]],
+          group_names: list[str]) -> None:
+    """Print one line per (group, variant)."""
+    print(f"\n{title}\n")
+    print("| group | variant | solves | factorizations | failed | time (s) |")
+    print("|---|---|---:|---:|---:|---:|")
+    for group in group_names:
+        for variant in variants:
+            got = results[group, variant]
+            print(f"| {group} | {variant} | {got['solves']:.0f} | {got['factorizations']:.0f} "
+                  f"| {got['failed']:.0f} | {got['time_s']:.4f} |")
+    sys.stdout.flush()
+
+
+def folder_argument() -> Path | None:
+    """The folder after ``--folder`` on the command line, or None."""
+    arguments = sys.argv[1:]
+    if "--folder" in arguments and arguments.index("--folder") + 1 < len(arguments):
+        return Path(arguments[arguments.index("--folder") + 1])
+    return None
+
+
+def words() -> list[str]:
+    """The command line without ``--quick``, ``--child`` and ``--folder DIR``."""
+    out, arguments = [], sys.argv[1:]
+    skip = False
+    for word in arguments:
+        if skip:
+            skip = False
+        elif word == "--folder":
+            skip = True
+        elif word not in ("--quick", "--child"):
+            out.append(word)
+    return out
+
+
+def quick_flag() -> bool:
+    """``--quick`` on the command line: a few problems per group, one repeat."""
+    return "--quick" in sys.argv[1:]

@@ -1,0 +1,56 @@
+"""Constants shared by pi-robust's compiled kernel and its Python path.
+
+This module imports neither numba nor the rest of the kernel, so that
+``qpbench.solvers.pi_robust`` can import the rules both paths share
+(:data:`COUPLED`, :data:`DRIFT_RATIO`) at its top level without loading the kernel.
+"""
+
+from __future__ import annotations
+
+# The active-set method frees every violating contact at once except those coupled to one
+# freed before them: ``Q_ij > COUPLED sqrt(D_i D_j)``, the cosine between the two contacts'
+# rows of ``J M^-1/2`` (positive couplings on grids are about 0.35; nearly perpendicular
+# contacts are below 0.02).
+COUPLED = 0.1
+# A settled prox step's change of l is taken for a drift along the null space of Q_FF, and
+# followed to the first free contact that reaches zero, when it is at least this fraction of
+# the change in the step before (a drift keeps its length, a slow contraction shrinks it).
+DRIFT_RATIO = 0.999
+
+# Floating-point freedoms of the factor and its solves: sums may be reordered (so that their
+# inner products vectorise) and fused; NaN and infinity keep their meaning, so that a failing
+# pivot is still caught.
+REDUCTIONS = {"reassoc", "contract"}
+# The functions that every step of policy iteration runs are compiled without numba's
+# reference counting (its ``_nrt`` option), which otherwise adds an atomic increment and
+# decrement for every array a function binds, slices or passes on. Such a function cannot
+# allocate (numba refuses to compile it) and must not return an array (no count would own
+# it; tests/test_lcp_solvers.py checks every one's return type).
+WITHOUT_REFCOUNTS = {"_nrt": False}
+# The contacts are put in reverse Cuthill-McKee order when the envelope in the posed order
+# costs more than WIDE_ENVELOPE_WORK multiply-adds to factor (below that the ordering costs
+# more than it saves) and either there are more than ``order_above`` contacts or the envelope
+# costs more than WIDE_ENVELOPE of a dense factorization's n^3 / 6 (Anitescu's relaxation
+# puts the columns n + mu t and n - mu t of one contact n apart).
+WIDE_ENVELOPE = 0.5
+WIDE_ENVELOPE_WORK = 1e4
+# A block factored with at least DEPENDENT_CONTACTS dependent contacts (pivots
+# L_ii^2 < DEPENDENT_PIVOT rho D_i: contact i nearly a combination of the free contacts before
+# it) is nearly singular at this rho, and block pivoting's iterate on it swings (see
+# ``pivoting._inner_lcp``).
+DEPENDENT_PIVOT = 100.0
+DEPENDENT_CONTACTS = 4
+# The active-set method's steps that only fix contacts, at most UPDATE_FIXED of them, delete
+# their rows from the factor solved last instead of refactoring
+# (``factor._block_solve_fixing``), on problems whose D_i > 0 span at most UPDATE_SPREAD
+# (wider spreads make the updated factor round differently enough to change the pivots).
+UPDATE_FIXED = 4
+UPDATE_SPREAD = 1e6
+# Status codes of a prox run.
+PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
+# Paths of a whole solve, and their names in a solver's ``info["path"]``.
+PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED, PATH_SWEEPS = \
+    0, 1, 2, 3, 4, 5
+PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
+              "interior point did not converge", "declined: envelope too wide",
+              "start sweeps")
