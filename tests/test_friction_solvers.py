@@ -335,13 +335,57 @@ def test_ccp_on_a_sticking_ball_is_the_coulomb_answer() -> None:
 
 # --- the listing ------------------------------------------------------------------------
 def test_every_frictionless_dual_or_lcp_solver_has_its_ccp_and_staggered_twins() -> None:
+    """... but for the untwinned backends (native pairs, whose qpsolvers twins are twinned, and
+    Siconos, which has its own fc2d solvers)."""
+    from qpbench.solvers.friction_ccp import UNTWINNED_BACKENDS
+
     listed = {spec.key: spec for spec in registry.all_solvers()}
     inner = {spec.name: spec for spec in listed.values()
              if "impact" in spec.kinds and spec.formulation in ("dual", "lcp")}
-    assert {"pi-robust", "pgs", "lemke", "apgd", "penalty", "pi", "pi-v2"} <= set(inner)
+    assert {"pi-robust", "pgs", "lemke", "apgd", "penalty", "pi", "pi-v2", "daqp",
+            "daqp-native"} <= set(inner)
     for name, spec in inner.items():
         for formulation in ("ccp", "staggered"):
-            twin = listed[f"{name}/{formulation}"]
-            assert twin.kinds == ("frictional",)
+            twin = listed.get(f"{name}/{formulation}")
+            if spec.backend in UNTWINNED_BACKENDS:
+                assert twin is None
+                continue
+            assert twin is not None and twin.kinds == ("frictional",)
             assert twin.usable == spec.usable and twin.reason == spec.reason
     assert listed["nsgs/nsgs"].kinds == ("frictional",)
+
+
+REGISTERED_KEYS = """
+import importlib.util, json, pathlib, sys
+import qpbench
+path = pathlib.Path(qpbench.__file__).parent / "solvers" / "__init__.py"
+source = path.read_text()
+loop = "for _module in FAMILIES:"
+assert loop in source
+if sys.argv[1] == "reversed":  # the package's own code, its families imported last to first
+    source = source.replace(loop, "for _module in reversed(FAMILIES):")
+spec = importlib.util.spec_from_file_location("qpbench.solvers", path,
+                                              submodule_search_locations=[str(path.parent)])
+package = importlib.util.module_from_spec(spec)
+sys.modules["qpbench.solvers"] = package
+exec(compile(source, str(path), "exec"), package.__dict__)
+from qpbench.solvers import registry
+print(json.dumps([spec.key for spec in registry.all_solvers()]))
+"""
+
+
+def test_the_registered_pairs_do_not_depend_on_the_order_families_are_imported() -> None:
+    """The families imported last to first, every twin family before the families it twins,
+    give the same pairs as the usual order."""
+    import json
+    import subprocess
+    import sys
+
+    def keys(order: str) -> list[str]:
+        result = subprocess.run([sys.executable, "-c", REGISTERED_KEYS, order],
+                                capture_output=True, text=True, check=True)
+        return json.loads(result.stdout)
+
+    usual = keys("usual")
+    assert {"pgs/ccp", "pgs/staggered", "pi-robust/ccp", "daqp/staggered"} <= set(usual)
+    assert keys("reversed") == usual

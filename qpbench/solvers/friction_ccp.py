@@ -14,9 +14,9 @@ A warm start r = (l_N, l_T) enters as ``z+- = (l_N +- l_T / mu) / 2`` (``l_N / 2
 mu = 0), clipped to z >= 0. pi-robust's twin does all of it in one compiled call first
 (``pi_robust.solve_relaxed``: the same maps; its start is first swept contact by contact,
 each contact's (z+, z-) as one 2x2 block, and the general path runs only where it declines).
-This module must be imported after the frictionless families (``qpbench/solvers/__init__.py``):
-it twins what is registered when it runs, and an unusable X gives an unusable twin with X's
-reason.
+The twins are a derivation of the registry (``registry.register_derivation``): they are made
+once every family is imported, whatever the order, and an unusable X gives an unusable twin with
+X's reason. The native and Siconos backends get none (``UNTWINNED_BACKENDS``).
 """
 
 from __future__ import annotations
@@ -32,14 +32,19 @@ from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
 
 FORMULATION = "ccp"
 INNER_FORMULATIONS = ("dual", "lcp")  # the forms whose solvers take an ImpactProblem's Q, b
+# backends without frictional twins: a native pair measures a backend's own call path beside
+# its qpsolvers twin (which is twinned), and Siconos brings its own 2D friction solvers (fc2d)
+UNTWINNED_BACKENDS = ("native", "siconos")
 
 
-def frictionless_solvers() -> list[SolverSpec]:
-    """Every registered impact solver of a ``dual`` or ``lcp`` formulation, usable or not,
-    one per name (its ``dual`` form where it has both), in key order."""
+def frictionless_solvers(specs: list[SolverSpec]) -> list[SolverSpec]:
+    """The impact solvers among ``specs`` of a ``dual`` or ``lcp`` formulation, usable or not,
+    one per name (its ``dual`` form where it has both), in the order given, but for
+    ``UNTWINNED_BACKENDS``."""
     chosen: dict[str, SolverSpec] = {}
-    for spec in registry.registered_so_far():
-        if "impact" not in spec.kinds or spec.formulation not in INNER_FORMULATIONS:
+    for spec in specs:
+        if ("impact" not in spec.kinds or spec.formulation not in INNER_FORMULATIONS
+                or spec.backend in UNTWINNED_BACKENDS):
             continue
         if spec.name not in chosen or spec.formulation == "dual":
             chosen[spec.name] = spec
@@ -120,5 +125,5 @@ COMPILED_TWINS: dict[str, Callable[..., SolverOutput | None]] = {
     pi_robust.NAME: pi_robust.solve_relaxed}
 
 
-for _spec in frictionless_solvers():
-    registry.register(twin(_spec))
+registry.register_derivation(
+    lambda specs: [twin(spec) for spec in frictionless_solvers(specs)])

@@ -420,5 +420,5 @@ def twin(spec: SolverSpec) -> SolverSpec:
                    prepare=prepare if sweeps_here else spec.prepare)
 
 
-for _spec in frictionless_solvers():
-    registry.register(twin(_spec))
+registry.register_derivation(
+    lambda specs: [twin(spec) for spec in frictionless_solvers(specs)])

@@ -4,12 +4,20 @@ import fails registers its solvers as unusable with the reason, so it drops out 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from qpbench import EXTRA_SOLVERS_ENV
 from qpbench.errors import QpbenchError
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverSpec
 
+# a rule that derives pairs from the pairs the families register (the frictional twins of
+# the frictionless solvers, say)
+Derivation = Callable[[list[SolverSpec]], list[SolverSpec]]
+
 _SOLVERS: dict[str, SolverSpec] = {}
+_DERIVATIONS: list[Derivation] = []
+_derived = False
 
 
 def register(spec: SolverSpec) -> SolverSpec:
@@ -50,16 +58,31 @@ def _import_extra_solvers() -> None:
                                    f"{error}") from error
 
 
-def registered_so_far() -> list[SolverSpec]:
-    """The pairs registered until now, sorted by key, without importing any backend: for
-    backend modules that derive solvers from the ones registered before them."""
-    return [_SOLVERS[key] for key in sorted(_SOLVERS)]
+def register_derivation(derive: Derivation) -> None:
+    """Adds a rule that derives pairs from those the families register. Every rule runs once,
+    after every family is imported (:func:`all_solvers`), on all the pairs they registered,
+    so no family depends on the order in which the families are imported."""
+    _DERIVATIONS.append(derive)
+
+
+def _derive() -> None:
+    """Registers what every derivation gives, the first time every family is imported."""
+    global _derived
+    if _derived:
+        return
+    _derived = True
+    registered = [_SOLVERS[key] for key in sorted(_SOLVERS)]
+    for derive in _DERIVATIONS:
+        for spec in derive(registered):
+            register(spec)
 
 
 def all_solvers() -> list[SolverSpec]:
-    """Every registered solver-formulation pair, usable or not, sorted by key."""
+    """Every registered solver-formulation pair, usable or not, sorted by key: the families'
+    own, those derived from them, and those of $QPBENCH_EXTRA_SOLVERS."""
     from qpbench import solvers  # noqa: F401  (imports every backend module once)
 
+    _derive()
     _import_extra_solvers()
     return [_SOLVERS[key] for key in sorted(_SOLVERS)]
 
