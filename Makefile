@@ -80,10 +80,16 @@ bench: setup
 		-o $(BENCH_RESULTS)/head_to_head.json
 	$(BIN)/qpbench report $(BENCH_RESULTS)/bench.parquet -o $(BENCH_RESULTS)
 
-# The larger sweep, in its own folders.
-bench-large:
+# The larger sweep, in its own folders; first a fuzz run of FUZZ_CASES mutated scenes and as
+# many mutated problem files through the command line (build/results-large/fuzz.json, whose
+# counts the report prints). The target fails after the benchmark when a fuzz case failed.
+FUZZ_CASES ?= 10000
+bench-large: setup
+	@mkdir -p build/results-large; status=0; \
+	$(BIN)/qpbench fuzz --scenes $(FUZZ_CASES) --problems $(FUZZ_CASES) --seed 0 \
+		-o build/results-large/fuzz.json || status=$$?; \
 	$(MAKE) bench BENCH_SET=problems/large.toml BENCH_PROBLEMS=build/problems/large \
-		BENCH_RESULTS=build/results-large BENCH_TIMEOUT=60
+		BENCH_RESULTS=build/results-large BENCH_TIMEOUT=60 && exit $$status
 
 lint: setup
 	$(BIN)/ruff check qpbench tests

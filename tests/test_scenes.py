@@ -214,6 +214,25 @@ BAD_SCENES += [
      InputError, "<planar_portal> attribute 'planeB': names plane 2"),
 ]
 
+BAD_SCENES += [
+    # a chain of grr operators is refused at its second link, not followed until Python's
+    # recursion limit
+    (TWO_BALLS.replace('<impact_operator type="lcp" CoR="1.0" v_tol="1.0e-9" cache_impulses="0">'
+                       '\n    <solver name="policy_iteration" max_iters="100" tol="1e-8"/>',
+                       '<impact_operator type="grr" CoR="0.5">'
+                       + '<elastic_operator type="grr">' * 5000
+                       + '</elastic_operator>' * 5000), InputError,
+     "<elastic_operator> attribute 'type': a grr cannot nest another grr"),
+    ('<?xml version="1.0" encoding="no-such-encoding"?>' + TWO_BALLS, InputError,
+     "malformed XML: unknown encoding"),
+    # a value of any length is quoted in at most a few dozen characters
+    (TWO_BALLS.replace('r="0.5"', 'r="' + "1" * 100_000 + '"', 1), InputError,
+     "<ball> attribute 'r': must be finite, got '1111111111111111111111111111111111111111'... "
+     "(100000 characters)"),
+    (with_friction(SOBOGUS.replace('max_iters="50"', 'max_iters="' + "9" * 4000 + '"')),
+     InputError, "<sobogus_friction_solver> attribute 'max_iters': out of range"),
+]
+
 
 def test_a_sobogus_solver_with_friction_reads_every_attribute() -> None:
     scene = parse_scene(with_friction(SOBOGUS.replace('"geometric"', '"symplectic_euler" '
@@ -290,6 +309,13 @@ def test_an_external_entity_is_refused() -> None:
             "<ball2d_scene>&x;</ball2d_scene>")
     with pytest.raises(InputError, match="refused"):
         parse_scene(text, "external.xml")
+
+
+def test_a_warning_names_at_most_ten_unknown_attributes() -> None:
+    attributes = " ".join(f'extra{index}="1"' for index in range(500))
+    scene = parse_scene(TWO_BALLS.replace("<ball ", f"<ball {attributes} ", 1), "many.xml")
+    assert len(scene.warnings) == 1 and scene.warnings[0].endswith("and 490 more")
+    assert len(scene.warnings[0]) < 400
 
 
 def test_a_missing_file_is_one_line(capsys: pytest.CaptureFixture) -> None:

@@ -4,8 +4,9 @@ Sections: what was run; machine and version provenance; per accuracy level the s
 rate, shifted geometric mean time and residuals; formulations side by side;
 work-precision diagrams per family; Dolan-More profiles; the cost of accuracy; status
 honesty; warm against cold starts; the targets of our own solver; the accuracy-options
-table; and any extra sections other parts of qpbench left as JSON files (a
-``"markdown"`` key) in the results folder.
+table; any extra sections other parts of qpbench left as JSON files (a
+``"markdown"`` key) in the results folder; and the counts of a ``qpbench fuzz`` run whose
+``fuzz.json`` lies there.
 """
 
 from __future__ import annotations
@@ -460,6 +461,47 @@ def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
     return found
 
 
+FUZZ_FILE = "fuzz.json"
+FUZZ_PASSING = ("ok", "solve-failed", "input-error")
+
+
+def fuzz_section(folders: Iterable[Path]) -> str | None:
+    """The counts of the first ``fuzz.json`` (written by ``qpbench fuzz``) in ``folders``:
+    cases, failures and outcomes per kind, the attributes covered and the first failures;
+    None when there is none or it is not a fuzz report."""
+    for folder in folders:
+        try:
+            content = json.loads((folder / FUZZ_FILE).read_text(encoding="utf-8"))
+            kinds = {kind: content["kinds"][kind] for kind in ("scene", "problem")}
+            outcomes = sorted({outcome for counts in kinds.values()
+                               for outcome in counts["outcomes"]},
+                              key=lambda outcome: (outcome not in FUZZ_PASSING, outcome))
+        except (OSError, ValueError, RecursionError, KeyError, TypeError, AttributeError):
+            continue
+        verdict = ("every case passed" if content.get("passed") else
+                   f"**{content.get('failed')} cases failed**")
+        lines = [f"`qpbench fuzz` (seed {content.get('seed')}, {content.get('steps')} steps "
+                 f"per scene, {content.get('time_limit_s')} s and "
+                 f"{content.get('memory_limit_mb')} MiB per case): {verdict}. Passing: exit 0, "
+                 "or exit 1/2 with one `qpbench ...` line on stderr.", "",
+                 "| kind | cases | failed | " + " | ".join(outcomes) + " |",
+                 "|---|---:|---:|" + "---:|" * len(outcomes)]
+        for kind, counts in kinds.items():
+            lines.append(f"| {kind} | {counts.get('cases')} | {counts.get('failed')} | "
+                         + " | ".join(str(counts["outcomes"].get(outcome, 0))
+                                      for outcome in outcomes) + " |")
+        for dialect, covered in (content.get("coverage") or {}).items():
+            lines.append(f"\n{dialect}: {covered.get('touched')} of {covered.get('known')} "
+                         "attributes qpbench reads set to bad values or deleted.")
+        failures = (content.get("failures") or [])[:5]
+        lines.extend(["", "First failures:", ""] if failures else [])
+        for failure in failures:
+            lines.append(f"- {failure.get('kind')} case {failure.get('case')}: "
+                         f"{failure.get('outcome')} (`{' '.join(failure.get('command') or [])}`)")
+        return "\n".join(lines) + "\n"
+    return None
+
+
 SUMMARY_SUCCESS = 0.95
 
 
@@ -577,6 +619,9 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                + markdown_table(options, {c: str for c in options.columns}))
     for title, markdown in extra_sections(dict.fromkeys([results.parent, folder])):
         out.append(f"\n## {title}\n\n{markdown}")
+    fuzzing = fuzz_section(dict.fromkeys([results.parent, folder]))
+    if fuzzing is not None:
+        out.append(f"\n## Fuzzing\n\n{fuzzing}")
 
     report = folder / "REPORT.md"
     with atomic_path(report) as temporary:

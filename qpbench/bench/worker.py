@@ -46,7 +46,6 @@ from qpbench.bench.provenance import provenance
 from qpbench.bench.schedule import Schedule, fastest
 from qpbench.bench.settings import OUT_OF_MEMORY, Cell, Limits
 from qpbench.memory import limit_memory
-from qpbench.memory import virtual_memory_mb as virtual_memory_mb  # imported from here too
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem

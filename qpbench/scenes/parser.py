@@ -48,8 +48,15 @@ LARGEST = 1e40
 # a decimal as Fraction reads it; qpbench reads exponents of at most MAX_EXPONENT_DIGITS digits
 _DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?(?P<exponent>\d+))?")
 MAX_EXPONENT_DIGITS = 4
+# integers (indices, iteration counts) qpbench reads have at most this magnitude
+LARGEST_INTEGER = 2**53
+# a value quoted in a message is cut to this many characters; a warning names at most
+# MAX_NAMED unknown elements and attributes
+MAX_QUOTED = 40
+MAX_NAMED = 10
 
-# Known attributes of every element qpbench reads (``None``: any attribute is fine).
+# Known attributes of every top-level element qpbench reads, per dialect (``None``: any
+# attribute is fine).
 _COMMON: dict[str, frozenset[str] | None] = {
     "camera": None,
     "integrator": frozenset({"type", "dt"}),
@@ -67,7 +74,7 @@ _COMMON: dict[str, frozenset[str] | None] = {
         "internal_warm_start_beta"}),
 }
 _SP_CHILDREN = frozenset({"lcp_impact_solver", "mdp_friction_solver"})
-_KNOWN: dict[str, dict[str, frozenset[str] | None]] = {
+KNOWN_ATTRIBUTES: dict[str, dict[str, frozenset[str] | None]] = {
     "ball2d": {
         **_COMMON,
         "ball": frozenset({"x", "y", "vx", "vy", "m", "r", "fixed"}),
@@ -82,9 +89,37 @@ _KNOWN: dict[str, dict[str, frozenset[str] | None]] = {
     },
 }
 _OPERATOR_CHILDREN = frozenset({"solver", "elastic_operator", "inelastic_operator"})
+# Attributes qpbench reads on the elements nested in an operator or a friction solver (a
+# ``<solver>``'s other attributes are its options, kept as text).
+NESTED_ATTRIBUTES: dict[str, frozenset[str]] = {
+    "solver": frozenset({"name"}),
+    "lcp_impact_solver": frozenset({"name"}),
+    "mdp_friction_solver": frozenset({"name"}),
+    "elastic_operator": frozenset({"type", "CoR", "v_tol", "cache_impulses"}),
+    "inelastic_operator": frozenset({"type", "CoR", "v_tol", "cache_impulses"}),
+}
 _SINGLETONS = ("integrator", "impact_operator", "end_time")
 _FRICTION_SOLVERS = ("sobogus_friction_solver", "staggered_projections_friction_solver")
 _PORTALS = ("planar_portal", "lees_edwards_portal")
+
+
+def shown(text: str) -> str:
+    """``text`` quoted for a message: its repr, cut to MAX_QUOTED characters with its length
+    said when it is longer (a scene's value may be megabytes long)."""
+    if len(text) <= MAX_QUOTED:
+        return repr(text)
+    return f"{text[:MAX_QUOTED]!r}... ({len(text)} characters)"
+
+
+def _cut(name: str) -> str:
+    """A name from the scene (a tag) cut to MAX_QUOTED characters."""
+    return name if len(name) <= MAX_QUOTED else f"{name[:MAX_QUOTED]}..."
+
+
+def _named(names: list[str]) -> str:
+    """At most MAX_NAMED of ``names``, each cut to MAX_QUOTED characters, and how many more."""
+    listed = ", ".join(_cut(name) for name in names[:MAX_NAMED])
+    return listed + (f" and {len(names) - MAX_NAMED} more" if len(names) > MAX_NAMED else "")
 
 
 def _child_tags(root: Element) -> set[str]:
@@ -126,9 +161,9 @@ class _Reader:
         try:
             value = float(raw)
         except ValueError:
-            raise self.error(element, name, f"not a number: {raw!r}", index) from None
+            raise self.error(element, name, f"not a number: {shown(raw)}", index) from None
         if not math.isfinite(value):
-            raise self.error(element, name, f"must be finite, got {raw!r}", index)
+            raise self.error(element, name, f"must be finite, got {shown(raw)}", index)
         self._check(element, name, value, raw, check, index)
         self._check_range(element, name, np.array([value]), raw, check == "positive", index)
         return value
@@ -143,17 +178,17 @@ class _Reader:
     def _out_of_range(self, element: Element, name: str, raw: str, positive: bool,
                       index: int | None) -> InputError:
         smallest = f", positive values from {1.0 / LARGEST:g}" if positive else ""
-        return self.error(element, name, f"out of range: {raw!r} (qpbench reads magnitudes up "
+        return self.error(element, name, f"out of range: {shown(raw)} (qpbench reads magnitudes up "
                                          f"to {LARGEST:g}{smallest})", index)
 
     def _check(self, element: Element, name: str, value: float, raw: str, check: str | None,
                index: int | None) -> None:
         if check == "positive" and not value > 0:
-            raise self.error(element, name, f"must be positive, got {raw!r}", index)
+            raise self.error(element, name, f"must be positive, got {shown(raw)}", index)
         if check == "nonnegative" and not value >= 0:
-            raise self.error(element, name, f"must be >= 0, got {raw!r}", index)
+            raise self.error(element, name, f"must be >= 0, got {shown(raw)}", index)
         if check == "unit" and not 0 <= value <= 1:
-            raise self.error(element, name, f"must lie in [0, 1], got {raw!r}", index)
+            raise self.error(element, name, f"must lie in [0, 1], got {shown(raw)}", index)
 
     def vector(self, element: Element, name: str, index: int | None = None,
                positive: bool = False) -> np.ndarray:
@@ -162,15 +197,15 @@ class _Reader:
         raw = self.text(element, name, index)
         parts = raw.split()
         if len(parts) != 2:
-            raise self.error(element, name, f"expected two numbers, got {raw!r}", index)
+            raise self.error(element, name, f"expected two numbers, got {shown(raw)}", index)
         try:
             values = np.array([float(part) for part in parts])
         except ValueError:
-            raise self.error(element, name, f"not two numbers: {raw!r}", index) from None
+            raise self.error(element, name, f"not two numbers: {shown(raw)}", index) from None
         if not np.all(np.isfinite(values)):
-            raise self.error(element, name, f"must be finite, got {raw!r}", index)
+            raise self.error(element, name, f"must be finite, got {shown(raw)}", index)
         if positive and not np.all(values > 0):
-            raise self.error(element, name, f"must be positive, got {raw.strip()!r}", index)
+            raise self.error(element, name, f"must be positive, got {shown(raw.strip())}", index)
         self._check_range(element, name, values, raw, positive, index)
         return values
 
@@ -181,7 +216,7 @@ class _Reader:
             return default
         raw = self.text(element, name, index).strip()
         if raw not in ("0", "1"):
-            raise self.error(element, name, f"must be 0 or 1, got {raw!r}", index)
+            raise self.error(element, name, f"must be 0 or 1, got {shown(raw)}", index)
         return raw == "1"
 
     def integer(self, element: Element, name: str, index: int | None = None,
@@ -191,16 +226,20 @@ class _Reader:
         try:
             value = int(raw.strip())
         except ValueError:
-            raise self.error(element, name, f"not an integer: {raw!r}", index) from None
+            raise self.error(element, name, f"not an integer: {shown(raw)}", index) from None
+        if abs(value) > LARGEST_INTEGER:
+            raise self.error(element, name, f"out of range: {shown(raw)} (qpbench reads "
+                             f"integers up to {LARGEST_INTEGER})", index)
         if check == "positive" and not value > 0:
-            raise self.error(element, name, f"must be a positive integer, got {raw!r}", index)
+            raise self.error(element, name, f"must be a positive integer, got {shown(raw)}", index)
         return value
 
     def choice(self, element: Element, name: str, options: tuple[str, ...]) -> str:
         """One of ``options``, spelled exactly."""
         raw = self.text(element, name)
         if raw.strip() not in options:
-            raise self.error(element, name, f"must be one of {', '.join(options)}, got {raw!r}")
+            raise self.error(element, name,
+                             f"must be one of {', '.join(options)}, got {shown(raw)}")
         return raw.strip()
 
     def fraction(self, element: Element, name: str, index: int | None = None) -> Fraction:
@@ -221,10 +260,10 @@ class _Reader:
             else:
                 raise ValueError(text)
         except (ValueError, ZeroDivisionError):
-            raise self.error(element, name, f"not a decimal or a fraction: {raw!r}",
+            raise self.error(element, name, f"not a decimal or a fraction: {shown(raw)}",
                              index) from None
         if not value > 0:
-            raise self.error(element, name, f"must be positive, got {raw!r}", index)
+            raise self.error(element, name, f"must be positive, got {shown(raw)}", index)
         if not 1.0 / LARGEST <= value <= LARGEST:  # compared exactly
             raise self._out_of_range(element, name, raw, True, index)
         return value
@@ -256,19 +295,17 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     except defusedxml.DefusedXmlException as error:
         raise InputError(path, f"refused: {error} (entity declarations and external "
                                "references are not allowed)") from None
-    except ET.ParseError as error:
-        raise InputError(path, f"malformed XML: {error}") from None
-    except ValueError as error:
-        raise InputError(path, f"malformed XML: {error}") from None
+    except (ET.ParseError, ValueError, LookupError) as error:  # LookupError: an encoding
+        raise InputError(path, f"malformed XML: {error}") from None  # without a codec
     dialect = root.tag.removesuffix("_scene") if root.tag.endswith("_scene") else ""
-    if dialect not in _KNOWN:
+    if dialect not in KNOWN_ATTRIBUTES:
         if root.tag.endswith("_scene"):
-            raise UnsupportedError(f"{path}: <{root.tag}>: not supported: qpbench reads "
+            raise UnsupportedError(f"{path}: <{_cut(root.tag)}>: not supported: qpbench reads "
                                    "<ball2d_scene> and <rigidbody2d_scene>")
         raise InputError(path, "not a SCISim 2D scene (expected <ball2d_scene> or "
-                               "<rigidbody2d_scene>)", element=root.tag)
+                               "<rigidbody2d_scene>)", element=_cut(root.tag))
     reader = _Reader(path)
-    known = _KNOWN[dialect]
+    known = KNOWN_ATTRIBUTES[dialect]
     unknown_elements: list[str] = []
     children: dict[str, list[Element]] = {}
     for child in root:
@@ -305,11 +342,12 @@ def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
     if "end_time" in children:
         scene.end_time = reader.fraction(children["end_time"][0], "t")
     for script in children.get("scripting", []):
-        warnings.append(f"{path}: <scripting callback={script.get('callback', '')!r}> ignored: "
-                        "qpbench never runs code named by a scene")
+        callback = shown(script.get("callback", ""))
+        warnings.append(f"{path}: <scripting callback={callback}> ignored: qpbench never runs "
+                        "code named by a scene")
     unknown = sorted(set(unknown_elements)) + sorted(set(reader.unknown))
     if unknown:
-        warnings.insert(0, f"{path}: ignoring what qpbench does not know: {', '.join(unknown)}")
+        warnings.insert(0, f"{path}: ignoring what qpbench does not know: {_named(unknown)}")
     scene.warnings = warnings
     return scene
 
@@ -358,7 +396,7 @@ def _rigidbody2d_bodies(reader: _Reader, children: dict[str, list[Element]],
         elif kind == "box":
             geometries.append(("box", reader.vector(geometry, "r", index, positive=True)))
         else:
-            raise reader.error(geometry, "type", f"must be circle or box, got {kind!r}", index)
+            raise reader.error(geometry, "type", f"must be circle or box, got {shown(kind)}", index)
     rows = []
     halves = []
     for index, body in enumerate(children.get("rigid_body", [])):
@@ -396,7 +434,7 @@ def _integrator(reader: _Reader, children: dict[str, list[Element]]) -> tuple[st
     kind = reader.text(element, "type").strip()
     if kind not in INTEGRATORS:
         raise reader.error(element, "type", f"must be one of {', '.join(INTEGRATORS)}, "
-                                            f"got {kind!r}")
+                                            f"got {shown(kind)}")
     return kind, reader.fraction(element, "dt")
 
 
@@ -521,7 +559,7 @@ def _sobogus(reader: _Reader, element: Element, dialect: str) -> FrictionSolver:
         if restitution != 0.0:
             raise reader.error(element, "CoR", "must be 0 for the symplectic_euler staggering "
                                                f"(as SCISim requires), got "
-                                               f"{element.get('CoR')!r}")
+                                               f"{shown(element.get('CoR', ''))}")
         solver.stabilization = reader.boolean(element, "stabilization")
         solver.penetration_threshold = reader.number(element, "penetration_threshold",
                                                      check="nonnegative")
@@ -578,7 +616,7 @@ def _cache_impulses(reader: _Reader, element: Element) -> bool:
     if value in ("1", "normal", "normal_and_friction"):
         return True
     raise reader.error(element, "cache_impulses", "must be 0, 1, none, normal or "
-                                                  f"normal_and_friction, got {raw!r}")
+                                                  f"normal_and_friction, got {shown(raw)}")
 
 
 def _operator(reader: _Reader, element: Element, restitution: float | None) -> ImpactOperator:
@@ -587,7 +625,8 @@ def _operator(reader: _Reader, element: Element, restitution: float | None) -> I
     reader.note_unknown(element, _COMMON["impact_operator"])
     kind = reader.text(element, "type").strip()
     if kind not in OPERATORS:
-        raise reader.error(element, "type", f"must be one of {', '.join(OPERATORS)}, got {kind!r}")
+        raise reader.error(element, "type",
+                           f"must be one of {', '.join(OPERATORS)}, got {shown(kind)}")
     if restitution is None:
         restitution = reader.number(element, "CoR", check="unit")
     elif element.get("CoR") is not None:
@@ -620,9 +659,10 @@ def _operator(reader: _Reader, element: Element, restitution: float | None) -> I
             if tag not in children:
                 raise InputError(reader.path, f"missing: <{element.tag} type='grr'> needs "
                                               f"<{tag}>", element=tag)
-            sub = _operator(reader, children[tag][0], restitution=value)
-            if sub.type == "grr":
+            if children[tag][0].get("type", "").strip() == "grr":  # before reading it: a
+                # chain of nested grr operators would otherwise recurse as deep as it goes
                 raise reader.error(children[tag][0], "type", "a grr cannot nest another grr")
+            sub = _operator(reader, children[tag][0], restitution=value)
             setattr(operator, tag.removesuffix("_operator"), sub)
     return operator
 
@@ -631,7 +671,7 @@ def _solver(reader: _Reader, element: Element) -> SolverChoice:
     name = reader.text(element, "name").strip()
     mapped = qpbench_name(name)
     if mapped is None:
-        raise reader.error(element, "name", f"unknown SCISim solver {name!r} (known: "
+        raise reader.error(element, "name", f"unknown SCISim solver {shown(name)} (known: "
                                             f"{', '.join(SCISIM_TO_QPBENCH)})")
     options = {key: value for key, value in element.attrib.items() if key != "name"}
     return SolverChoice(scisim_name=name, qpbench_name=mapped, options=options)
