@@ -4,6 +4,17 @@ from __future__ import annotations
 
 import os
 
+# a value quoted in a message is cut to this many characters
+MAX_QUOTED = 40
+
+
+def shown(text: str) -> str:
+    """``text`` quoted for a one-line message: its repr, cut to MAX_QUOTED characters with its
+    length said when it is longer (a value read from a file may be megabytes long)."""
+    if len(text) <= MAX_QUOTED:
+        return repr(text)
+    return f"{text[:MAX_QUOTED]!r}... ({len(text)} characters)"
+
 
 class QpbenchError(Exception):
     """A user-facing error: bad input, unknown solver, unsupported feature.

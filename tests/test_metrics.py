@@ -98,3 +98,15 @@ def test_ball_ball_impulses_conserve_momentum_whatever_l_is(family, seed) -> Non
     momentum_before = (mass * problem.v_minus).reshape(-1, 2).sum(axis=0)
     momentum_after = (mass * problem.v_plus(impulses)).reshape(-1, 2).sum(axis=0)
     assert momentum_after == pytest.approx(momentum_before, abs=1e-9 * mass.max())
+
+
+def test_complementarity_of_a_problem_at_rest_is_finite_where_the_scale_squared_underflows(
+        ) -> None:
+    """b = 0 (nothing approaching): the scale is TINY = 1e-300, whose square is 0 in double
+    precision; the metric divides by the scale twice and stays defined."""
+    problem = generate("k3", seed=0)[0]
+    problem.v_minus[:] = 0.0
+    problem.b[:] = 0.0
+    assert metrics.scale(problem) == metrics.TINY and metrics.TINY ** 2 == 0.0
+    assert metrics.complementarity(problem, np.zeros(problem.n_contacts)) == 0.0
+    assert metrics.complementarity(problem, np.ones(problem.n_contacts)) == np.inf

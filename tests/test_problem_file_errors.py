@@ -53,6 +53,15 @@ def _damaged_data(path: Path, good: bytes) -> None:
     path.write_bytes(bytes(damaged))
 
 
+def _huge_declared_shape(path: Path, good: bytes) -> None:
+    """A member whose .npy header declares 2^40 doubles over a few bytes of data."""
+    header = {"descr": "<f8", "fortran_order": False, "shape": (2**40,)}
+    with (zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive,
+          archive.open("header_json.npy", "w") as stream):
+        np.lib.format.write_array_header_1_0(stream, header)
+        stream.write(b"\0" * 64)
+
+
 CASES = [
     (_renamed_npy, "a single NumPy array (.npy), not a problem file"),
     (_random_bytes, "not a problem file: not a .npz (zip) archive"),
@@ -60,6 +69,8 @@ CASES = [
     (_object_array, "attribute 'header_json': holds Python objects"),
     (_member_not_an_array, "attribute 'header_json': not a readable .npy array"),
     (_damaged_data, "not a readable .npy array"),
+    (_huge_declared_shape, "attribute 'header_json': declares a 1099511627776 array of "
+                           "float64 (8796093022208 bytes) but holds at most 64"),
 ]
 
 

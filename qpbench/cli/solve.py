@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from typing import Any
 
 from qpbench.bench.settings import check_accuracy
@@ -73,7 +74,12 @@ def run(args: argparse.Namespace) -> int:
                     else NO_ANSWER
                 text = plain(result[key], missing, seconds=key == "time_s")
                 print(f"{key:>16}: {text}")
-    return 0 if row["success"] else 1
+    if row["success"]:
+        return 0
+    print(f"qpbench solve: {args.problem}: {spec.key} missed the accuracy asked "
+          f"({args.accuracy:g}): status {row['status']}, residual "
+          f"{plain(row['residual'], NO_ANSWER)}", file=sys.stderr)
+    return 1
 
 
 def _finite(value: Any) -> bool:

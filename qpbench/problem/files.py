@@ -11,6 +11,7 @@ CSC parts, q, mu and its reference). Both versions are read.
 from __future__ import annotations
 
 import json
+import math
 import os
 import zipfile
 import zlib
@@ -22,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.atomic import atomic_path
-from qpbench.errors import InputError
+from qpbench.errors import InputError, shown
 from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
 from qpbench.problem.impact import ImpactProblem, Reference, check_vector
@@ -49,6 +50,8 @@ _FRICTIONAL_REFERENCE_FIELDS: dict[str, tuple[type, ...]] = {
 _OPTIONAL_REFERENCE_FIELDS = ("solvable",)
 NPY_SIGNATURE = b"\x93NUMPY"  # the start of a single .npy array
 ZIP_SIGNATURES = (b"PK\x03\x04", b"PK\x05\x06")  # a zip archive's first entry, or an empty one
+# the most that deflate can expand its input (a run of one byte), rounded up
+DEFLATE_RATIO = 1100
 _NPY_HEADER_READERS = {(1, 0): np.lib.format.read_array_header_1_0,
                        (2, 0): np.lib.format.read_array_header_2_0}
 
@@ -291,15 +294,35 @@ def _member_array(archive: zipfile.ZipFile, member: str, path: Path) -> np.ndarr
             if version not in _NPY_HEADER_READERS:
                 raise InputError(str(path), f".npy format version {version} is not one "
                                  "problem files use", attribute=key)
-            _, _, dtype = _NPY_HEADER_READERS[version](stream)
+            shape, _, dtype = _NPY_HEADER_READERS[version](stream)
             if dtype.hasobject:
                 raise InputError(str(path), f"holds Python objects ({dtype}); a problem file "
                                  "holds arrays of numbers only", attribute=key)
+            _check_declared_size(archive.getinfo(member), stream.tell(), shape, dtype, path,
+                                 key)
         with archive.open(member) as stream:
             return np.lib.format.read_array(stream, allow_pickle=False)
     except (zipfile.BadZipFile, zlib.error, EOFError, ValueError) as error:
         raise InputError(str(path), f"not a readable .npy array ({error})",
                          attribute=key) from error
+
+
+def _check_declared_size(member: zipfile.ZipInfo, header_bytes: int, shape: tuple[int, ...],
+                         dtype: np.dtype, path: Path, key: str) -> None:
+    """InputError, before anything is allocated, when an array's header declares more bytes
+    than its member can hold: more than the member's uncompressed size after the header, or
+    than :data:`DEFLATE_RATIO` times its compressed size (no deflate stream expands further),
+    or a compressed size larger than the file itself."""
+    declared = math.prod(shape) * dtype.itemsize
+    if member.compress_size > path.stat().st_size:
+        raise InputError(str(path), f"a damaged .npz archive: the member claims "
+                         f"{member.compress_size} bytes, more than the file holds",
+                         attribute=key)
+    room = min(member.file_size - header_bytes, DEFLATE_RATIO * member.compress_size)
+    if declared > room:
+        raise InputError(str(path), f"declares a {'x'.join(map(str, shape)) or 'scalar'} "
+                         f"array of {dtype} ({declared} bytes) but holds at most {max(room, 0)}",
+                         attribute=key)
 
 
 def _check_carried(problem: AnyProblem, arrays: dict[str, np.ndarray], path: Path) -> None:
@@ -345,8 +368,8 @@ def _check_header(header: Any, path: Path) -> None:
         raise InputError(str(path), f"format version {found}; this qpbench reads versions "
                          f"{readable}", attribute="format")
     if header.get("kind", IMPACT) not in (IMPACT, FRICTIONAL, REDUCED):
-        raise InputError(str(path), f"unknown kind {header.get('kind')!r} (known: {IMPACT}, "
-                         f"{FRICTIONAL}, {REDUCED})", attribute="kind")
+        raise InputError(str(path), f"unknown kind {shown(str(header.get('kind')))} "
+                         f"(known: {IMPACT}, {FRICTIONAL}, {REDUCED})", attribute="kind")
     if not isinstance(header.get("name"), str) or not header["name"]:
         raise InputError(str(path), "missing: every problem file names its problem",
                          attribute="name")

@@ -48,8 +48,10 @@ def residual(problem: ImpactProblem, impulses: np.ndarray) -> float:
 
 
 def complementarity(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity)."""
-    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / scale(problem) ** 2
+    """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity),
+    divided by the scale twice, since its square underflows to 0 below 1e-154."""
+    unit = scale(problem)
+    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / unit / unit
 
 
 def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:

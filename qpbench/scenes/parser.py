@@ -24,7 +24,7 @@ import defusedxml
 import defusedxml.ElementTree as SafeET
 import numpy as np
 
-from qpbench.errors import InputError, UnsupportedError
+from qpbench.errors import MAX_QUOTED, InputError, UnsupportedError, shown
 from qpbench.scenes.model import (
     CACHE_MODES,
     INTEGRATORS,
@@ -50,9 +50,7 @@ _DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?(?P<exponent>\d+))?")
 MAX_EXPONENT_DIGITS = 4
 # integers (indices, iteration counts) qpbench reads have at most this magnitude
 LARGEST_INTEGER = 2**53
-# a value quoted in a message is cut to this many characters; a warning names at most
-# MAX_NAMED unknown elements and attributes
-MAX_QUOTED = 40
+# a warning names at most MAX_NAMED unknown elements and attributes
 MAX_NAMED = 10
 
 # Known attributes of every top-level element qpbench reads, per dialect (``None``: any
@@ -101,14 +99,6 @@ NESTED_ATTRIBUTES: dict[str, frozenset[str]] = {
 _SINGLETONS = ("integrator", "impact_operator", "end_time")
 _FRICTION_SOLVERS = ("sobogus_friction_solver", "staggered_projections_friction_solver")
 _PORTALS = ("planar_portal", "lees_edwards_portal")
-
-
-def shown(text: str) -> str:
-    """``text`` quoted for a message: its repr, cut to MAX_QUOTED characters with its length
-    said when it is longer (a scene's value may be megabytes long)."""
-    if len(text) <= MAX_QUOTED:
-        return repr(text)
-    return f"{text[:MAX_QUOTED]!r}... ({len(text)} characters)"
 
 
 def _cut(name: str) -> str:
