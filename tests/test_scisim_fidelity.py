@@ -5,8 +5,10 @@ frictionless, planar and Lees-Edwards portals, and the coincident-centre case of
 research fork), simulated for the
 record's step count with the scene's own solver
 mapping, must end within 1e-6 of SCISim's positions and 1e-6 x max(1, largest reference
-speed) of its velocities (``problems/scisim_fidelity/README.md``). A scene that cannot agree
-would be listed in DISAGREES with the reason, and expected to fail; today there is none.
+speed) of its velocities (``problems/scisim_fidelity/README.md``; the rule is
+``qpbench.bench.sim_precision.agrees_with_scisim``, which ``qpbench sim-precision`` applies
+too). A scene that cannot agree would be listed in DISAGREES with the reason, and expected to
+fail; today there is none.
 """
 
 from __future__ import annotations
@@ -17,14 +19,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from qpbench.bench import sim_precision
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import Simulator
 
 DATA = Path(__file__).resolve().parents[1] / "problems" / "scisim_fidelity"
 RECORDS = [json.loads(line) for line in (DATA / "expected.jsonl").read_text().splitlines()]
-POSITION_TOLERANCE = 1e-6
-VELOCITY_TOLERANCE = 1e-6  # times max(1, the largest reference speed)
 
 # scene -> why qpbench cannot agree with SCISim there (an expected failure, stated as data)
 DISAGREES: dict[str, str] = {}
@@ -44,11 +45,7 @@ def final_state(record: dict) -> tuple[np.ndarray, np.ndarray, int]:
     scene = load_scene(DATA / "scenes" / record["scene"])
     result = Simulator(scene, choose_by_name(None)).run(max_steps=record["steps"])
     assert result.failure is None, result.failure
-    q, v = [result.x_final], [result.v_final]
-    if scene.bodies.rotates:
-        q.append(result.theta_final[:, None])
-        v.append(result.omega_final[:, None])
-    return np.hstack(q).ravel(), np.hstack(v).ravel(), result.steps
+    return (*sim_precision.final_state(scene, result), result.steps)
 
 
 @pytest.mark.parametrize("record", RECORDS, ids=[record["scene"] for record in RECORDS])
@@ -58,6 +55,5 @@ def test_qpbench_ends_where_scisim_ends(record: dict) -> None:
     q, v, steps = final_state(record)
     q_ref, v_ref = np.array(record["q"]), np.array(record["v"])
     assert steps == record["steps"]
-    scale = max(1.0, float(np.max(np.abs(v_ref))))
-    assert np.max(np.abs(q - q_ref)) <= POSITION_TOLERANCE
-    assert np.max(np.abs(v - v_ref)) <= VELOCITY_TOLERANCE * scale
+    assert sim_precision.agrees_with_scisim(q, v, q_ref, v_ref), (
+        np.max(np.abs(q - q_ref)), np.max(np.abs(v - v_ref)))
