@@ -47,8 +47,9 @@ test: setup
 	$(BIN)/python -m pytest -q
 
 # The default benchmark: build the problem set, run every usable solver-formulation pair at
-# every accuracy level, measure the simulator's scaling and pi-robust against one sparse
-# factorization on large box packings, write results/REPORT.md.
+# every accuracy level, measure the simulator's scaling, pi-robust against one sparse
+# factorization on large box packings and what inner accuracy costs whole simulations
+# (sim-precision), write results/REPORT.md.
 # Re-running resumes: finished cells are skipped.
 BENCH_SET ?= problems/default.toml
 BENCH_PROBLEMS ?= build/problems/default
@@ -78,6 +79,7 @@ bench: setup
 	$(BIN)/qpbench build-set problems/head_to_head.toml -o $(HEAD_TO_HEAD_PROBLEMS)
 	$(BIN)/qpbench head-to-head $(HEAD_TO_HEAD_PROBLEMS) --results $(BENCH_RESULTS)/bench.parquet \
 		-o $(BENCH_RESULTS)/head_to_head.json
+	$(BIN)/qpbench sim-precision -o $(BENCH_RESULTS)/sim_precision.json
 	$(BIN)/qpbench report $(BENCH_RESULTS)/bench.parquet -o $(BENCH_RESULTS)
 
 # The larger sweep, in its own folders; first a fuzz run of FUZZ_CASES mutated scenes and as
