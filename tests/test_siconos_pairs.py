@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from backend_cases import ALL_CASES
 from friction_cases import ball_on_floor, pair_on_floor
+from known_defects import expect_described
 
 from qpbench.problem import friction_reference
 from qpbench.problem.dumps import import_dump
@@ -21,7 +22,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.solvers import siconos_
 from qpbench.solvers.base import OWN_TIME, ROUND_TRIP_TIME, SolverSpec
-from qpbench.solvers.defects import Defect, known_defect
+from qpbench.solvers.defects import known_defect
 from qpbench.solvers.registry import all_solvers
 from qpbench.solvers.run import call_solver, solve_and_judge
 
@@ -39,18 +40,6 @@ FORK_DUMPS = (Path(__file__).resolve().parents[2] / "shared" / "scisim" / "forks
               / "5_by_5_grid")
 ACCURACY = 1e-8
 V_TOLERANCE = 1e-5
-
-
-def expect_described(defect: Defect, row: dict, status: str) -> None:
-    """The failure is the one the row describes, then an expected failure."""
-    as_described = {
-        "wrong-claim": row["claimed_success"] is True and row["status_honest"] is False,
-        "fails": row["claimed_success"] is False,
-        "inaccurate": True,
-    }[defect.effect]
-    assert as_described, f"{row['solver']} goes wrong otherwise than the defects table says " \
-        f"({defect.effect}): {status}"
-    pytest.xfail(f"known defect of Siconos {defect.versions}: {defect.what}")
 
 
 @cache
