@@ -28,7 +28,7 @@ all written to temporary files first and renamed only once every problem has bee
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -108,45 +108,36 @@ def export_parquet(problems: Iterable[AnyProblem], path: Path, formulation: str)
     return len(frame)
 
 
-def export_mat(problems: Iterable[AnyProblem], folder: Path, formulation: str) -> int:
-    """Writes ``folder/<name>.mat`` per problem; returns the number written. Each file is
-    written to a temporary file, and none is renamed into place before all are written, so
-    an error on any problem leaves the folder as it was. Two problems of one name are an
-    InputError (their files would be one)."""
+def export_files(problems: Iterable[AnyProblem], folder: Path, suffix: str,
+                 write: Callable[[AnyProblem, Path], None]) -> int:
+    """Writes ``folder/<name><suffix>`` per problem with ``write(problem, path)``; returns the
+    number written. Each file is written to a temporary file, and none is renamed into place
+    before all are written, so an error on any problem leaves the folder as it was. Two
+    problems of one name are an InputError (their files would be one)."""
     written: dict[str, str] = {}
     with ExitStack() as pending:
         for problem in problems:
             if problem.name in written:
                 raise InputError(problem.source or problem.name, f"problem name "
                                  f"'{problem.name}' is also that of {written[problem.name]}; "
-                                 "each .mat file is named by its problem")
+                                 f"each {suffix} file is named by its problem")
             written[problem.name] = problem.source or problem.name
-            temporary = pending.enter_context(atomic_path(folder / f"{problem.name}.mat"))
-            scipy.io.savemat(str(temporary), mat_content(problem, formulation),
-                             do_compression=True)
+            write(problem, pending.enter_context(atomic_path(folder / f"{problem.name}{suffix}")))
         if not written:
             raise QpbenchError("no problems to export")
     return len(written)
+
+
+def export_mat(problems: Iterable[AnyProblem], folder: Path, formulation: str) -> int:
+    """One MATLAB file per problem in ``folder`` (:func:`mat_content`), all or none."""
+    return export_files(problems, folder, ".mat", lambda problem, path: scipy.io.savemat(
+        str(path), mat_content(problem, formulation), do_compression=True))
 
 
 def export_fclib(problems: Iterable[AnyProblem], folder: Path) -> int:
-    """Writes ``folder/<name>.hdf5`` per problem in FCLIB's layout (qpbench.problem.fclib),
-    every file to a temporary one first and none renamed into place before all are written,
-    as :func:`export_mat`; returns the number written."""
-    written: dict[str, str] = {}
-    with ExitStack() as pending:
-        for problem in problems:
-            if problem.name in written:
-                raise InputError(problem.source or problem.name, f"problem name "
-                                 f"'{problem.name}' is also that of {written[problem.name]}; "
-                                 "each FCLIB file is named by its problem")
-            written[problem.name] = problem.source or problem.name
-            temporary = pending.enter_context(
-                atomic_path(folder / f"{problem.name}{fclib.SUFFIX}"))
-            fclib.write(problem, temporary)
-        if not written:
-            raise QpbenchError("no problems to export")
-    return len(written)
+    """One HDF5 file per problem in ``folder`` in FCLIB's layout (qpbench.problem.fclib), all or
+    none."""
+    return export_files(problems, folder, fclib.SUFFIX, fclib.write)
 
 
 def check_output(output: Path, fmt: str) -> None:
