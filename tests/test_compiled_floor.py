@@ -7,7 +7,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from qpbench.bench import compiled_floor
+from qpbench.studies import compiled_floor
 
 
 def spd(n: int, seed: int = 0) -> np.ndarray:

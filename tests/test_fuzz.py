@@ -97,6 +97,7 @@ def test_200_problem_cases_give_only_qpbench_own_outcomes(tmp_path: Path) -> Non
     assert report["kinds"]["problem"]["outcomes"].get("input-error", 0) > 100
 
 
+@pytest.mark.shared
 @pytest.mark.skipif(not (SHARED / "scisim").is_dir(), reason="needs ../shared (SCISim scenes)")
 def test_200_scene_cases_of_the_shared_scisim_scenes_all_pass(tmp_path: Path) -> None:
     settings = fuzz.Settings(scenes=200, problems=0, seed=5, time_limit_s=60)

@@ -10,10 +10,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from qpbench.bench import head_to_head
 from qpbench.cli import main
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
+from qpbench.studies import head_to_head
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -16,8 +17,8 @@ from bench_problems import write_tiny_problems
 from friction_cases import ball_on_floor
 
 from qpbench.bench import html_report, stats
-from qpbench.bench.report import split_kinds, write_report
-from qpbench.bench.results import ResultStore
+from qpbench.bench.report import write_report
+from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.bench.runner import complete_row
 from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
@@ -74,9 +75,12 @@ def test_the_report_writes_index_html_and_points_to_it(page: Path) -> None:
     assert "[index.html](index.html)" in (page.parent / "REPORT.md").read_text()
     text = page.read_text()
     assert text.count("Plotly=") >= 1 and "<script src" not in text
-    for section in ("answer", "work-precision", "profiles", "results", "problem", "friction",
-                    "provenance"):
+    sections = ("comparison", "accuracy-cost", "wrappers", "answer", "work-precision",
+                "profiles", "results", "problem", "friction", "provenance")
+    for section in sections:
         assert f"id='{section}'" in text, section
+    # the comparison leads, then every section that was there before
+    assert re.findall(r"<section id='([^']+)'", text) == list(sections)
 
 
 def test_the_frontier_is_the_fastest_pair_that_solves_enough(results: Path) -> None:
@@ -188,3 +192,67 @@ def test_the_embedded_data_is_json(page: Path) -> None:
     assert {row[0] for row in data["table"]} >= {html_report.ALL}
     assert data["friction"]["error"] == "coulomb_residual"
     assert pd.Series(data["main"]["time"]).notna().any()
+
+
+# --- the comparison and what accuracy costs, on a synthetic table ------------------------------
+# pair -> (backend, time at the loosest level [s], factor per level)
+SYNTHETIC_PAIRS = {"own/lcp": ("qpbench", 2e-5, 1.0), "flat/dual": ("qpsolvers", 5e-5, 1.0),
+                   "grow/dual": ("qpsolvers", 3e-5, 4.0), "solo-native/dual": ("native", 4e-5, 1.0),
+                   "solo/dual": ("qpsolvers", 8e-5, 1.0),
+                   "cvxpy-solo/dual": ("cvxpy", 4e-4, 1.0)}
+SYNTHETIC_LEVELS = (1e-2, 1e-4, 1e-6, 1e-8)
+
+
+@pytest.fixture(scope="module")
+def synthetic_page(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """index.html of made-up solves of two problems: every solve succeeds, in the pair's time
+    times its factor per level to the power of the level's index."""
+    folder = tmp_path_factory.mktemp("synthetic")
+    rows = [{"problem": problem, "family": "f", "solver": key.split("/")[0],
+             "formulation": key.split("/")[1], "backend": backend, "accuracy": accuracy,
+             "mode": "cold", "status": "solved", "success": True, "claimed_success": True,
+             "residual": accuracy / 10, "v_error": 1e-9, "time_limit_s": 1.0, "contacts": 2,
+             "time_s": time_s * (1 + index / 10) * factor ** step}
+            for index, problem in enumerate(("p0", "p1"))
+            for key, (backend, time_s, factor) in SYNTHETIC_PAIRS.items()
+            for step, accuracy in enumerate(SYNTHETIC_LEVELS)]
+    path = _store(folder, rows)
+    return html_report.write_html(ResultStore(path).read(), folder, path.name).read_text()
+
+
+def _embedded(text: str) -> dict:
+    start = text.index('id="qpbench-data">') + len('id="qpbench-data">')
+    return json.loads(text[start:text.index("</script>", start)].replace("<\\/", "</"))
+
+
+def test_the_accuracy_cost_chart_draws_the_pairs_whose_time_grows(synthetic_page: str) -> None:
+    cost = _embedded(synthetic_page)["accuracy_cost"]
+    assert cost["levels"] == list(SYNTHETIC_LEVELS)
+    assert [pair["key"] for pair in cost["pairs"]] == ["grow/dual"]
+    assert cost["pairs"][0]["relative"] == [1.0, 4.0, 16.0, 64.0]
+    assert "id='accuracy-cost-plot'" in synthetic_page
+
+
+def test_the_page_leads_with_the_fastest_pair_of_each_formulation(synthetic_page: str) -> None:
+    comparison = synthetic_page.split("<section id='comparison'>", 1)[1].split("</section>")[0]
+    tables = re.findall(r"<table class='static comparison' data-level='([^']+)'>(.*?)</table>",
+                        comparison)
+    assert [level for level, _ in tables] == ["1e-02", "1e-04", "1e-06", "1e-08"]
+    for level, table in tables:
+        cells = dict(re.findall(r"data-column='([^']+)' data-pair='([^']+)'",
+                                table.split("<th>f</th>", 1)[1]))
+        # grow/dual is the fastest dual pair at 1e-02 only; then flat-timed solo-native/dual
+        fastest_dual = "grow/dual" if level == "1e-02" else "solo-native/dual"
+        assert cells == {"dual": fastest_dual, "lcp": "own/lcp", "external": fastest_dual,
+                         "ours": "own/lcp"}, level
+
+
+def test_the_wrapper_table_pairs_a_native_pair_with_its_twins_on_the_page(
+        synthetic_page: str) -> None:
+    wrappers = synthetic_page.split("<section id='wrappers'>", 1)[1].split("</section>")[0]
+    rows = [re.sub(r"<[^>]+>", "", row).split("|") for row in re.findall(
+        r"<tr>(.*?)</tr>", wrappers.replace("</td><td>", "|"))[1:]]
+    assert rows == [["solo-native/dual", "qpsolvers", "solo/dual", "8", "100.0%", "100.0%",
+                     "8", "2"],
+                    ["solo-native/dual", "cvxpy", "cvxpy-solo/dual", "8", "100.0%", "100.0%",
+                     "8", "10"]]

@@ -1,18 +1,21 @@
 """Warm mode: the warm start is what a simulator carried into the step, never the reference;
-and only the solver call is timed."""
+and only the solver call is timed. The capture of a SCISim scene reads ../shared beside the
+repository (marked ``shared``, skipped when it is missing)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 from bench_problems import collinear_balls
 
-from qpbench.bench import sequence
 from qpbench.bench.worker import timer_overhead_s, warm_start_for
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem
+from qpbench.studies import sequence
 
+# SCISim's ball2d test scenes in ../shared beside the repository
 SHARED = Path(__file__).resolve().parents[2] / "shared/scisim/assets/ball2d/tests_st"
 
 
@@ -32,7 +35,9 @@ def test_the_reference_is_never_a_warm_start() -> None:
     assert warm_start_for(problem) == (None, "none")
 
 
-def test_a_capture_of_a_scene_that_caches_impulses_carries_them_into_warm_mode(
+@pytest.mark.shared
+@pytest.mark.skipif(not SHARED.is_dir(), reason=f"needs ../shared beside the repository: {SHARED}")
+def test_a_capture_from_shared_of_a_scene_that_caches_impulses_carries_them_into_warm_mode(
         tmp_path: Path) -> None:
     """Balls settling in a rough wedge (SCISim's ``cache_impulses="normal_and_friction"``):
     every captured problem carries the impulses (l_N, l_T) the simulator carried into its

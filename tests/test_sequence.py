@@ -8,9 +8,10 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from qpbench.bench import breakdown, sequence
+from qpbench.bench import repeats
 from qpbench.bench.runner import fingerprint
 from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
@@ -18,9 +19,12 @@ from qpbench.problem import files, metrics
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene
+from qpbench.scenes.builders import scene_xml
+from qpbench.simulation.scaling import circle_pile
 from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.registry import get
+from qpbench.studies import breakdown, sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "problems/scenes/ura/10_balls_in_box.xml"
@@ -79,8 +83,6 @@ def test_each_solve_is_the_fastest_of_its_repeats_from_one_warm_start(
     """Three repeats per solve (no repeat budget here, so no clock decides how many): every
     step calls the solver once untimed (the warm-up, cold), then three times cold and three
     times from the same warm start, the two alternating (never one repeat after another)."""
-    from qpbench.bench import repeats
-
     monkeypatch.setattr(repeats, "REPEAT_BUDGET_S", math.inf)
     recorder = Recorder()
     rows = sequence.replay(recorder.spec(), captured[:4], 1e-8, "box", repeats=3)
@@ -182,8 +184,6 @@ def test_sequence_summary_and_markdown_judge_the_target(captured: list[ImpactPro
 
 def test_the_resting_pile_scene_is_the_generated_pile() -> None:
     """The committed pile of the default scenes is ``circle_pile(30, "ql")``, written as is."""
-    from qpbench.scenes.builders import scene_xml
-    from qpbench.simulation.scaling import circle_pile
 
     committed = ROOT / "problems/scenes/piles/circle_pile_30.xml"
     assert str(committed.relative_to(ROOT)) in sequence.DEFAULT_SCENES
@@ -361,10 +361,6 @@ def test_breakdown_default_problems_are_in_the_repository() -> None:
 def test_the_cold_pairs_beside_are_the_main_tables_fastest_without_warm_starts() -> None:
     """osqp takes warm starts (it is compared anyway), a k3 row is not a captured scene and
     pi-robust is ours: only the cold-only external pairs on scenes, fastest first."""
-    import pandas as pd
-
-    from qpbench.bench.sequence import fastest_cold
-
     def rows(solver: str, formulation: str, backend: str, family: str, time: float) -> list:
         return [{"problem": f"p{i}", "family": family, "solver": solver,
                  "formulation": formulation, "backend": backend, "accuracy": 1e-8,
@@ -376,7 +372,7 @@ def test_the_cold_pairs_beside_are_the_main_tables_fastest_without_warm_starts()
                          + rows("osqp", "dual", "osqp", "scene:K4", 1e-5)
                          + rows("quadprog", "dual", "quadprog", "k3", 1e-6)
                          + rows("pi-robust", "lcp", "qpbench", "scene:K4", 1e-6))
-    assert fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]
+    assert sequence.fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]
 
 
 def test_breakdown_times_every_part_once_in_each_round(monkeypatch: pytest.MonkeyPatch) -> None:

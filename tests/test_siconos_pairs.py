@@ -150,8 +150,9 @@ def test_fc2d_lemke_claims_success_on_other_mus_as_the_defects_table_says() -> N
 
 
 @pytest.mark.slow
+@pytest.mark.shared
 @pytest.mark.skipif(not FORK_DUMPS.is_dir(), reason=f"needs ../shared: {FORK_DUMPS}")
-def test_siconos_lemke_solves_all_50_fork_dumps_at_1e_8() -> None:
+def test_siconos_lemke_solves_all_50_fork_dumps_from_shared_at_1e_8() -> None:
     paths = sorted(FORK_DUMPS.glob("itr_*.xml.out"))
     assert len(paths) == 50
     spec = next(spec for spec in LCP_SPECS if spec.name == "siconos-lemke")

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from qpbench.bench.speed import TARGET_RATIO, speed
 from qpbench.cli import main
+from qpbench.studies.speed import TARGET_RATIO, speed
 
 
 def test_speed_reports_figures_ratio_and_markdown_per_size() -> None:

@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 from bench_problems import collinear_balls, exact_impulses, write_tiny_problems
 
-from qpbench.bench import head_to_head, repeats, schedule
+from qpbench.bench import repeats, schedule
 from qpbench.bench.schedule import Schedule
 from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.studies import head_to_head
 
 PAIRS = ("test-first/lcp", "test-second/lcp")
 LEVELS = (1e-4, 1e-8)

@@ -1,7 +1,10 @@
 """``index.html``: one self-contained page of a results table, beside REPORT.md.
 
-What accuracy costs, at a glance: per family the fastest solver/formulation pair that reaches
-each accuracy level (and how much each further digit multiplies its time), then interactive
+The comparison first: per family and accuracy level the fastest pair of each formulation
+and the fastest external pair beside the fastest of ours; what each further digit costs the
+pairs whose time grows with the level (a table and a chart); what each wrapper adds to a
+native pair. Then per family the fastest pair overall at each level (and how much each
+further digit multiplies its time), interactive
 work-precision diagrams, performance profiles, a sortable and filterable table aggregated per
 pair x family x level, a per-problem view, the frictional problems apart, and provenance.
 
@@ -24,10 +27,12 @@ import pandas as pd
 
 from qpbench.atomic import atomic_path
 from qpbench.bench import stats
+from qpbench.bench.results import split_kinds
+from qpbench.solvers.run import NO_SOLUTION
 
-FRONTIER_SUCCESS = 0.95  # a pair "reaches" a level when it solves this share of the problems
+FRONTIER_SUCCESS = stats.SOLVES_SHARE  # a pair "reaches" a level: solves this share of them
 PROFILE_LEVELS = (1e-4, 1e-8)
-ALL = "all problems"
+ALL = stats.ALL_PROBLEMS
 FRICTIONAL = "frictional"
 ERROR_FLOOR = 1e-17
 PROFILE_VISIBLE = 10  # profile curves drawn at first; the rest wait in the legend
@@ -276,11 +281,137 @@ def _frontier_html(rows: list[dict[str, Any]]) -> str:
             f"<tbody>{''.join(body)}</tbody></table>")
 
 
+def _comparison_html(frame: pd.DataFrame, summarised: list[tuple[str, float, pd.DataFrame]],
+                     caption: str) -> str:
+    """Per level (loosest first) a table with a row per family: the fastest pair of each
+    formulation that solves the family at the level (the fastest of the row marked ``best``),
+    the fastest external pair, the fastest of ours and how many times faster ours is
+    (stats.fastest_pairs)."""
+    fastest = stats.fastest_pairs(summarised, stats.pair_backends(frame))
+    cells = {(row.family, row.level, row.column): row
+             for row in fastest.itertuples(index=False)}
+    formulations = stats.formulations_in_order(frame)
+    head = "".join(f"<th>{_text(name)}</th>" for name in
+                   ("family", *formulations, "fastest external", "fastest of ours",
+                    "external / ours"))
+    parts = []
+    for accuracy in sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True):
+        body = []
+        for family, _shift, _summary in summarised:
+            found = {column: cells.get((family, accuracy, column))
+                     for column in (*formulations, stats.EXTERNAL, stats.OURS)}
+            times = [found[name].sgm_time_s for name in formulations if found[name] is not None]
+            row = [f"<th>{_text(family)}</th>"]
+            for column in (*formulations, stats.EXTERNAL, stats.OURS):
+                item = found[column]
+                if item is None:
+                    row.append(f"<td class='none' data-column='{_text(column)}'>-</td>")
+                    continue
+                best = column in formulations and item.sgm_time_s == min(times)
+                name = item.pair if column in (stats.EXTERNAL, stats.OURS) \
+                    else item.pair.split("/", 1)[0]
+                css = " class='best'" if best else ""
+                row.append(f"<td{css} data-column='{_text(column)}' data-pair='{_text(item.pair)}'>"
+                           f"<code>{_text(name)}</code> "
+                           f"<span class='time'>{_seconds(item.sgm_time_s)}</span></td>")
+            external, ours = found[stats.EXTERNAL], found[stats.OURS]
+            ratio = (f"{external.sgm_time_s / ours.sgm_time_s:.3g}"
+                     if external is not None and ours is not None and ours.sgm_time_s > 0
+                     else "-")
+            body.append("<tr>" + "".join(row) + f"<td class='num'>{ratio}</td></tr>")
+        parts.append(f"<h3>{_text(caption)}{_level(accuracy)}</h3><div class='scroll'>"
+                     f"<table class='static comparison' data-level='{_level(accuracy)}'>"
+                     f"<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+                     "</div>")
+    return "".join(parts)
+
+
+def _accuracy_cost_html(frame: pd.DataFrame) -> tuple[str, dict[str, Any] | None]:
+    """(a table of the pairs whose time grows with the level, stats.iterative_pairs: the growth
+    from the loosest level and per family the factor each further digit multiplies the time
+    by; the chart's data: each pair's time relative to the loosest level, or None)."""
+    pairs = stats.iterative_pairs(frame)
+    if not pairs:
+        return ("<p class='none'>No pair's time grows by "
+                f"{stats.ITERATIVE_GROWTH:g} x or more with the level here.</p>", None)
+    growth = stats.time_growth(frame)
+    per_digit = stats.time_per_digit(frame, pairs)
+    relative = stats.relative_time(frame, pairs)
+    levels = [float(a) for a in relative.columns]
+    rows = [[f"<code>{_text(key)}</code>", f"{growth[key]:.3g}",
+             *(f"{value:.3g}" if _finite(value) is not None else "-"
+               for value in per_digit.loc[key])] for key in pairs]
+    table = _table(["pair", f"time at the tighter level / at {_level(levels[0])}",
+                    *(f"per digit, {_text(family)}" for family in per_digit.columns)], rows,
+                   "accuracy-cost")
+    chart = {"levels": levels,
+             "pairs": [{"key": key, "relative": [_finite(value) for value in values]}
+                       for key, values in relative.iterrows()]}
+    return f"<div class='scroll'>{table}</div>", chart
+
+
+def _wrapper_html(frame: pd.DataFrame) -> str:
+    """Per native pair and each of its wrapper twins: the share each solved and the median
+    time ratio on the cells both solved (stats.wrapper_costs)."""
+    table = stats.wrapper_costs(frame)
+    rows = [[f"<code>{_text(row.native)}</code>", _text(row.wrapper),
+             f"<code>{_text(row.twin)}</code>", str(row.cells),
+             _percent(row.native_success_rate), _percent(row.twin_success_rate),
+             str(row.both_solved), "-" if _finite(row.time_ratio) is None
+             else f"{row.time_ratio:.3g}"] for row in table.itertuples(index=False)]
+    if not rows:
+        return ("<p class='none'>No native pairs (<code>&lt;solver&gt;-native</code>) with a "
+                "twin in these results.</p>")
+    return _table(["native pair", "wrapper", "twin pair", "cells both ran", "native solved",
+                   "twin solved", "cells both solved", "twin time / native time"], rows,
+                  "wrappers")
+
+
+def _lead_html(main: pd.DataFrame, summarised: list[tuple[str, float, pd.DataFrame]] | None,
+               frictional: pd.DataFrame, data: dict[str, Any]) -> list[str]:
+    """The page's opening sections: the comparison, what accuracy costs where it costs (its
+    chart's data into ``data["accuracy_cost"]``) and the wrapper costs."""
+    solvable = stats.without_unsolvable(frictional) if not frictional.empty else frictional
+    comparison = ["<section id='comparison'><h2>Fastest pairs, per family and level</h2>"
+                  "<p>Among the pairs that solve a family at a level (at least "
+                  f"{stats.SOLVES_SHARE:.0%} of its problems; success = qpbench's residual "
+                  "&lt;= the level): the fastest pair of each formulation (solver named; the "
+                  "fastest of the row highlighted), the fastest external pair (a backend not "
+                  "written here), the fastest of ours, and how many times faster ours is. Time "
+                  "= shifted geometric mean of time_s over the family's problems with the "
+                  "family's own shift, failures charged the time limit; - : no pair solves. "
+                  "Frictional problems without a solution are left out.</p>"]
+    cost = ["<section id='accuracy-cost'><h2>What accuracy costs, where it costs</h2>"
+            f"<p>The pairs whose time at {_level(stats.GROWTH_LEVEL)} (or the tightest level) is "
+            f"at least {stats.ITERATIVE_GROWTH:g} x their time at the loosest level (geometric "
+            "mean over the problems each solves at both), steepest first; per family the factor "
+            "each further digit multiplies the time by (geometric mean over the family's "
+            "problems solved at two consecutive levels a &gt; b of "
+            "(t_b / t_a)^(1 / log10(a / b))). The chart chains those steps over all problems: "
+            "each pair's time relative to the loosest level.</p>"]
+    if summarised is not None:
+        comparison.append(_comparison_html(main, summarised, "Accuracy "))
+        if main["accuracy"].nunique() > 1:
+            table, data["accuracy_cost"] = _accuracy_cost_html(main)
+            cost.append(table + ("<div id='accuracy-cost-plot' class='plot'></div>"
+                                 if data["accuracy_cost"] else ""))
+    if not solvable.empty:
+        comparison.append(_comparison_html(solvable, summaries(solvable),
+                                           "Frictional problems, accuracy "))
+        if solvable["accuracy"].nunique() > 1:
+            cost.append("<h3>Frictional problems</h3>" + _accuracy_cost_html(solvable)[0])
+    wrappers = ("<section id='wrappers'><h2>Wrapper costs</h2><p>Each native pair "
+                "(<code>&lt;solver&gt;-native</code>: the backend through its own Python API) "
+                "against the same solver on the same formulation through qpsolvers and through "
+                "cvxpy, on the cells both ran: the share each solved and the median over the "
+                "cells both solved of the twin's time over the native pair's (above 1 the "
+                "wrapper is slower).</p>" + _wrapper_html(main) + "</section>")
+    return ["".join(comparison) + "</section>", "".join(cost) + "</section>", wrappers]
+
+
 def _friction_html(frame: pd.DataFrame) -> str:
     """Static tables of the frictional rows: per level and formulation the best pair, and the
     model error of ccp."""
-    from qpbench.solvers.run import NO_SOLUTION  # the solver layer, only for the status name
-
     unsolvable = frame["status"].astype(str) == NO_SOLUTION
     parts = [f"<p>{frame['problem'].nunique()} frictional problems "
              f"({_text(', '.join(sorted(set(_strings(frame, 'family')) - {''})))}), "
@@ -318,16 +449,14 @@ def _friction_html(frame: pd.DataFrame) -> str:
 
 def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
     """The HTML of the page for ``everything`` (frictionless and frictional rows)."""
-    from qpbench.bench.report import split_kinds  # report imports this module: import late
-
     frictionless, frictional = split_kinds(everything)
     main = frictionless[_strings(frictionless, "mode") == "cold"]
     if main.empty:
         main = frictionless
-    data: dict[str, Any] = {"main": None, "friction": None}
-    sections = []
-    if not main.empty:
-        summarised = summaries(main)
+    data: dict[str, Any] = {"main": None, "friction": None, "accuracy_cost": None}
+    summarised = summaries(main) if not main.empty else None
+    sections = _lead_html(main, summarised, frictional, data)
+    if summarised is not None:
         rows = frontier(main, summarised)
         data["main"] = dataset(main)
         data["frontier"] = [{k: row[k] for k in ("family", "level", "time")} for row in rows]
@@ -337,7 +466,7 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
                       "failures charged the time limit, with the family's own shift "
                       f"({stats.SHIFT_FACTOR:g} x the median fastest successful solve).")
         sections.append(
-            "<section id='answer'><h2>What accuracy costs</h2>"
+            "<section id='answer'><h2>Fastest pair overall, per family</h2>"
             "<p>Per family and accuracy level, the fastest solver/formulation pair among "
             f"those that solve at least {FRONTIER_SUCCESS:.0%} of the family's problems "
             "(success = qpbench's own residual &lt;= the level), its SGM time, and how much "
@@ -380,7 +509,7 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
             "<select id='problem-select'></select></label></div>"
             "<div id='problem-plot' class='plot'></div></section>")
     else:
-        sections.append("<section id='answer'><h2>What accuracy costs</h2>"
+        sections.append("<section id='answer'><h2>Fastest pair overall, per family</h2>"
                         "<p class='none'>No frictionless problems in these results.</p>"
                         "</section>")
     if frictional.empty:
@@ -441,7 +570,9 @@ TEMPLATE = """<!DOCTYPE html>
 <script>{plotly}</script>
 </head><body>
 <header><h1>qpbench: what accuracy costs</h1><p>{summary}</p>
-<nav><a href="#answer">answer</a> <a href="#work-precision">work-precision</a>
+<nav><a href="#comparison">comparison</a> <a href="#accuracy-cost">accuracy cost</a>
+<a href="#wrappers">wrappers</a> <a href="#answer">fastest overall</a>
+<a href="#work-precision">work-precision</a>
 <a href="#profiles">profiles</a> <a href="#results">table</a> <a href="#problem">one problem</a>
 <a href="#friction">friction</a> <a href="#provenance">machine</a></nav></header>
 <main>{sections}</main>
@@ -463,6 +594,8 @@ th.sorted-asc::after { content: " \\25B2"; } th.sorted-desc::after { content: " 
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .frontier td span { display: block; }
 .frontier .time { font-weight: bold; } .digit { color: #a33; }
+.comparison td.best { font-weight: bold; background: #eef6ee; } .scroll { overflow-x: auto; }
+.comparison .time { white-space: nowrap; }
 .small { color: #666; font-size: 0.85em; } .none { color: #888; }
 .plot { width: 100%; height: 520px; } .plot.small { height: 380px; }
 .controls { margin: 0.5em 0; } .controls label { margin-right: 1em; }
@@ -534,6 +667,21 @@ SCRIPT = r"""
       .sort((a, b) => (b[6] - a[6]) || (a[7] - b[7])).slice(0, 5)
       .forEach((r) => keys.add(r[1]));
     return keys;
+  }
+
+  // what accuracy costs: each growing pair's time relative to the loosest level
+  if (DATA.accuracy_cost) {
+    const cost = DATA.accuracy_cost, names = cost.levels.map(lvl);
+    Plotly.newPlot("accuracy-cost-plot", cost.pairs.map((pair, index) => ({
+      type: "scatter", mode: "lines+markers", name: pair.key, x: names, y: pair.relative,
+      visible: index < 12 ? true : "legendonly",
+      hovertemplate: pair.key + "<br>level %{x}<br>%{y:.3g} x the time at " + names[0] +
+        "<extra></extra>"})), {
+      title: {text: "What accuracy costs: time relative to " + names[0]},
+      xaxis: {type: "category", categoryorder: "array", categoryarray: names,
+              title: {text: "accuracy level"}},
+      yaxis: logAxis("time relative to " + names[0]), legend: {font: {size: 10}},
+      margin: {t: 40}}, CONFIG);
   }
 
   if (DATA.main) {

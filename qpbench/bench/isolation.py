@@ -181,6 +181,8 @@ class IsolatedWorker:
                 self._buffer = b""
                 self._forget_log_name()  # the process has it open already
             else:
+                # imports every solver backend: not before the fork server has started (its
+                # imports then overlap with this process's), see qpbench.cli.run
                 from qpbench.bench.worker import child_main
 
                 context = fork_server()

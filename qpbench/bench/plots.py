@@ -11,6 +11,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker as ticker  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -172,29 +173,29 @@ def success_by_level(summary: pd.DataFrame, path: Path) -> Path | None:
     return _save(figure, path)
 
 
-def cost_of_accuracy(summary: pd.DataFrame, path: Path) -> Path | None:
-    """SGM time (failures charged the limit) against the accuracy level, one line per
-    solver/formulation: what each tighter level costs, at a glance."""
-    if summary.empty or summary["accuracy"].nunique() < 2:
+def cost_of_accuracy(relative: pd.DataFrame, path: Path) -> Path | None:
+    """Time relative to the loosest level against the level, one line per pair of
+    ``relative`` (rows: pairs, the first MAX_LINES drawn; columns: levels, loosest first;
+    stats.relative_time): what each further digit costs the pairs whose time grows with it."""
+    if relative.empty or relative.shape[1] < 2:
         return None
-    tightest = summary[summary["accuracy"] == summary["accuracy"].min()]
-    keep = best(tightest.set_index("solver").rename(columns={"success_rate": "solved",
-                                                             "sgm_time_s": "time"}))
+    shown = relative.head(MAX_LINES)
     figure, axes = plt.subplots(figsize=(6.4, 4.6))
-    groups = [(key, group) for key, group in summary.groupby("solver") if key in keep]
-    for index, (key, group) in enumerate(groups):
-        group = group.sort_values("accuracy", ascending=False)
-        axes.plot(group["accuracy"], group["sgm_time_s"], marker="o", markersize=4, label=key,
-                  **style(index))
+    for index, (key, values) in enumerate(shown.iterrows()):
+        values = values.dropna()
+        axes.plot(values.index.astype(float), values.to_numpy(dtype=float), marker="o",
+                  markersize=4, label=str(key), **style(index))
     axes.set_xscale("log")
     axes.set_yscale("log")
     axes.invert_xaxis()  # tighter levels to the right
     axes.set_xlabel("accuracy level (residual bound)")
-    axes.set_ylabel("shifted geometric mean time [s]")
-    axes.set_title("What accuracy costs"
-                   + _note(len(groups), summary["solver"].nunique()).replace(" (best", "\n(best"))
+    axes.set_ylabel(f"time relative to {float(relative.columns[0]):.0e}")
+    axes.yaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+    axes.yaxis.set_minor_formatter(ticker.FormatStrFormatter("%g"))
+    axes.set_title("What accuracy costs, the pairs whose time grows with the level"
+                   + _note(len(shown), len(relative)).replace(" (best", "\n(steepest"))
     axes.grid(True, which="both", alpha=0.3)
-    _legend(axes, len(groups))
+    _legend(axes, len(shown))
     return _save(figure, path)
 
 

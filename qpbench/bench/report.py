@@ -1,9 +1,13 @@
 """The Markdown report of a results table (REPORT.md, with its PNG figures beside it).
 
-Sections: what was run; machine and version provenance; per accuracy level the success
-rate, shifted geometric mean time and residuals; formulations side by side;
-work-precision diagrams per family; Dolan-More profiles; the cost of accuracy; status
-honesty; warm against cold starts; the targets of our own solver; the accuracy-options
+Sections: what was run; the comparison first (per family and level the fastest pair of each
+formulation and the fastest external pair beside the fastest of ours, frictionless and
+frictional; what each further digit costs the pairs whose time grows with the level; what
+each wrapper adds to a native pair); a summary per level; machine and version provenance;
+per accuracy level the success rate, shifted geometric mean time and residuals; formulations
+side by side; work-precision diagrams per family; Dolan-More profiles; the time at each level
+of the most reliable pairs; warm against cold starts; the sections the caller brings (the
+targets of our own solver); friction; status honesty; known defects; the accuracy-options
 table; any extra sections other parts of qpbench left as JSON files (a
 ``"markdown"`` key) in the results folder; and the counts of a ``qpbench fuzz`` run whose
 ``fuzz.json`` lies there.
@@ -14,7 +18,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,23 +27,19 @@ import pandas as pd
 
 from qpbench.atomic import atomic_path
 from qpbench.bench import html_report, plots, stats
-from qpbench.bench.defaults import TARGET_SPEEDUP
-from qpbench.bench.results import ResultStore
+from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.errors import InputError
-from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers import defects as defect_table
 from qpbench.solvers.base import TIME_S_COVERS
 from qpbench.solvers.run import NO_SOLUTION
 
-HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
-                 "near-duplicate", "dump")
-ROBUST_SOLVER = "pi-robust"
 PROFILE_LEVELS = (1e-4, 1e-8)
-TARGET_LEVEL = 1e-8
-TARGET_V_ERROR = 1e-7
 
 Formatter = Callable[[Any], str]
+# a section of the summary that the caller brings (the report itself knows no solver): its
+# title and its Markdown from the cold frictionless rows and the SGM shift
+SummarySection = tuple[str, Callable[[pd.DataFrame, float], str]]
 INDEX_POINTER = ("At a glance, interactive and offline: [index.html](index.html) (open it in a "
                  "browser).\n\n")
 
@@ -196,26 +196,147 @@ def _more(rows: int) -> str:
     return f"\n_{rows - TOP_ROWS} more pairs: every one in [index.html](index.html)._\n"
 
 
-def _frontier(main: pd.DataFrame) -> str:
-    """The answer first: per family (and all problems) the fastest pair that solves at least
-    95% of the family's problems at each level, and how much each further digit multiplies
-    its time (``x per digit``, from the previous level's fastest pair)."""
-    rows = html_report.frontier(main)
-    if not rows:
-        return ""
-    levels = sorted({row["level"] for row in rows}, reverse=True)
-    table: dict[str, dict[str, str]] = {}
-    for row in rows:
-        cell = "-" if row["pair"] is None else f"`{row['pair']}` {number(row['time'])} s"
-        if row.get("per_digit") is not None:
-            cell += f" (x{row['per_digit']:.2g}/digit)"
-        table.setdefault(row["family"], {})[level(row["level"])] = cell
-    frame = pd.DataFrame([{"family": family, **cells} for family, cells in table.items()],
-                         columns=["family", *(level(value) for value in levels)]).fillna("-")
-    return ("Per family, the fastest pair that solves at least 95% of its problems at each "
-            "level (shifted geometric mean time, failures charged the limit) and what each "
-            "further digit multiplies the time by (- : no pair reaches the level):\n\n"
-            + markdown_table(frame, {column: str for column in frame.columns}))
+PAIRS_PER_TABLE = 8  # pair columns of one time-per-digit table
+
+
+def _cold(frame: pd.DataFrame) -> pd.DataFrame:
+    """The cold-start rows, or every row where there are none."""
+    cold = frame[frame["mode"].astype(str) == "cold"]
+    return frame if cold.empty else cold
+
+
+def _comparison(frame: pd.DataFrame, heading: str) -> str:
+    """Per level (loosest first) a table with a row per family (all problems first): the
+    fastest pair of each formulation that solves the family at the level (the fastest of the
+    row in bold), the fastest external pair, the fastest of ours and how many times faster
+    ours is (stats.fastest_pairs)."""
+    summarised = html_report.summaries(frame)
+    fastest = stats.fastest_pairs(summarised, stats.pair_backends(frame))
+    cells = {(row.family, row.level, row.column): row
+             for row in fastest.itertuples(index=False)}
+    formulations = stats.formulations_in_order(frame)
+    parts = []
+    for accuracy in sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True):
+        rows = []
+        for family, _shift, _summary in summarised:
+            found = {column: cells.get((family, accuracy, column))
+                     for column in (*formulations, stats.EXTERNAL, stats.OURS)}
+            times = [found[name].sgm_time_s for name in formulations if found[name] is not None]
+            row = {"family": family}
+            for name in formulations:
+                item = found[name]
+                text = "-" if item is None else \
+                    f"`{item.pair.split('/', 1)[0]}` {number(item.sgm_time_s)}"
+                row[name] = f"**{text}**" if item is not None and item.sgm_time_s == min(times) \
+                    else text
+            external, ours = found[stats.EXTERNAL], found[stats.OURS]
+            for name, item in (("fastest external", external), ("fastest of ours", ours)):
+                row[name] = "-" if item is None else f"`{item.pair}` {number(item.sgm_time_s)}"
+            row["external / ours"] = (
+                f"{external.sgm_time_s / ours.sgm_time_s:.3g}"
+                if external is not None and ours is not None and ours.sgm_time_s > 0 else "-")
+            rows.append(row)
+        table = pd.DataFrame(rows)
+        parts.append(f"\n### {heading}{level(accuracy)}\n\n"
+                     + markdown_table(table, {column: str for column in table.columns}))
+    return "".join(parts)
+
+
+def _accuracy_cost(frame: pd.DataFrame, figure: Path | None, folder: Path) -> str:
+    """The pairs whose time grows with the level (stats.iterative_pairs): how much each grows
+    from the loosest level, down to which level it solves, and per family the factor each
+    further digit multiplies its time by (stats.time_per_digit); with ``figure``, the chart of
+    their time relative to the loosest level."""
+    levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
+    pairs = stats.iterative_pairs(frame)
+    target = next((a for a in levels if math.isclose(a, stats.GROWTH_LEVEL)), levels[-1])
+    if not pairs:
+        return (f"_No pair's time grows by {stats.ITERATIVE_GROWTH:g} x or more from "
+                f"{level(levels[0])} to {level(target)} here._\n")
+    growth = stats.time_growth(frame)
+    per_digit = stats.time_per_digit(frame, pairs)
+    solved = frame.assign(key=stats.solver_keys(frame),
+                          solved=frame["success"].fillna(False).astype(bool))
+    rates = solved.groupby(["key", "accuracy"])["solved"].mean()
+    parts = []
+    for start in range(0, len(pairs), PAIRS_PER_TABLE):
+        chunk = pairs[start:start + PAIRS_PER_TABLE]
+        rows = [{"": f"time {level(target)} / {level(levels[0])}",
+                 **{key: f"{growth[key]:.3g}" for key in chunk}},
+                {"": f"solves (>= {percent(stats.SOLVES_SHARE)}) down to",
+                 **{key: _maybe_level(min((a for (k, a), rate in rates.items()
+                                           if k == key and rate >= stats.SOLVES_SHARE),
+                                          default=None)) for key in chunk}}]
+        rows += [{"": f"per digit, {family}",
+                  **{key: number(per_digit.loc[key, family]) for key in chunk}}
+                 for family in per_digit.columns]
+        table = pd.DataFrame(rows)
+        parts.append(markdown_table(table, {column: str for column in table.columns}) + "\n")
+    text = (f"{len(pairs)} pair{'s' if len(pairs) > 1 else ''} whose time at {level(target)} "
+            "is at least "
+            f"{stats.ITERATIVE_GROWTH:g} x their time at {level(levels[0])} (geometric mean over "
+            "the problems each solves at both: methods whose iterations follow the "
+            "tolerance, where a direct factorization costs the same at every level), steepest "
+            "first. Per family, the factor each "
+            "further digit multiplies the time by: the geometric mean over the family's "
+            "problems solved at two consecutive levels a > b of (t_b / t_a)^(1 / log10(a / b)) "
+            "(- : no such problem).\n\n" + "".join(parts))
+    if figure is not None:
+        text += "\n" + _image(plots.cost_of_accuracy(stats.relative_time(frame, pairs), figure),
+                              folder, "cost of accuracy")
+    return text
+
+
+def _wrapper_costs(frame: pd.DataFrame) -> str:
+    """Per native pair, its qpsolvers and cvxpy twins (stats.wrapper_costs)."""
+    table = stats.wrapper_costs(frame)
+    if table.empty:
+        return ("_No native pairs (`<solver>-native`, a backend through its own Python API) "
+                "with a twin in these results._\n")
+    table = table.rename(columns={
+        "native": "native pair", "twin": "twin pair", "cells": "cells both ran",
+        "native_success_rate": "native solved", "twin_success_rate": "twin solved",
+        "both_solved": "cells both solved", "time_ratio": "twin time / native time"})
+    return ("Each native pair (`<solver>-native`: the backend through its own Python API) "
+            "against the same solver on the same formulation through qpsolvers (`<solver>`) "
+            "and through cvxpy (`cvxpy-<solver>`), on the cells (problem, level) both ran in "
+            "these results: the share each solved, and the median over the cells both solved "
+            "of the twin's time over the native pair's (what the wrapper adds; above 1 it is "
+            "slower).\n\n"
+            + markdown_table(table, {"native solved": percent, "twin solved": percent,
+                                     "native pair": lambda v: f"`{v}`",
+                                     "twin pair": lambda v: f"`{v}`"}))
+
+
+def _lead(frame: pd.DataFrame, frictional: pd.DataFrame, folder: Path) -> str:
+    """The report's opening: the fastest pairs per family and level, frictionless then
+    frictional; what accuracy costs the pairs whose time grows with it; what each wrapper
+    adds to a native pair."""
+    main = _cold(frame) if not frame.empty else frame
+    solvable = stats.without_unsolvable(frictional) if not frictional.empty else frictional
+    parts = ["\n## Fastest pairs, per family and level\n\n"
+             "Among the pairs that *solve* a family at a level (at least "
+             f"{percent(stats.SOLVES_SHARE)} of its problems; success = qpbench's residual <= "
+             "the level): the fastest pair of each formulation (solver named; the fastest of "
+             "the row in bold), the fastest external pair (a backend not written here), the "
+             "fastest of ours, and `external / ours`, how many times faster ours is. Time = "
+             "shifted geometric mean of time_s [s] over the family's problems with the "
+             "family's own shift, failures charged the time limit; - : no pair solves. "
+             "Frictional problems without a solution are left out; `ccp` answers are judged "
+             "by the relaxed model's residual.\n"]
+    if not main.empty:
+        parts.append(_comparison(main, "Accuracy "))
+    if not solvable.empty:
+        parts.append(_comparison(solvable, "Frictional problems, accuracy "))
+    parts.append("\n## What accuracy costs, where it costs\n\n")
+    if not main.empty and main["accuracy"].nunique() > 1:
+        parts.append(_accuracy_cost(main, folder / "figures" / "cost_of_accuracy.png", folder))
+    if not solvable.empty and solvable["accuracy"].nunique() > 1:
+        parts.append("\n### Frictional problems\n\n" + _accuracy_cost(solvable, None, folder))
+    if parts[-1].startswith("\n## What accuracy costs"):
+        parts.append("_A single accuracy level: nothing to compare._\n")
+    parts.append("\n## Wrapper costs\n\n" + _wrapper_costs(main if not main.empty else frame))
+    return "".join(parts)
 
 
 def _families(frame: pd.DataFrame) -> str:
@@ -269,44 +390,6 @@ def _summary(summary: pd.DataFrame) -> str:
             + markdown_table(pd.DataFrame(rows), {c: str for c in rows[0]}) if rows else "")
 
 
-def _robust_targets(frame: pd.DataFrame, shift: float) -> str:
-    """The two targets of our own solver on the hard families at 1e-8 (met or not, with figures)."""
-    hard = frame[frame["family"].astype(str).isin(HARD_FAMILIES)
-                 & np.isclose(frame["accuracy"].astype(float), TARGET_LEVEL)]
-    robust = hard[hard["solver"].astype(str) == ROBUST_SOLVER]
-    if robust.empty:
-        return (f"_`{ROBUST_SOLVER}` has no solves at {TARGET_LEVEL:g} on the hard families "
-                "in these results._\n")
-    lines = []
-    success_rate = float(robust["success"].fillna(False).astype(bool).mean())
-    max_v_error = float(robust["v_error"].max()) if robust["v_error"].notna().any() else math.nan
-    met = success_rate == 1.0 and not max_v_error > TARGET_V_ERROR
-    per_family = (robust.groupby("family")["success"]
-                  .apply(lambda s: percent(s.fillna(False).astype(bool).mean())))
-    lines.append(f"1. `{ROBUST_SOLVER}` succeeds on {percent(success_rate)} of "
-                 f"{len(robust)} hard-family solves at {TARGET_LEVEL:g} (target 100%), max "
-                 f"v_error {number(max_v_error)} (target <= {TARGET_V_ERROR:g}): "
-                 f"**{'met' if met else 'not met'}**. Per family: "
-                 + ", ".join(f"{family} {rate}" for family, rate in per_family.items()) + ".")
-    hard = hard.assign(key=stats.solver_keys(hard), charged=stats.charged_times(hard))
-    problems = set(robust["problem"])
-    sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)
-           for key, group in hard[hard["problem"].isin(problems)].groupby("key")}
-    robust_key = min((k for k in sgm if k.split("/")[0] == ROBUST_SOLVER), key=sgm.get)
-    external = hard[hard["backend"].astype(str) != stats.OWN_BACKEND]
-    external_keys = [k for k in sgm if k in set(external["key"])]
-    if not external_keys:
-        lines.append("2. No external backend has solves on the same problems: no ratio.")
-    else:
-        fastest = min(external_keys, key=sgm.get)
-        ratio = sgm[fastest] / sgm[robust_key]
-        lines.append(f"2. Fastest external backend `{fastest}`: SGM {number(sgm[fastest])} s; "
-                     f"`{robust_key}`: {number(sgm[robust_key])} s; ratio {ratio:.2f} "
-                     f"(target >= {TARGET_SPEEDUP:g}): "
-                     f"**{'met' if ratio >= TARGET_SPEEDUP else 'not met'}**.")
-    return "\n".join(lines) + "\n"
-
-
 def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
     if set(frame["mode"].dropna().astype(str)) != {"cold", "warm"}:
         return ""
@@ -336,13 +419,6 @@ def _warm_cold(frame: pd.DataFrame, shift: float) -> str:
             "anything derived from the reference. Used here: " + (sources or "-") + ".\n\n"
             + markdown_table(table, {"success cold": str, "success warm": str,
                                      "accuracy": level}))
-
-
-def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(frictionless rows, frictional rows); rows without a kind are frictionless."""
-    kind = frame["kind"].astype("string").fillna("impact") if "kind" in frame \
-        else pd.Series("impact", index=frame.index)
-    return frame[kind != FRICTIONAL], frame[kind == FRICTIONAL]
 
 
 def _friction(frame: pd.DataFrame, folder: Path) -> str:
@@ -506,9 +582,10 @@ SUMMARY_SUCCESS = 0.95
 
 
 # --- the report -----------------------------------------------------------------------------
-def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
-                  ) -> tuple[list[str], list[str]]:
-    """(summary sections, the rest) of the frictionless rows (cold starts where there are)."""
+def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None,
+                  sections: Sequence[SummarySection] = ()) -> tuple[list[str], list[str]]:
+    """(summary sections, the rest) of the frictionless rows (cold starts where there are);
+    ``sections`` close the rest."""
     figures = folder / "figures"
     main = frame[frame["mode"].astype(str) == "cold"]
     if main.empty:
@@ -517,10 +594,7 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
     budget = budget_s if budget_s is not None else shift
     summary = stats.level_summary(main, shift)
     top = ["\n## Summary\n\n" + _summary(summary) + f"\n{TIME_S_COVERS} Solvers marked "
-           "`ours` are written here and stop on qpbench's own residual.\n",
-           "\n## What accuracy costs, per family\n\n" + _frontier(main),
-           "\n## Targets of our own solver (hard families, accuracy 1e-8)\n\n"
-           + _robust_targets(main, shift)]
+           "`ours` are written here and stop on qpbench's own residual.\n"]
     out: list[str] = []
     out.append("\n## Per accuracy level (cold starts)\n\n" + _levels(summary, shift))
     out.append("\n" + _image(plots.success_by_level(summary, figures / "success_by_level.png"),
@@ -551,9 +625,10 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
 
     cost = stats.cost_of_accuracy(main, shift)
     reliable = _most_reliable(summary)
-    out.append("\n## What accuracy costs\n\nSGM time at each level and the ratio from each level "
-               "to the next tighter one (a ratio of 2 means the tighter level takes twice as "
-               f"long), for the {TOP_ROWS} most reliable pairs at the tightest level.\n\n"
+    out.append("\n## Time at each level, the most reliable pairs\n\nSGM time at each level "
+               "and the ratio from each level to the next tighter one (a ratio of 2 means the "
+               f"tighter level takes twice as long), for the {TOP_ROWS} most reliable pairs at "
+               "the tightest level.\n\n"
                + markdown_table(cost.loc[[k for k in reliable if k in cost.index]]
                                 .reset_index().rename(columns={"index": "solver"}))
                + _more(len(cost)) if not cost.empty else "")
@@ -563,8 +638,6 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
                "not make a looser level look slower:\n\n"
                + markdown_table(paired.loc[[k for k in reliable if k in paired.index]]
                                 .reset_index()) + _more(len(paired)))
-    out.append("\n" + _image(plots.cost_of_accuracy(summary, figures / "cost_of_accuracy.png"),
-                             folder, "cost of accuracy"))
     tightest = float(main["accuracy"].min())
     out.append("\n" + _image(plots.time_by_size(
         main[np.isclose(main["accuracy"].astype(float), tightest)], tightest,
@@ -575,6 +648,7 @@ def _frictionless(frame: pd.DataFrame, folder: Path, budget_s: float | None
                "median over problems of the best v_error reached.\n\n"
                + markdown_table(within, {"tightest_level": _maybe_level}))
     out.append(_warm_cold(frame, shift))
+    out.extend(f"\n## {title}\n\n" + section(main, shift) for title, section in sections)
     return top, out
 
 
@@ -587,10 +661,14 @@ def _most_reliable(summary: pd.DataFrame) -> list[str]:
 
 
 def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
-                 budget_s: float | None = None) -> Path:
+                 budget_s: float | None = None, sections: Sequence[SummarySection] = ()
+                 ) -> Path:
     """Writes ``folder/REPORT.md`` (default: beside the results) and its PNGs; returns the path.
 
-    Frictionless and frictional rows are reported apart (a table of either alone works)."""
+    Frictionless and frictional rows are reported apart (a table of either alone works);
+    ``sections`` (title, its Markdown from the cold frictionless rows and the SGM shift) close
+    the frictionless part, after the comparison of every pair, as the studies of our own
+    solver bring theirs (``qpbench.studies.targets``)."""
     results = Path(results)
     if not results.exists() and not ResultStore(results).part_files():
         raise InputError(str(results), "no such results file")
@@ -600,11 +678,12 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     folder = Path(folder) if folder is not None else results.parent
     folder.mkdir(parents=True, exist_ok=True)
     frame, frictional = split_kinds(everything)
-    top, rest = _frictionless(frame, folder, budget_s) if not frame.empty else (
+    top, rest = _frictionless(frame, folder, budget_s, sections) if not frame.empty else (
         ["\n_No frictionless problems in these results._\n"], [])
 
     html_report.write_html(everything, folder, results.name)
-    out: list[str] = ["# qpbench report\n\n", INDEX_POINTER, _overview(everything, results), *top]
+    out: list[str] = ["# qpbench report\n\n", INDEX_POINTER, _overview(everything, results),
+                      _lead(frame, frictional, folder), *top]
     out.append("\n## Machine and versions\n\n" + _provenance(everything))
     out.extend(rest)
     out.append("\n## Friction\n\n" + _friction(frictional, folder))

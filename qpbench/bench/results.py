@@ -26,6 +26,7 @@ import pyarrow.parquet as pq
 from qpbench.atomic import atomic_path
 from qpbench.bench.settings import CELL_KEY
 from qpbench.errors import InputError, QpbenchError
+from qpbench.problem.friction import KIND as FRICTIONAL
 
 # column order of the table, with the dtype each column is stored as
 FLOAT_COLUMNS = (
@@ -69,6 +70,13 @@ def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
         if column not in FLOAT_COLUMNS + INT_COLUMNS + BOOL_COLUMNS:
             frame[column] = frame[column].astype("string")
     return frame
+
+
+def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(frictionless rows, frictional rows); rows without a kind are frictionless."""
+    kind = frame["kind"].astype("string").fillna("impact") if "kind" in frame \
+        else pd.Series("impact", index=frame.index)
+    return frame[kind != FRICTIONAL], frame[kind == FRICTIONAL]
 
 
 def _check_dtypes(frame: pd.DataFrame, path: Path) -> None:

@@ -29,6 +29,7 @@ from tqdm import tqdm
 from qpbench.bench.isolation import IsolatedWorker
 from qpbench.bench.lock import lock_label
 from qpbench.bench.provenance import provenance
+from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import RETRIED_ON_RESUME, Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
@@ -192,7 +193,8 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     and the parts compacted into ``output``, with interrupts held off meanwhile; an interrupt
     then propagates as KeyboardInterrupt.
     """
-    from qpbench.bench.results import ResultStore
+    # imports every solver backend: not at module level, so that qpbench.cli.run starts the
+    # fork server first and its imports overlap with this process's
     from qpbench.solvers.registry import resolve
 
     store = ResultStore(Path(output))

@@ -14,9 +14,19 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench.settings import CRASHED, OUT_OF_MEMORY, TIMEOUT
+from qpbench.solvers.run import NO_SOLUTION
 
 SHIFT_FACTOR = 10.0
 OWN_BACKEND = "qpbench"  # the backend name of the solvers written here
+NATIVE_BACKEND = "native"  # pairs ``<solver>-native``: a backend through its own Python API
+WRAPPERS = {"qpsolvers": "{}", "cvxpy": "cvxpy-{}"}  # backend -> a native pair's twin's name
+ALL_PROBLEMS = "all problems"
+# a pair *solves* a family at a level when it solves at least this share of its problems
+SOLVES_SHARE = 0.95
+# a pair is *iterative* when its time on the problems it solves at both the loosest level and
+# GROWTH_LEVEL grows by at least ITERATIVE_GROWTH (geometric mean over those problems)
+GROWTH_LEVEL = 1e-8
+ITERATIVE_GROWTH = 1.25
 PROFILE_TAUS = np.logspace(0, 4, 200)
 
 
@@ -203,3 +213,197 @@ def honesty(frame: pd.DataFrame) -> pd.DataFrame:
             "false_failure_claims": int((~claimed & success).sum()),
         })
     return pd.DataFrame(rows)
+
+
+# --- the comparison: per family and level the fastest pair of each formulation -----------------
+EXTERNAL = "external"  # the comparison's column of the fastest pair of another backend
+OURS = "ours"  # ... and of the fastest pair written here
+# the comparison's formulation columns in this order (any others after them, by name)
+FORMULATION_ORDER = ("dual", "lcp", "primal", "dual-factored", "nsgs", "staggered", "ccp",
+                     "fc2d")
+
+
+def formulations_in_order(frame: pd.DataFrame) -> list[str]:
+    """The formulations of ``frame``'s rows, those of FORMULATION_ORDER first in its order."""
+    present = set(frame["formulation"].dropna().astype(str))
+    return ([name for name in FORMULATION_ORDER if name in present]
+            + sorted(present - set(FORMULATION_ORDER)))
+
+
+def without_unsolvable(frame: pd.DataFrame) -> pd.DataFrame:
+    """The rows of the problems not known to have no solution: a problem with a
+    ``no-solution`` row loses all its rows (a timeout on it included), never counted against
+    a solver."""
+    hopeless = set(frame.loc[frame["status"].astype(str) == NO_SOLUTION, "problem"])
+    return frame[~frame["problem"].isin(hopeless)]
+
+
+def pair_backends(frame: pd.DataFrame) -> dict[str, str]:
+    """``solver/formulation`` -> the backend of its rows ('' where the column is missing)."""
+    backend = (frame["backend"].astype("string").fillna("").astype(str) if "backend" in frame
+               else pd.Series("", index=frame.index))
+    return {str(key): str(value) for key, value in
+            backend.groupby(solver_keys(frame)).first().items()}
+
+
+def fastest_pairs(summarised: Sequence[tuple[str, float, pd.DataFrame]],
+                  backends: dict[str, str]) -> pd.DataFrame:
+    """Per family and level (loosest first), among the pairs that solve the family at the level
+    (at least SOLVES_SHARE of its problems): the fastest pair of each formulation (``column``
+    the formulation), the fastest pair of a backend other than ours (``column`` EXTERNAL) and
+    the fastest pair written here (``column`` OURS).
+
+    ``summarised`` holds (family, shift, summary) with a summary's columns ``accuracy``,
+    ``solver`` (the pair), ``success_rate`` and ``sgm_time_s``; ``backends`` maps a pair to its
+    backend. Columns: family, level, column, pair, sgm_time_s, success_rate. A column with no
+    pair that solves has no row; ties go to the first pair by name."""
+    rows = []
+    for family, _shift, summary in summarised:
+        solving = summary[summary["success_rate"] >= SOLVES_SHARE]
+        solving = solving.assign(
+            formulation=solving["solver"].astype(str).str.split("/", n=1).str[1],
+            own=[backends.get(str(key)) == OWN_BACKEND for key in solving["solver"]])
+        solving = solving.sort_values(["sgm_time_s", "solver"], kind="stable")
+        for accuracy in sorted(summary["accuracy"].unique(), reverse=True):
+            at_level = solving[solving["accuracy"] == accuracy]
+            columns = list(at_level.groupby("formulation", sort=True))
+            columns += [(EXTERNAL, at_level[~at_level["own"]]), (OURS, at_level[at_level["own"]])]
+            for column, group in columns:
+                if group.empty:
+                    continue
+                best = group.iloc[0]
+                rows.append({"family": family, "level": float(accuracy), "column": column,
+                             "pair": str(best["solver"]),
+                             "sgm_time_s": float(best["sgm_time_s"]),
+                             "success_rate": float(best["success_rate"])})
+    return pd.DataFrame(rows, columns=["family", "level", "column", "pair", "sgm_time_s",
+                                       "success_rate"])
+
+
+# --- what accuracy costs where it costs ---------------------------------------------------------
+def _solved_times(frame: pd.DataFrame) -> pd.DataFrame:
+    """(pair, problem) x level table of the time of each successful solve (NaN elsewhere)."""
+    frame = frame.assign(key=solver_keys(frame))
+    solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()
+                   & (frame["time_s"].astype(float) > 0)]
+    return solved.pivot_table(index=["key", "problem"], columns="accuracy", values="time_s",
+                              aggfunc="min")
+
+
+def time_growth(frame: pd.DataFrame) -> pd.Series:
+    """Per pair: the geometric mean, over the problems it solves at both the loosest level and
+    GROWTH_LEVEL (the tightest level where that is absent), of the time at the tighter level
+    divided by the time at the loosest. Pairs without such a problem are left out."""
+    levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
+    times = _solved_times(frame)
+    if len(levels) < 2 or times.empty:
+        return pd.Series(dtype=float)
+    target = next((a for a in levels if math.isclose(a, GROWTH_LEVEL)), levels[-1])
+    if levels[0] not in times or target not in times:
+        return pd.Series(dtype=float)
+    logs = np.log((times[target] / times[levels[0]]).dropna())
+    return np.exp(logs.groupby(level="key").mean())
+
+
+def iterative_pairs(frame: pd.DataFrame) -> list[str]:
+    """The pairs whose time grows with the level (time_growth >= ITERATIVE_GROWTH), the
+    steepest first: the first-order and splitting methods, whose iterations follow the
+    tolerance, where a direct method's factorization costs the same at every level."""
+    growth = time_growth(frame)
+    growth = growth[growth >= ITERATIVE_GROWTH]
+    return [str(key) for key in growth.sort_values(ascending=False, kind="stable").index]
+
+
+def _step_logs(frame: pd.DataFrame) -> pd.DataFrame:
+    """Per (pair, problem) solved at two consecutive levels a > b: ``log(t_b / t_a)`` and the
+    number of digits between them; columns key, problem, looser, log, digits."""
+    times = _solved_times(frame)
+    levels = sorted(times.columns, reverse=True)
+    steps = []
+    for looser, tighter in zip(levels, levels[1:], strict=False):
+        log = np.log((times[tighter] / times[looser]).dropna())
+        steps.append(pd.DataFrame({"key": log.index.get_level_values("key"),
+                                   "problem": log.index.get_level_values("problem"),
+                                   "looser": float(looser), "log": log.to_numpy(),
+                                   "digits": math.log10(float(looser) / float(tighter))}))
+    return pd.concat(steps, ignore_index=True) if steps else pd.DataFrame(
+        columns=["key", "problem", "looser", "log", "digits"])
+
+
+def time_per_digit(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
+    """Per pair (rows, in the order of ``pairs``) and family (columns, ALL_PROBLEMS first): the
+    factor each further digit of accuracy multiplies its time by, the geometric mean over the
+    family's problems it solves at two consecutive levels a > b of
+    ``(t_b / t_a) ** (1 / log10(a / b))``. NaN where it solves no problem at two consecutive
+    levels."""
+    steps = _step_logs(frame[solver_keys(frame).isin(list(pairs))])
+    family = frame.assign(family=frame["family"].astype("string").fillna("").astype(str)) \
+        .groupby("problem")["family"].first()
+    steps = steps.assign(per_digit=steps["log"] / steps["digits"],
+                         family=steps["problem"].map(family))
+    table = {ALL_PROBLEMS: np.exp(steps.groupby("key")["per_digit"].mean())}
+    for name, group in steps.groupby("family", sort=True):
+        if name:
+            table[str(name)] = np.exp(group.groupby("key")["per_digit"].mean())
+    return pd.DataFrame(table, columns=list(table)).reindex(list(pairs)).astype(float)
+
+
+def relative_time(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
+    """Per pair (rows, in the order of ``pairs``) and level (columns, loosest first): its time
+    relative to the loosest level, the product of the steps up to the level, each step the
+    geometric mean over the problems solved at both its levels of the time ratio. NaN from the
+    first step without such a problem on."""
+    levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
+    steps = _step_logs(frame[solver_keys(frame).isin(list(pairs))])
+    mean = steps.groupby(["key", "looser"])["log"].mean()
+    table = pd.DataFrame(math.nan, index=list(pairs), columns=levels)
+    for key in table.index:
+        total = 0.0
+        table.loc[key, levels[0]] = 1.0
+        for looser, tighter in zip(levels, levels[1:], strict=False):
+            if (key, looser) not in mean.index:
+                break
+            total += float(mean[(key, looser)])
+            table.loc[key, tighter] = math.exp(total)
+    return table
+
+
+def wrapper_costs(frame: pd.DataFrame) -> pd.DataFrame:
+    """Per native pair (backend NATIVE_BACKEND, ``<solver>-native``) and each twin that calls
+    the same solver on the same formulation through a wrapper (WRAPPERS: the qpsolvers pair
+    ``<solver>``, the cvxpy pair ``cvxpy-<solver>``) in ``frame``: over the cells (problem,
+    level, mode) both ran, the success rate of each, and the median over the cells both solved
+    of the twin's time divided by the native pair's (what the wrapper adds: above 1 it is
+    slower). Columns: native, wrapper, twin, cells, native_success_rate, twin_success_rate,
+    both_solved, time_ratio."""
+    columns = ["native", "wrapper", "twin", "cells", "native_success_rate",
+               "twin_success_rate", "both_solved", "time_ratio"]
+    if "backend" not in frame:
+        return pd.DataFrame(columns=columns)
+    cell = ["problem", "accuracy", "mode"]
+    frame = frame.assign(key=solver_keys(frame),
+                         backend=frame["backend"].astype("string").fillna("").astype(str),
+                         mode=frame["mode"].astype("string").fillna("").astype(str),
+                         success=frame["success"].fillna(False).astype(bool),
+                         time_s=frame["time_s"].astype(float))
+    frame = frame[cell + ["key", "backend", "success", "time_s"]].drop_duplicates(cell + ["key"])
+    rows = []
+    for key in sorted(frame.loc[frame["backend"] == NATIVE_BACKEND, "key"].unique()):
+        solver, formulation = key.split("/", 1)
+        native = frame[frame["key"] == key]
+        for wrapper, pattern in WRAPPERS.items():
+            twin_key = f"{pattern.format(solver.removesuffix('-native'))}/{formulation}"
+            twin = frame[(frame["key"] == twin_key) & (frame["backend"] == wrapper)]
+            both = native.merge(twin, on=cell, suffixes=("_native", "_twin"))
+            if both.empty:
+                continue
+            solved = (both["success_native"] & both["success_twin"]
+                      & (both["time_s_native"] > 0) & (both["time_s_twin"] > 0))
+            ratio = (both["time_s_twin"] / both["time_s_native"])[solved]
+            rows.append({"native": key, "wrapper": wrapper, "twin": twin_key,
+                         "cells": len(both),
+                         "native_success_rate": float(both["success_native"].mean()),
+                         "twin_success_rate": float(both["success_twin"].mean()),
+                         "both_solved": int(solved.sum()),
+                         "time_ratio": float(ratio.median()) if len(ratio) else math.nan})
+    return pd.DataFrame(rows, columns=columns)

@@ -1,7 +1,7 @@
 """``qpbench breakdown [--repeats 20] -o results/breakdown.json``: where pi-robust's time goes
 on the 5x5 and 7x7 grids of the SCISim research fork and a 1000-ball box, against one
 Cholesky of the final active block and one product, in compiled code
-(``qpbench.bench.breakdown``). Runs with single-threaded BLAS, in a child process unless this
+(``qpbench.studies.breakdown``). Runs with single-threaded BLAS, in a child process unless this
 one already has it."""
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import argparse
 from qpbench.bench.defaults import BREAKDOWN_REPEATS
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import QpbenchError
+from qpbench.studies.breakdown import breakdown
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -32,7 +33,6 @@ def run(args: argparse.Namespace) -> int:
                                    "-o", str(args.output)])
     if child is not None:
         return child
-    from qpbench.bench.breakdown import breakdown
 
     report = breakdown(repeats=args.repeats)
     write_json(output, report)

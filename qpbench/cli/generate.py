@@ -19,6 +19,7 @@ from qpbench.problem.friction_generate import FRICTION_FAMILIES
 from qpbench.problem.friction_generate import generate as generate_frictional
 from qpbench.problem.generate import FAMILIES, check_family_size, family_entry, generate
 from qpbench.problem.reference import attach_reference
+from qpbench.scenes.builders import box_scene, write_scene
 
 ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
 
@@ -99,8 +100,6 @@ def run_frictional(args: argparse.Namespace) -> int:
 
 def write_box_scenes(args: argparse.Namespace) -> int:
     """``--scene``: box scenes of ``--size`` balls (seeds seed..seed+count-1) as scene XML."""
-    from qpbench.scenes.builders import box_scene, write_scene
-
     if args.family != "box":
         raise QpbenchError(f"--scene is for the box family only, not '{args.family}'")
     size = 1000 if args.size is None else args.size

@@ -2,7 +2,7 @@
 [--candidates 6] [--out-of-running 30] [--cold-repeats 3] -o results/head_to_head.json``:
 pi-robust against the fastest external pairs of the main benchmark, no warm start, timed
 interleaved and with the CPU caches flushed, per set of ``problems/head_to_head.toml``
-(built into FOLDER by ``qpbench build-set``; ``qpbench.bench.head_to_head``). Runs with
+(built into FOLDER by ``qpbench build-set``; ``qpbench.studies.head_to_head``). Runs with
 single-threaded BLAS, in a child process unless this one already has it."""
 
 from __future__ import annotations
@@ -18,8 +18,10 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
 )
+from qpbench.bench.results import ResultStore
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
+from qpbench.studies.head_to_head import BENCH_COLUMNS, head_to_head
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -70,8 +72,6 @@ def run(args: argparse.Namespace) -> int:
          str(args.cold_repeats), "-o", str(args.output)])
     if child is not None:
         return child
-    from qpbench.bench.head_to_head import BENCH_COLUMNS, head_to_head
-    from qpbench.bench.results import ResultStore
 
     bench = ResultStore(args.results).read(BENCH_COLUMNS)
     if bench.empty:

@@ -6,11 +6,14 @@ from __future__ import annotations
 import json
 import math
 import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from qpbench import SINGLE_THREAD_ENV
 from qpbench.atomic import atomic_path, checked_target
 from qpbench.errors import OutputError
 
@@ -94,11 +97,6 @@ def single_threaded_rerun(arguments: list[str]) -> int | None:
     """Timings depend on BLAS threads: when this process is not single-threaded
     (SINGLE_THREAD_ENV), runs ``python -m qpbench.cli ARGUMENTS`` in a child that is and
     returns its exit status; None when this process already is."""
-    import subprocess
-    import sys
-
-    from qpbench import SINGLE_THREAD_ENV
-
     if all(os.environ.get(name) == "1" for name in SINGLE_THREAD_ENV):
         return None
     command = [sys.executable, "-m", "qpbench.cli", *arguments]

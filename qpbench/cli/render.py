@@ -14,6 +14,7 @@ from qpbench.cli.progress import Progress
 from qpbench.cli.simulate import DEFAULT_STEPS, check_memory_failure, check_span
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
+from qpbench.simulation.render import render
 from qpbench.simulation.stepper import SimulationResult
 
 
@@ -32,8 +33,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from qpbench.simulation.render import render  # matplotlib only when drawing
-
     check_span(args)
     check_at_least(args.frames, 1, "--frames")
     writable_output(args.output)

@@ -10,11 +10,12 @@ from typing import Any
 import pandas as pd
 
 from qpbench.bench import html_report, plots, stats
-from qpbench.bench.report import split_kinds, write_report
-from qpbench.bench.results import ResultStore
+from qpbench.bench.report import write_report
+from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.cli.guards import add_progress_option, progress_wanted
 from qpbench.cli.output import duration
 from qpbench.cli.progress import Progress
+from qpbench.studies import targets
 
 # the columns the closing summary reads (html_report.frontier over every problem)
 SUMMARY_COLUMNS = ("problem", "family", "kind", "mode", "solver", "formulation", "backend",
@@ -46,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
             progress.advance(1, path.name)
 
         with plots.on_figure(starting), html_report.on_page(starting):
-            report = write_report(args.results, args.output, budget_s=args.budget)
+            report = write_report(args.results, args.output, budget_s=args.budget,
+                                  sections=targets.SECTIONS)
     figures = sum(path.suffix == ".png" for path in written)
     folder = report.parent
     print(f"REPORT.md:  {report}")

@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if not isinstance(executor, DaskExecutor):
         # started before this process imports the solver backends, so both import at once
         isolation.start_fork_server()
-    from qpbench.solvers.registry import resolve, usable_solvers
+    from qpbench.solvers.registry import resolve, usable_solvers  # (after the fork server)
 
     specs = usable_solvers() if solver_names is None else resolve(solver_names)
     kinds = PROBLEM_KINDS if args.kind == "all" else (args.kind,)

@@ -1,7 +1,7 @@
 """``qpbench sequence SCENE... [--solvers A,B] [--steps 30] [--accuracy 1e-8] [--repeats 5]
 [--passes 3] -o results/sequence.json``: every solver replays captured scene sequences, cold and
 warm-started from its own previous answer on the persisting contacts
-(``qpbench.bench.sequence``). Runs with single-threaded BLAS, in a child process unless this
+(``qpbench.studies.sequence``). Runs with single-threaded BLAS, in a child process unless this
 one already has it."""
 
 from __future__ import annotations
@@ -11,9 +11,12 @@ import sys
 from pathlib import Path
 
 from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_PASSES, SEQUENCE_STEPS
+from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import check_accuracy
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
+from qpbench.solvers.registry import get
+from qpbench.studies import sequence
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -59,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
          *(["--results", args.results] if args.results else [])])
     if child is not None:
         return child
-    from qpbench.bench import sequence
-    from qpbench.solvers.registry import get
 
     if args.solvers:
         specs = [get(name.strip()) for name in args.solvers.split(",") if name.strip()]
@@ -70,8 +71,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         cold: list[str] = []
         if args.results:
-            from qpbench.bench.results import ResultStore
-
             bench = ResultStore(args.results).read()
             if bench.empty:
                 raise InputError(args.results, "no results to choose the cold pairs from")

@@ -1,6 +1,6 @@
 """``qpbench speed [--sizes 1000,4000] [--seed 0] [--repeats 5] -o results/speed.json``:
 pi-robust against one sparse factorization of Q + eps I on box packings
-(``qpbench.bench.speed``). The measurement runs in a child process with single-threaded BLAS
+(``qpbench.studies.speed``). The measurement runs in a child process with single-threaded BLAS
 unless this one already has it."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import argparse
 from qpbench.bench.defaults import REPEATS, SPEED_SIZES
 from qpbench.bench.settings import check_at_least
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
+from qpbench.studies.speed import speed
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -47,7 +48,6 @@ def run(args: argparse.Namespace) -> int:
                                    "-o", str(args.output)])
     if child is not None:
         return child
-    from qpbench.bench.speed import speed
 
     report = speed(args.sizes, args.seed, args.repeats)
     write_json(output, report)

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from qpbench.errors import InputError
 from qpbench.problem.impact import ImpactProblem, check_entries, check_vector
+from qpbench.problem.metrics import vector_scale
 
 KIND = "frictional"
 MODELS = ("coulomb", "ccp")  # the exact law, and Anitescu's relaxation (sliding separates)
@@ -239,8 +240,6 @@ class FrictionalProblem:
     def scale(self) -> float:
         """max(||q_N||_inf, ||q_T||_inf over contacts with mu > 0, tiny): at mu = 0 it is the
         frictionless scale ``max(||b||_inf, tiny)``, so both residuals agree there."""
-        from qpbench.problem.metrics import vector_scale
-
         n = self.n_contacts
         return vector_scale(np.concatenate([self.q[:n], self.q[n:][self.mu > 0]]))
 

@@ -42,6 +42,7 @@ import numpy as np
 from numba import njit
 
 from qpbench.errors import UnsupportedError
+from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
 from qpbench.simulation.contacts import BODY_BODY, BOX_PLANE, Contacts
 
 VERTEX_SIGNS = ((-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0))  # SCISim's i, j loops
@@ -264,8 +265,6 @@ def _collision_boxes(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, theta1: 
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper corners of each body's collision box: a circle's swept over the step
     (``broad_phase.swept_boxes``); a box's at x1 alone, ``x1 -+ |R(theta1)| h`` (as SCISim)."""
-    from qpbench.simulation.broad_phase import swept_boxes
-
     lower, upper = swept_boxes(x0, x1, radii)
     boxes = np.flatnonzero(is_box)
     cos, sin = np.abs(np.cos(theta1[boxes])), np.abs(np.sin(theta1[boxes]))
@@ -286,8 +285,6 @@ def box_contacts(x0: np.ndarray, x1: np.ndarray, theta0: np.ndarray, theta1: np.
                  ) -> tuple[Contacts, Contacts]:
     """(body-body, box-plane) contacts of every box (module docstring); circle-circle and
     circle-plane contacts are found elsewhere."""
-    from qpbench.simulation.broad_phase import candidate_pairs
-
     x0, x1 = (np.ascontiguousarray(x, dtype=float) for x in (x0, x1))
     theta0, theta1, radii = (np.ascontiguousarray(v, dtype=float)
                              for v in (theta0, theta1, radii))

@@ -11,9 +11,10 @@ Its claim is X's claim on the relaxed problem, whose residual is computed with o
 construction.
 
 A warm start r = (l_N, l_T) enters as ``z+- = (l_N +- l_T / mu) / 2`` (``l_N / 2`` each where
-mu = 0), clipped to z >= 0. pi-robust's twin does all of it in one compiled call first
-(``pi_robust.solve_relaxed``: the same maps; its start is first swept contact by contact,
-each contact's (z+, z-) as one 2x2 block, and the general path runs only where it declines).
+mu = 0), clipped to z >= 0 (the maps of ``qpbench.solvers.relaxation``). pi-robust's twin does
+all of it in one compiled call first (``pi_robust.solve_relaxed``: the same maps; its start is
+first swept contact by contact, each contact's (z+, z-) as one 2x2 block, and the general path
+runs only where it declines).
 The twins are a derivation of the registry (``registry.register_derivation``): they are made
 once every family is imported, whatever the order, and an unusable X gives an unusable twin with
 X's reason. The native and Siconos backends get none (``UNTWINNED_BACKENDS``).
@@ -29,6 +30,7 @@ import numpy as np
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import pi_robust, registry
 from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
+from qpbench.solvers.relaxation import mapped_back, relaxed_start
 
 FORMULATION = "ccp"
 INNER_FORMULATIONS = ("dual", "lcp")  # the forms whose solvers take an ImpactProblem's Q, b
@@ -51,21 +53,6 @@ def frictionless_solvers(specs: list[SolverSpec]) -> list[SolverSpec]:
     return list(chosen.values())
 
 
-def relaxed_start(problem: FrictionalProblem, warm_start: np.ndarray | None
-                  ) -> np.ndarray | None:
-    """z of the relaxed problem from a warm start r (module docstring), or None."""
-    n = problem.n_contacts
-    if warm_start is None:
-        return None
-    warm = np.asarray(warm_start, dtype=float).ravel()
-    if warm.shape != (2 * n,) or not np.all(np.isfinite(warm)):
-        return None
-    normal, tangential = warm[:n], warm[n:]
-    mu = problem.mu
-    ratio = np.divide(tangential, mu, out=np.zeros(n), where=mu > 0)
-    return np.maximum(np.concatenate([normal + ratio, normal - ratio]) / 2.0, 0.0)
-
-
 def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None] | None = None
                ) -> Callable[..., SolverOutput]:
     """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r;
@@ -82,19 +69,6 @@ def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None
                                           relaxed_start(problem, warm_start)))
 
     return solve
-
-
-def mapped_back(problem: FrictionalProblem, output: SolverOutput) -> SolverOutput:
-    """An output on ``problem.relaxed()`` (z) as an output on ``problem``: r = from_relaxed(z)
-    (none when z has the wrong shape), the claim, status and times as they are."""
-    z = output.impulses
-    impulses = None
-    if z is not None and np.shape(z) == (2 * problem.n_contacts,):
-        impulses = problem.from_relaxed(np.asarray(z, dtype=float))
-    return SolverOutput(impulses=impulses, status=output.status,
-                        claimed_success=output.claimed_success,
-                        iterations=output.iterations, backend_times=output.backend_times,
-                        info={**output.info, "relaxed_contacts": 2 * problem.n_contacts})
 
 
 def derived(spec: SolverSpec, formulation: str,

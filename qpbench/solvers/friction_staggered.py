@@ -47,7 +47,16 @@ from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import TINY
-from qpbench.solvers import accuracy, registry
+from qpbench.solvers import (
+    accuracy,
+    box_sweeps,
+    colouring,
+    cvxpy_,
+    ipopt_,
+    qpsolvers_,
+    registry,
+    staggered_compiled,
+)
 from qpbench.solvers.base import SolveFunction, SolverOutput, SolverSpec
 from qpbench.solvers.friction_ccp import derived, frictionless_solvers
 from qpbench.solvers.quiet import c_stdout_silenced
@@ -98,8 +107,6 @@ def _symmetric_arrays(box: BoxQP) -> tuple[sp.csc_matrix, tuple[np.ndarray, ...]
 def box_residual(box: BoxQP, x: np.ndarray) -> float:
     """``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
     (1 where it is 0): the box QP's natural map, a velocity (``box_sweeps.box_residual``)."""
-    from qpbench.solvers import box_sweeps
-
     _, arrays = _symmetric_arrays(box)
     return float(box_sweeps.box_residual(*arrays, np.ascontiguousarray(x, dtype=float)))
 
@@ -112,8 +119,6 @@ def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every:
     sweeps run compiled (``qpbench.solvers.box_sweeps``). A coordinate with ``P_ii = 0`` has a
     zero row (P is PSD) and a constant gradient c_i: it goes to the bound that gradient points
     to, once."""
-    from qpbench.solvers import box_sweeps, colouring
-
     P, arrays = _symmetric_arrays(box)
     x, sweeps, converged = box_sweeps.box_gauss_seidel(
         *arrays, P.diagonal(), colouring.colour_order(P.indptr, P.indices),
@@ -155,8 +160,6 @@ def on_free_coordinates(solve: BoxSolver) -> BoxSolver:
 
 
 def _qpsolvers_box_solver(name: str) -> BoxSolver:
-    from qpbench.solvers import qpsolvers_
-
     solver = qpsolvers_.REGULARIZED.get(name, name)
     qpsolvers = qpsolvers_.qpsolvers
 
@@ -187,8 +190,6 @@ def _qpsolvers_box_solver(name: str) -> BoxSolver:
 
 
 def _cvxpy_box_solver(name: str) -> BoxSolver:
-    from qpbench.solvers import cvxpy_
-
     solver = next(key for key in cvxpy_.SOLVERS if cvxpy_.qpbench_name(key) == name)
 
     def solve(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
@@ -219,8 +220,6 @@ def _cvxpy_box_solver(name: str) -> BoxSolver:
 
 
 def _ipopt_box_solver(name: str) -> BoxSolver:
-    from qpbench.solvers import ipopt_
-
     def solve(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
         options = accuracy.options_for(name, eps, scale)
         program = ipopt_.QuadraticProgram(box.P, box.c, sp.csr_matrix((0, box.n)))
@@ -383,8 +382,6 @@ def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverO
               ) -> SolverOutput:
         options = accuracy.options_for(ROW, eps, problem.scale)
         if spec.name in COMPILED_LOOPS:
-            from qpbench.solvers import staggered_compiled
-
             box_options = accuracy.options_for(ROW, options["inner_accuracy"], problem.scale)
             answer = staggered_compiled.solve(problem, eps, warm_start, options, box_options)
             if answer is not None:
@@ -405,14 +402,10 @@ def twin(spec: SolverSpec) -> SolverSpec:
                                                f"{inner.key}, friction box QP by {box_name}")
 
     def prepare() -> None:  # the inner solver's set-up, the compiled box sweeps and loop
-        from qpbench.solvers import box_sweeps
-
         if spec.prepare is not None:
             spec.prepare()
         box_sweeps.warm_up()
         if spec.name in COMPILED_LOOPS:
-            from qpbench.solvers import staggered_compiled
-
             staggered_compiled.warm_up()
 
     sweeps_here = spec.backend not in BOUNDED_BACKENDS

@@ -73,7 +73,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
@@ -83,7 +82,7 @@ import scipy.sparse as sp
 from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import accuracy
+from qpbench.solvers import accuracy, lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
@@ -95,6 +94,7 @@ from qpbench.solvers.lcp_interior import (
     moving_rows,
     symmetric_splu,
 )
+from qpbench.solvers.pi_robust_kernel import entry as kernel_entry
 from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
 
@@ -514,13 +514,11 @@ class LemkeAnswer(NamedTuple):
 
 def lemke_of(lcp: Lcp, tol: float, lemke_limit: int) -> LemkeAnswer | None:
     """Lemke's method on the LCP, within ``50 n + 100`` pivots; None above ``lemke_limit``
-    contacts (imported here: the lemke module registers its own solver, after this one)."""
+    contacts."""
     if lcp.n > lemke_limit:
         return None
-    from qpbench.solvers.lemke import RAY_TERMINATION, lemke
-
-    impulses, converged, status, pivots = lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
-    return LemkeAnswer(impulses, converged, status, pivots, status == RAY_TERMINATION)
+    impulses, converged, status, pivots = lemke.lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
+    return LemkeAnswer(impulses, converged, status, pivots, status == lemke.RAY_TERMINATION)
 
 
 def _lemke_fallback(lcp: Lcp, tol: float, lemke_answer: LemkeAnswer | None,
@@ -545,18 +543,6 @@ def _lemke_fallback(lcp: Lcp, tol: float, lemke_answer: LemkeAnswer | None,
 
 ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
 NO_START = np.empty(0)  # the kernel's "start from zero"
-_kernel: ModuleType | None = None
-
-
-def _kernel_module() -> ModuleType:
-    """The compiled kernel's entry module (``pi_robust_kernel.entry``), imported on first use
-    (it loads numba)."""
-    global _kernel
-    if _kernel is None:
-        from qpbench.solvers.pi_robust_kernel import entry
-
-        _kernel = entry
-    return _kernel
 
 
 def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -584,7 +570,7 @@ def settings_for(eps: float) -> Settings:
     options = accuracy.options_for(NAME, eps, 1.0)
     limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
                                                 "compiled_work_limit")}
-    kernel = _kernel_module().options_of(options)
+    kernel = kernel_entry.options_of(options)
     options.pop("start_sweeps")  # the compiled path's alone
     return Settings(kernel=kernel, python=options,
                     dense_limit=int(limits["dense_limit"]),
@@ -625,7 +611,7 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
     path, solves, interior iterations, factorizations, certified), when the answer converged
     and the kernel's rounding bound or qpbench's residual of l on ``problem`` confirms it;
     else None."""
-    envelope = _kernel or _kernel_module()
+    envelope = kernel_entry
     kernel_impulses, converged, path, solves, interior, factorizations, certified = answer
     if not converged:
         return None
@@ -646,7 +632,7 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
 def _failed_in_full(answer: tuple) -> bool:
     """The kernel's ``answer`` (l, converged, path, ...) is a failure after policy iteration
     and then the interior point both ran (path ``PATH_NONE``)."""
-    return not answer[1] and answer[2] == _kernel_module().PATH_NONE
+    return not answer[1] and answer[2] == kernel_entry.PATH_NONE
 
 
 def _after_kernel_failure(problem: ImpactProblem, settings: Settings, answer: tuple,
@@ -690,7 +676,7 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
     if not 0 < contacts <= settings.compiled_limit:
         return None
     try:
-        answer = kernel_call(_kernel_module().relaxed_pi_robust, relaxed, settings,
+        answer = kernel_call(kernel_entry.relaxed_pi_robust, relaxed, settings,
                              warm_start, problem.mu)
     except np.linalg.LinAlgError:
         return None
@@ -698,10 +684,8 @@ def solve_relaxed(problem: FrictionalProblem, eps: float,
     if confirmed is not None:
         confirmed.info["relaxed_contacts"] = contacts
     elif _failed_in_full(answer[1:]):
-        from qpbench.solvers import friction_ccp  # (which imports this module)
-
-        confirmed = friction_ccp.mapped_back(problem, _after_kernel_failure(
-            relaxed, settings, answer[1:], friction_ccp.relaxed_start(problem, warm_start)))
+        confirmed = relaxation.mapped_back(problem, _after_kernel_failure(
+            relaxed, settings, answer[1:], relaxation.relaxed_start(problem, warm_start)))
     return confirmed
 
 
@@ -735,7 +719,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
     # b's size is the number of contacts (b is posed; n_contacts would read G's shape)
     compiled = 0 < problem.b.size <= settings.compiled_limit
     if compiled:
-        kernel = _kernel or _kernel_module()
+        kernel = kernel_entry
         Q = problem.Q
         try:
             answer = kernel.envelope_pi_robust(
@@ -765,7 +749,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 def prepare() -> None:
     """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
-    _kernel_module().warm_up()
+    kernel_entry.warm_up()
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

@@ -79,9 +79,9 @@ def _derive() -> None:
 
 def all_solvers() -> list[SolverSpec]:
     """Every registered solver-formulation pair, usable or not, sorted by key: the families'
-    own, those derived from them, and those of $QPBENCH_EXTRA_SOLVERS."""
-    from qpbench import solvers  # noqa: F401  (imports every backend module once)
-
+    own, those derived from them, and those of $QPBENCH_EXTRA_SOLVERS. Every family is
+    imported by then: importing this module imports its package first, whose ``__init__``
+    imports every family module (``qpbench.solvers.FAMILIES``)."""
     _derive()
     _import_extra_solvers()
     return [_SOLVERS[key] for key in sorted(_SOLVERS)]

@@ -73,6 +73,7 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.registry import get
 from qpbench.solvers.run import NO_SOLUTION, judge
 
 ACCURACY = 1e-8
@@ -478,8 +479,6 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     schedule (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside);
     external pairs leave a set after a batch as :class:`Running` says, with ``limit =
     out_of_running`` (infinite: every pair runs on every problem)."""
-    from qpbench.solvers.registry import get
-
     chosen = fastest_external(bench, candidates)
     problems = [problem for problem in files.load_all(files.find([str(folder)]))
                 if set_of(problem) is not None]

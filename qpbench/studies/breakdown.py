@@ -45,12 +45,20 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from qpbench.bench.defaults import BREAKDOWN_REPEATS
+from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import metrics
+from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
+from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
+from qpbench.scenes import load_scene
+from qpbench.simulation.stepper import Simulator
+from qpbench.solvers import pi_robust
 from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.pi_robust_kernel import entry as kernel
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
+from qpbench.studies import compiled_floor
 
 SOLVER = "pi-robust"
 ACCURACY = 1e-8
@@ -64,10 +72,6 @@ BOX_BALLS = 1000
 
 def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
     """The first impact problem (some contact approaching) of a frictionless scene."""
-    from qpbench.inner_solvers import choose_by_name
-    from qpbench.scenes import load_scene
-    from qpbench.simulation.stepper import Simulator
-
     simulator = Simulator(load_scene(scene_path), choose_by_name(None))
     for _ in range(max_steps):
         event = simulator.step()
@@ -77,9 +81,6 @@ def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
 
 
 def default_problems(root: Path = ROOT) -> list[ImpactProblem]:
-    from qpbench.problem.dumps import import_dump
-    from qpbench.problem.generate import generate
-
     problems = [import_dump(root / path) for path in DUMPS]
     problems.append(first_impact(root / GRID7_SCENE))
     problems.append(generate("box", BOX_BALLS, seed=0)[0])
@@ -137,8 +138,6 @@ class _FloorRounds:
     outside any clock."""
 
     def __init__(self, problem: ImpactProblem, impulses: np.ndarray) -> None:
-        from qpbench.bench import compiled_floor  # (it loads numba)
-
         active = np.flatnonzero(impulses > 0)
         Q = problem.Q.tocsc()
         shift = FLOOR_SHIFT * metrics.vector_scale(problem.diag_Q)
@@ -178,9 +177,6 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], floa
     """A function that times two compiled calls in a row on one copy of ``problem`` posed for
     ``spec`` and returns the second's time: the kernel back to back, with nothing in between
     (the caller has seen the compiled path run)."""
-    from qpbench.solvers import pi_robust
-    from qpbench.solvers.pi_robust_kernel import entry as kernel
-
     blind = problem.blind_copy()
     pose(blind, spec.formulation)
     settings = pi_robust.settings_for(ACCURACY)
@@ -202,9 +198,6 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
     """The breakdown of one problem (module docstring). Each of ``repeats`` rounds times every
     part once, in turn, so that a burst of load on the host falls on all parts alike; each
     part keeps its fastest round."""
-    from qpbench.solvers import pi_robust
-    from qpbench.solvers.pi_robust_kernel import entry as kernel
-
     spec = get(SOLVER)
     first = call_solver(spec, problem, ACCURACY)  # untimed: its answer and counts are reported
     kernel_ran = bool(first.info.get("compiled"))  # True, or how the Python path followed it
@@ -295,8 +288,6 @@ def breakdown(problems: list[ImpactProblem] | None = None,
               repeats: int = BREAKDOWN_REPEATS) -> dict[str, Any]:
     """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown``
     section."""
-    from qpbench.problem.dumps import import_dump
-
     problems = default_problems() if problems is None else problems
     trivial = import_dump(ROOT / TRIVIAL_DUMP)
     rows = [measure(problem, trivial, repeats) for problem in problems]

@@ -60,11 +60,18 @@ from qpbench.bench.defaults import (
     TARGET_SPEEDUP,
 )
 from qpbench.bench.repeats import REPEAT_BUDGET_S, Timing, fastest_output, time_interleaved
+from qpbench.bench.stats import OWN_BACKEND, SHIFT_FACTOR, shifted_geometric_mean, solver_keys
 from qpbench.errors import InputError
+from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
+from qpbench.scenes import load_scene
+from qpbench.simulation.operators import InnerSolveFailed
+from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverSpec
+from qpbench.solvers.registry import all_solvers, usable_solvers
 from qpbench.solvers.run import judge
+from qpbench.studies.head_to_head import pass_range, ranked, target_sentence
 
 OWN = "pi-robust/lcp"
 # the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
@@ -93,11 +100,6 @@ def capture(scene_path: str | os.PathLike[str], folder: str | os.PathLike[str],
     """Simulates ``scene_path`` with capture into ``folder`` until ``steps`` impact problems
     are written (or ``STEP_BUDGET * steps`` time steps, or the scene's end); returns the
     files in order."""
-    from qpbench.inner_solvers import choose_by_name
-    from qpbench.scenes import load_scene
-    from qpbench.simulation.operators import InnerSolveFailed
-    from qpbench.simulation.stepper import Simulator
-
     scene = load_scene(scene_path)
     simulator = Simulator(scene, choose_by_name(None), capture=folder)
     Path(folder).mkdir(parents=True, exist_ok=True)
@@ -230,8 +232,6 @@ def replayed_step(specs: Sequence[SolverSpec], problem: ImpactProblem, index: in
 # --- summaries ------------------------------------------------------------------------------
 def _shift(rows: Sequence[dict[str, Any]]) -> float:
     """10 x the median over (problem, mode) of the fastest successful time (stats' rule)."""
-    from qpbench.bench.stats import SHIFT_FACTOR
-
     fastest: dict[tuple[str, str, str], float] = {}
     for row in rows:
         for mode in ("cold", "sequence"):
@@ -245,8 +245,6 @@ def _shift(rows: Sequence[dict[str, Any]]) -> float:
 def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per solver: median and SGM of the charged times, cold and in sequence, and success
     rates (a failure is charged the largest time of the measurement)."""
-    from qpbench.bench.stats import shifted_geometric_mean
-
     times = [row[f"{mode}_time_s"] for row in rows for mode in ("cold", "sequence")]
     finite = [t for t in times if isinstance(t, float) and math.isfinite(t)]
     charge = max(finite, default=1.0)
@@ -289,8 +287,6 @@ def fastest_over_passes(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 def comparison(summary: Sequence[dict[str, Any]], own: str = OWN) -> dict[str, Any]:
     """pi-robust against the fastest warm-startable external pair (charged SGM), in each
     mode: ``ratio = external / own`` (above 1: pi-robust faster)."""
-    from qpbench.bench.stats import OWN_BACKEND
-
     by_solver = {entry["solver"]: entry for entry in summary}
     mine = by_solver.get(own)
     external = [entry for entry in summary if entry["warm_startable"]
@@ -338,15 +334,11 @@ def by_scene(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def _per_pass(compared: dict[str, Any]) -> str:
     """`` (per pass: lowest-highest x)``, or nothing with one pass."""
-    from qpbench.bench.head_to_head import pass_range
-
     spread = pass_range(compared)
     return f" (per pass: {spread})" if spread else ""
 
 
 def _own_backend(solver: str, own_backend: str) -> bool:
-    from qpbench.solvers.registry import all_solvers
-
     return any(spec.key == solver and spec.backend == own_backend for spec in all_solvers())
 
 
@@ -419,8 +411,6 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
 def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
                      scenes: Sequence[dict[str, Any]]) -> list[str]:
     """The comparison scene by scene (each against its own fastest warm-startable pair)."""
-    from qpbench.bench.head_to_head import pass_range, target_sentence
-
     persisting = {scene["scene"]: scene.get("persisting_share", 0.0) for scene in scenes}
     lines = ["\nScene by scene (sequence mode, each against the fastest warm-startable external "
              "pair on that scene):\n",
@@ -447,10 +437,6 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
                  accuracy: float = SEQUENCE_ACCURACY) -> list[str]:
     """The ``count`` fastest external impact pairs that take no warm start on the captured
     scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM of charged times)."""
-    from qpbench.bench.head_to_head import ranked
-    from qpbench.bench.stats import OWN_BACKEND, solver_keys
-    from qpbench.solvers.registry import usable_solvers
-
     cold_only = {spec.key for spec in usable_solvers()
                  if not spec.warm_start and spec.backend != OWN_BACKEND}
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
@@ -462,9 +448,6 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
 def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
     """pi-robust, every usable warm-startable external impact pair, and the pairs ``cold``
     (the fastest that take no warm start: :func:`fastest_cold`)."""
-    from qpbench.bench.stats import OWN_BACKEND
-    from qpbench.solvers.registry import usable_solvers
-
     chosen = []
     for spec in usable_solvers():
         if spec.formulation in ("nsgs", "ccp", "staggered") or "staggered" in spec.name:
