@@ -213,7 +213,10 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "penalty": {"tol": _relative, "kappa": 1e9, "max_iters": 100, "dense_limit": 300},
     "apgd": {"tol": _relative, "max_iters": 50_000, "check_every": 10},
     # --- frictional solvers written here: tolerance on qpbench's Coulomb residual ---
-    "nsgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
+    # nsgs' pivoting finish: once the best residual has not halved over stall_sweeps sweeps,
+    # Lemke on a block of at most pivot_contacts contacts (a dense LCP of 3 per contact)
+    "nsgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10,
+             "stall_sweeps": 1_000, "pivot_contacts": 300, "pivots_per_contact": 50},
     # staggered projections X/staggered: its outer loop and the box Gauss-Seidel written here
     # (the box QP of X = pi, pgs, lemke, ...); each inner solve reads X's own row at inner_accuracy
     "staggered": {"max_outer": 200, "inner_accuracy": _tenth, "box_max_sweeps": 100_000,

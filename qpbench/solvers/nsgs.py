@@ -27,6 +27,18 @@ Gauss-Seidel in that order. Unlike So-bogus there is no skipping of contacts tha
 little, and the stopping test is qpbench's own Coulomb residual
 (``friction_metrics.residual <= tol``), checked at the start, after the first sweep and then
 every ``check_every`` sweeps, at most ``max_sweeps``; the best iterate checked is returned.
+
+Pivoting finish. Point Gauss-Seidel can stall on a cluster of contacts whose W block is
+singular or, for a W printed with a few digits, slightly indefinite: each local solve is exact,
+yet the cluster creeps along W's near-null directions. When the best residual has not halved
+over ``stall_sweeps`` sweeps, the contacts whose own natural map exceeds ``tol`` and their
+neighbours (whole rings of the contact graph, as long as the block stays within
+``pivot_contacts``; a whole coupled group when it fits) are solved at once, every other contact
+fixed, by Lemke's method (:func:`qpbench.solvers.lemke.complementary_pivoting`) on the block's
+2D law as an LCP of three unknowns per contact (:func:`block_lcp`). Its answer is kept only
+when qpbench's residual of the whole problem improves; the sweeps then go on from the better
+iterate, and the finish runs again at the next stall (at most once per ``stall_sweeps``
+sweeps), until one fails to improve.
 """
 
 from __future__ import annotations
@@ -39,6 +51,7 @@ from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.solvers import accuracy, colouring
 from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.lemke import complementary_pivoting
 from qpbench.solvers.registry import register
 
 NAME = "nsgs"
@@ -163,15 +176,89 @@ class ContactSweep:
             impulses[tangent_index] = tangential
 
 
+def contact_errors(problem: FrictionalProblem, impulses: np.ndarray) -> np.ndarray:
+    """Each contact's own natural-map error ``max(|F_N|, |F_T|) / scale``
+    (``friction_metrics.natural_map``)."""
+    F_normal, F_tangential = friction_metrics.natural_map(problem, impulses)
+    return np.maximum(np.abs(F_normal), np.abs(F_tangential)) / problem.scale
+
+
+def finish_block(problem: FrictionalProblem, errors: np.ndarray, tol: float, limit: int
+                 ) -> np.ndarray:
+    """The contacts of the pivoting finish: those whose ``errors`` exceed ``tol`` (the
+    ``limit`` largest when there are more) grown by whole rings of neighbours in the contact
+    graph while the block stays within ``limit`` contacts (it stops growing at the edge of
+    its coupled groups)."""
+    unsolved = np.flatnonzero(errors > tol)
+    if unsolved.size > limit:
+        unsolved = unsolved[np.argsort(-errors[unsolved], kind="stable")[:limit]]
+    graph = sp.csr_matrix(problem.contact_graph())
+    inside = np.zeros(problem.n_contacts, dtype=bool)
+    inside[unsolved] = True
+    while True:
+        ring = (graph @ inside.astype(float) > 0.0) & ~inside
+        if not ring.any() or inside.sum() + ring.sum() > limit:
+            return np.flatnonzero(inside)
+        inside |= ring
+
+
+def block_lcp(W_block: np.ndarray, q_block: np.ndarray, mu: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The 2D law of k contacts (``u = W_block r + q_block``, order ``(l_N, l_T)``) as one LCP
+    ``w = A z + c``: ``z = (l_N, t, s)`` with ``t = l_T + mu l_N`` and the slack s, rows
+    ``(u_N, u_T + s, 2 mu l_N - t)``. ``t`` complementary to ``u_T + s`` and ``s`` to
+    ``mu l_N - l_T`` give stick (``u_T = 0``), slide with ``u_T > 0`` (``t = 0``) and slide
+    with ``u_T < 0`` (``s = -u_T``, ``l_T = mu l_N``)."""
+    k = mu.shape[0]
+    NN, NT = W_block[:k, :k], W_block[:k, k:]
+    TN, TT = W_block[k:, :k], W_block[k:, k:]
+    identity, zero, friction = np.eye(k), np.zeros((k, k)), np.diag(mu)
+    A = np.block([[NN - NT @ friction, NT, zero],
+                  [TN - TT @ friction, TT, identity],
+                  [2.0 * friction, -identity, zero]])
+    return A, np.concatenate([q_block, np.zeros(k)])
+
+
+def pivoting_finish(problem: FrictionalProblem, impulses: np.ndarray, tol: float,
+                    limit: int, pivots_per_contact: int) -> np.ndarray | None:
+    """The iterate with the finish's block (:func:`finish_block`) replaced by Lemke's answer on
+    :func:`block_lcp` (Jacobi-scaled, other contacts fixed), or None when there is no block."""
+    n = problem.n_contacts
+    block = finish_block(problem, contact_errors(problem, impulses), tol, limit)
+    if block.size == 0:
+        return None
+    rows = np.concatenate([block, block + n])
+    W_rows = sp.csr_matrix(problem.W)[rows]
+    W_block = W_rows[:, rows].toarray()
+    q_block = W_rows @ impulses + problem.q[rows] - W_block @ impulses[rows]
+    A, c = block_lcp(W_block, q_block, problem.mu[block])
+    diagonal = np.concatenate([np.diag(W_block), np.diag(W_block)[:block.size]])
+    root = np.sqrt(np.where(diagonal > 0.0, diagonal, 1.0))
+    z, _, _, _, _ = complementary_pivoting(A / root[:, None] / root[None, :], c / root,
+                                           pivots_per_contact * 3 * block.size)
+    z = z / root
+    k = block.size
+    finished = impulses.copy()
+    finished[block] = z[:k]
+    finished[block + n] = z[k:2 * k] - problem.mu[block] * z[:k]
+    return finished if np.all(np.isfinite(finished)) else None
+
+
 def nsgs(problem: FrictionalProblem, sweep: ContactSweep, start: np.ndarray, tol: float,
-         max_sweeps: int, check_every: int
-         ) -> tuple[np.ndarray, bool, str, int, float]:
-    """(r, converged, status, sweeps, residual) with the best checked iterate."""
+         max_sweeps: int, check_every: int, stall_sweeps: int = 0, pivot_contacts: int = 0,
+         pivots_per_contact: int = 0) -> tuple[np.ndarray, bool, str, int, float]:
+    """(r, converged, status, sweeps, residual) with the best checked iterate; the pivoting
+    finish (module docstring) whenever the best residual has not halved over the last
+    ``stall_sweeps`` sweeps, none of them before the previous finish (never when
+    ``pivot_contacts`` is 0), until a finish fails to improve it."""
     impulses = start.copy()
     residual = friction_metrics.residual(problem, impulses)
     best, best_residual = impulses.copy(), residual
     if residual <= tol:
         return impulses, True, "converged", 0, residual
+    history = [(0, residual)]  # (sweeps, best residual) at each check
+    finishing = pivot_contacts > 0
+    last_finish = 0
     sweeps = 0
     while sweeps < max_sweeps:
         # the first check comes after one sweep: all-stick and all-separating events end there
@@ -185,6 +272,23 @@ def nsgs(problem: FrictionalProblem, sweep: ContactSweep, start: np.ndarray, tol
             best, best_residual = impulses.copy(), residual
         if residual <= tol:
             return impulses, True, "converged", sweeps, residual
+        history.append((sweeps, best_residual))
+        earlier = [value for count, value in history
+                   if last_finish <= count <= sweeps - stall_sweeps]
+        if finishing and earlier and best_residual > 0.5 * earlier[-1]:
+            last_finish = sweeps
+            candidate = pivoting_finish(problem, best, tol, pivot_contacts,
+                                        pivots_per_contact)
+            candidate_residual = np.inf if candidate is None else \
+                friction_metrics.residual(problem, candidate)
+            finishing = candidate_residual < best_residual
+            if finishing:
+                best, best_residual = candidate, candidate_residual
+                impulses = candidate.copy()
+                history.append((sweeps, best_residual))
+                if candidate_residual <= tol:
+                    return impulses, True, "converged after a pivoting finish", sweeps, \
+                        candidate_residual
     return best, False, f"max_sweeps ({max_sweeps}) reached", sweeps, best_residual
 
 
@@ -194,7 +298,8 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None 
     sweep = ContactSweep(problem)
     start = start_in_cone(problem, warm_start)
     impulses, converged, status, sweeps, residual = nsgs(
-        problem, sweep, start, options["tol"], options["max_sweeps"], options["check_every"])
+        problem, sweep, start, options["tol"], options["max_sweeps"], options["check_every"],
+        options["stall_sweeps"], options["pivot_contacts"], options["pivots_per_contact"])
     return SolverOutput(impulses=impulses, status=status, claimed_success=bool(converged),
                         iterations=sweeps,
                         info={"outer_iterations": sweeps, "colours": len(sweep.classes),
