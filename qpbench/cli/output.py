@@ -3,6 +3,7 @@ before any work."""
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -89,7 +90,9 @@ def writable_output(path: str | os.PathLike[str]) -> Path:
     if not existing.is_dir():
         raise OutputError(output, f"cannot write: {existing} is not a folder")
     if not os.access(existing, os.W_OK):
-        raise OutputError(output, f"cannot write: {existing} is not writable")
+        read_only = os.statvfs(existing).f_flag & os.ST_RDONLY
+        reason = os.strerror(errno.EROFS if read_only else errno.EACCES)
+        raise OutputError(output, f"cannot write: {reason}")
     return output
 
 
