@@ -59,7 +59,7 @@ def test_report_has_every_section_and_its_figures_exist(results: Path, tmp_path:
                     "## Work-precision diagrams",
                     "### Family k3", "### Family row", "## Performance profiles",
                     "## Time at each level, the most reliable pairs", "## Status honesty",
-                    "## Warm against cold", "## Targets of our own solver",
+                    "## Warm against cold", "## pi-robust: its targets",
                     "## Accuracy options"):
         assert heading in text, heading
     assert "timer overhead" in text and "clarabel/dual" in text
@@ -86,7 +86,7 @@ def test_report_shows_the_targets_of_our_own_solver_with_the_figures(
                      .to_dict("records"))
     store.compact()
     text = write_report(relabelled, tmp_path, sections=targets.SECTIONS).read_text()
-    section = text.split("## Targets of our own solver", 1)[1].split("\n## ", 1)[0]
+    section = text.split("## pi-robust: its targets", 1)[1].split("\n## ", 1)[0]
     # only K3 (family k3) is a hard family here, one cold solve at 1e-8, exact
     assert "succeeds on 100.0% of 1 hard-family solves" in section
     assert "**met**" in section.split("\n2.")[0]
@@ -106,7 +106,7 @@ def test_report_names_no_solver_of_its_own_unless_its_caller_brings_the_section(
     placed after the comparison of every pair and the frictionless tables, when it is handed
     in; the report leads with the comparison."""
     neutral = write_report(results, tmp_path / "neutral").read_text()
-    assert "## Targets of our own solver" not in neutral
+    assert "## pi-robust: its targets" not in neutral
     studied = write_report(results, tmp_path / "studied", sections=targets.SECTIONS).read_text()
     headings = re.findall(r"^## (.+)$", studied, flags=re.MULTILINE)
     assert headings[:4] == ["Fastest pairs, per family and level",

@@ -23,7 +23,7 @@ HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
 ROBUST_SOLVER = "pi-robust"
 TARGET_LEVEL = 1e-8
 TARGET_V_ERROR = 1e-7
-TITLE = "Targets of our own solver (hard families, accuracy 1e-8)"
+TITLE = "pi-robust: its targets (hard families, accuracy 1e-8)"
 
 
 def robust_targets(frame: pd.DataFrame, shift: float) -> str:
