@@ -20,8 +20,8 @@ def listing(capsys: pytest.CaptureFixture[str]) -> list[dict]:
 def test_at_least_twenty_usable_backend_pairs_with_versions(
         capsys: pytest.CaptureFixture[str]) -> None:
     rows = listing(capsys)
-    assert all(set(row) == {"name", "formulation", "backend", "version", "usable", "reason"}
-               for row in rows)
+    assert all(set(row) == {"name", "formulation", "backend", "version", "usable", "reason",
+                            "kinds"} for row in rows)
     backends = [row for row in rows if row["backend"] in ("qpsolvers", "cvxpy", "cyipopt")]
     usable = [row for row in backends if row["usable"]]
     assert len(usable) >= 20

@@ -126,7 +126,7 @@ def test_a_measurement_command_defaults_to_what_its_measurement_defaults_to(
         command: str, required: list[str], measurement: str, options: tuple[str, ...]) -> None:
     arguments = build_parser(only=command.replace("-", "_")).parse_args(
         [command, *required, "-o", "out.json"])
-    module = importlib.import_module(f"qpbench.bench.{measurement}")
+    module = importlib.import_module(f"qpbench.studies.{measurement}")
     defaults = inspect.signature(getattr(module, measurement)).parameters
     for option in options:
         assert getattr(arguments, option) == defaults[option].default, option

@@ -183,20 +183,28 @@ def test_a_second_run_on_the_same_results_is_refused_while_the_first_writes(
     assert not store.path.exists() and store.part_files() == []
 
 
-def test_resuming_with_a_changed_problem_of_the_same_name_is_refused(tmp_path: Path) -> None:
+def test_a_problem_stored_with_other_numbers_is_solved_again_on_resume(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A problem of the same name with other numbers (a scene captured on another CPU, say)
+    is solved again, its rows replaced by rows of the new numbers, and the run says so."""
     (path,) = write_tiny_problems(tmp_path / "problems", count=1)
     settings = RunSettings(solvers=("clarabel/dual",), accuracies=(1e-8,))
     output = tmp_path / "r.parquet"
     runner.run([str(tmp_path / "problems")], settings, output, SerialExecutor(), progress=False)
-    assert ResultStore(output).read()["problem_hash"].notna().all()
+    (first,) = ResultStore(output).read()["problem_hash"]
 
     problem = files.load(path)
     problem.v_minus[0] = 2.0  # same name, other numbers
     files.save(problem, path)
+    capsys.readouterr()
     more = RunSettings(solvers=("clarabel/dual",), accuracies=(1e-8, 1e-4))
-    with pytest.raises(InputError, match="differs from the one whose results are in"):
-        runner.run([str(tmp_path / "problems")], more, output, SerialExecutor(), progress=False)
-    assert len(ResultStore(output).read()) == 1
+    counts = runner.run([str(tmp_path / "problems")], more, output, SerialExecutor(),
+                        progress=False)
+    assert counts["run"] == 2 and counts["skipped"] == 0
+    assert "1 problems differ from those of the same names" in capsys.readouterr().err
+    stored = ResultStore(output).read()
+    assert len(stored) == 2 and set(stored["problem_hash"]) == {runner.fingerprint(problem)}
+    assert first != runner.fingerprint(problem)
 
 
 def test_retry_solves_timed_out_cells_again_and_replaces_their_rows(

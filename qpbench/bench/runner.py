@@ -95,18 +95,18 @@ def problem_index(paths: Iterable[str | os.PathLike[str]]
     return index
 
 
-def check_same_problems(index: list[tuple[str, str, str, str]], stored: Any, output: Path
-                        ) -> None:
-    """Refuses to resume when a problem of the same name was stored with other numbers."""
+def changed_problems(index: list[tuple[str, str, str, str]], stored: Any) -> set[str]:
+    """The names of the problems of ``index`` stored with other numbers (another fingerprint):
+    rebuilt by other code, or captured from a scene on another CPU, whose rounding moves a
+    long simulation's trajectory in the last bits."""
     if stored.empty or "problem_hash" not in stored:
-        return
-    known = dict(zip(stored["problem"].astype(str), stored["problem_hash"], strict=True))
-    for path, name, digest, _ in index:
-        previous = known.get(name)
-        if isinstance(previous, str) and previous != digest:
-            raise InputError(path, f"problem '{name}' differs from the one whose results are in "
-                             f"{output} (fingerprint {digest}, stored {previous}); write the "
-                             "results to a new file, or run `make clean-results` to start afresh")
+        return set()
+    known: dict[str, set[str]] = {}
+    for name, digest in zip(stored["problem"].astype(str), stored["problem_hash"],
+                            strict=True):
+        known.setdefault(name, set()).add(str(digest))
+    return {name for _, name, digest, _ in index
+            if name in known and known[name] != {digest}}
 
 
 def check_same_lock(stored: Any, output: Path) -> None:
@@ -212,11 +212,15 @@ def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLi
     solver_columns = {spec.key: {"backend": spec.backend, "solver_version": spec.version}
                       for spec in specs}
     with store.exclusive(), terminate_as_interrupt():
-        check_same_problems(index, store.read(["problem", "problem_hash"]).dropna(),
-                            store.path)
         check_same_lock(store.read(["lock_hash"]), store.path)
+        changed = changed_problems(index, store.read(["problem", "problem_hash"]).dropna())
+        if changed:
+            print(f"qpbench run: {len(changed)} problems differ from those of the same names "
+                  f"in {store.path} (rebuilt by other code, or captured on another CPU): "
+                  f"solving them again, e.g. {sorted(changed)[0]}", file=sys.stderr)
         done = store.finished_keys({*RETRIED_ON_RESUME, *retry})
-        pending = [cell for cell in matrix if cell.key not in done]
+        pending = [cell for cell in matrix
+                   if cell.key not in done or cell.problem in changed]
         problem_summaries = {path: {**summary, "problem_hash": digests[path]} for path, summary
                              in summaries(sorted({cell.problem_file for cell in pending})).items()}
         counts = {"cells": len(matrix), "skipped": len(matrix) - len(pending), "run": 0}

@@ -138,9 +138,10 @@ def scene_corpus(folders: list[Path]) -> list[tuple[str, bytes]]:
 
 
 def _display(path: Path) -> str:
-    """``path`` relative to the repository's parent folder where it lies inside it."""
+    """``path`` relative to the repository's parent folder where it lies inside it (as named,
+    links not followed: ../shared may be a link to the shared folder)."""
     try:
-        return str(path.resolve().relative_to(REPOSITORY.parent))
+        return str(path.absolute().relative_to(REPOSITORY.parent))
     except ValueError:
         return str(path)
 

@@ -59,13 +59,15 @@ def guarded(args: argparse.Namespace, command: str, what: str,
     limit_mb = default_limit_mb() if args.memory_limit is None else args.memory_limit
     check_at_least(limit_mb, 0, LIMIT_OPTION)
     previous = resource.getrlimit(resource.RLIMIT_AS)
-    apply_limit(limit_mb)
-    try:
-        with interrupt_watchdog(command) as watchdog, out_of_memory_as_error(what):
-            for folder in outputs:
-                watchdog.sweep(folder)
-            yield watchdog
-    finally:
-        apply_limit(0)
-        resource.setrlimit(resource.RLIMIT_AS, previous)
+    # the watchdog's thread starts before the cap: a thread's stack is address space too
+    with interrupt_watchdog(command) as watchdog:
+        apply_limit(limit_mb)
+        try:
+            with out_of_memory_as_error(what):
+                for folder in outputs:
+                    watchdog.sweep(folder)
+                yield watchdog
+        finally:
+            apply_limit(0)
+            resource.setrlimit(resource.RLIMIT_AS, previous)
 

@@ -11,6 +11,8 @@ from tqdm import tqdm
 
 BAR_DELAY_S = 1.0
 SUMMARY_AFTER_S = 3.0
+# no monitor thread: the bars run under a memory cap, where a new thread's stack may not fit
+tqdm.monitor_interval = 0
 
 
 class Progress:
