@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import html_report, plots, stats
+from qpbench.bench import html_report, plots, sim_precision, stats
 from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.errors import InputError
 from qpbench.solvers import accuracy as accuracy_table
@@ -537,6 +537,28 @@ def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
     return found
 
 
+SIM_PRECISION_FILE = "sim_precision.json"
+
+
+def sim_precision_figure(folders: Iterable[Path], out: Path) -> str | None:
+    """The work-precision figure of the first ``sim_precision.json`` (``qpbench
+    sim-precision``) in ``folders``, drawn into ``out/figures``, as a Markdown image line to
+    follow its section; None when there is none or nothing to draw."""
+    for folder in folders:
+        path = folder / SIM_PRECISION_FILE
+        try:
+            content = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError):
+            continue
+        if not isinstance(content, dict) or not isinstance(content.get("rows"), list):
+            continue
+        figure = sim_precision.figure(content, out / "figures" / "sim_precision.png")
+        if figure is not None:
+            return ("\n![Final-state error against the inner solves' total time, per pair and "
+                    "level](figures/sim_precision.png)\n")
+    return None
+
+
 FUZZ_FILE = "fuzz.json"
 FUZZ_PASSING = ("ok", "solve-failed", "input-error")
 
@@ -698,6 +720,9 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                + markdown_table(options, {c: str for c in options.columns}))
     for title, markdown in extra_sections(dict.fromkeys([results.parent, folder])):
         out.append(f"\n## {title}\n\n{markdown}")
+    precision = sim_precision_figure(dict.fromkeys([results.parent, folder]), folder)
+    if precision is not None:
+        out.append(precision)
     fuzzing = fuzz_section(dict.fromkeys([results.parent, folder]))
     if fuzzing is not None:
         out.append(f"\n## Fuzzing\n\n{fuzzing}")
