@@ -15,10 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_problems import write_tiny_problems
 
 from qpbench.bench import sim_precision
 from qpbench.bench.defaults import SIM_PRECISION_SCENES
+from qpbench.bench.report import write_report
 from qpbench.cli import main
+from qpbench.cli.output import to_jsonable
 from qpbench.inner_solvers import choose_by_name
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import Simulator
@@ -150,3 +153,26 @@ def test_a_name_without_a_pair_of_the_scenes_kind_is_a_skipped_row(tmp_path: Pat
     (row,) = report["rows"]
     assert row["status"] == "skipped" and row["pair"] is None
     assert "takes no impact problems" in row["reason"]
+
+
+def test_the_report_draws_the_figure_and_the_page_shows_the_loosest_levels(
+        tmp_path: Path) -> None:
+    """A sim_precision.json beside a results table: REPORT.md links the work-precision figure
+    it drew, and index.html has the per-scene table of loosest levels."""
+    scene = str(ROOT / "problems" / "scenes" / "ura" / "K4.xml")
+    report = sim_precision.sim_precision([scene], ["osqp/dual"], (1e-2, 1e-8), steps=30)
+    (tmp_path / "sim_precision.json").write_text(json.dumps(to_jsonable(report)))
+    report = json.loads((tmp_path / "sim_precision.json").read_text())
+    write_tiny_problems(tmp_path / "problems", count=1)
+    assert main(["run", str(tmp_path / "problems"), "--solvers", "clarabel/dual",
+                 "--accuracy", "1e-4", "--no-progress", "-o",
+                 str(tmp_path / "bench.parquet")]) == 0
+    text = write_report(tmp_path / "bench.parquet").read_text()
+    assert "](figures/sim_precision.png)" in text
+    assert (tmp_path / "figures" / "sim_precision.png").stat().st_size > 0
+    page = (tmp_path / "index.html").read_text()
+    section = page.split("<section id='simulations'>", 1)[1].split("</section>", 1)[0]
+    solvers, grid = sim_precision.loosest_grid(report, sim_precision.FRICTIONLESS)
+    assert solvers == ["osqp/dual"] and grid
+    for scene_name, cells in grid:
+        assert scene_name in section and all(cell in section for cell in cells)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import stats
+from qpbench.bench import sim_precision, stats
 from qpbench.bench.results import split_kinds
 from qpbench.solvers.run import NO_SOLUTION
 
@@ -447,8 +447,45 @@ def _friction_html(frame: pd.DataFrame) -> str:
     return "".join(parts)
 
 
-def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
-    """The HTML of the page for ``everything`` (frictionless and frictional rows)."""
+def _simulations_html(report: dict[str, Any]) -> str:
+    """What accuracy costs a whole simulation (``qpbench sim-precision``): per kind of scene,
+    each pair's summed times and errors per level, and per scene the loosest level whose final
+    state stays within ``sim_precision.WITHIN`` of the reference."""
+    parts = ["<section id='simulations'><h2>What accuracy costs a whole simulation</h2>"
+             f"<p>Each scene simulated for {_text(report['steps'])} steps with each pair at "
+             "each level; <code>state_error</code> is the final state's relative distance "
+             "(mass norm) from a reference run at the tightest level. The figure is in "
+             "<a href='REPORT.md'>REPORT.md</a>.</p>"]
+    tightest = min(report["levels"])
+    for kind in (sim_precision.FRICTIONLESS, sim_precision.FRICTIONAL):
+        summary = sim_precision.pair_summary(report["rows"], kind)
+        if not summary:
+            continue
+        parts.append(f"<h3>{_text(kind.capitalize())} scenes</h3>")
+        parts.append(_table(
+            ["solver", "level", "solve time", "wall time", "largest error", "median error",
+             "within", "failed runs"],
+            [[_text(item["solver"]), _level(item["accuracy"]),
+              _seconds(item["solve_time_s"]), _seconds(item["wall_s"]),
+              _text(_finite(item["max_state_error"], 2)),
+              _text(_finite(item["median_state_error"], 2)),
+              f"{item['within']}/{item['runs']}", _text(item["failed"])] for item in summary]))
+        solvers, grid = sim_precision.loosest_grid(report, kind)
+        if solvers:
+            caption = sim_precision.LOOSEST_CAPTION.format(within=sim_precision.WITHIN,
+                                                           tightest=tightest)
+            parts.append(f"<p>{_text(caption)}.</p>")
+            parts.append(_table(["scene", *map(_text, solvers)],
+                                [[_text(scene), *map(_text, cells)] for scene, cells in grid]))
+    parts.append("</section>")
+    return "".join(parts)
+
+
+def page(everything: pd.DataFrame, source: str, plotly_js: str,
+         simulations: dict[str, Any] | None = None) -> str:
+    """The HTML of the page for ``everything`` (frictionless and frictional rows), with the
+    whole-simulation measurement ``simulations`` (``qpbench sim-precision``'s JSON) when
+    given."""
     frictionless, frictional = split_kinds(everything)
     main = frictionless[_strings(frictionless, "mode") == "cold"]
     if main.empty:
@@ -518,6 +555,8 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str) -> str:
         data["friction"] = dataset(frictional, "coulomb_residual")
         friction = _friction_html(frictional)
     sections.append(f"<section id='friction'><h2>Friction</h2>{friction}</section>")
+    if simulations is not None:
+        sections.append(_simulations_html(simulations))
     sections.append("<section id='provenance'><h2>Machine and versions</h2>"
                     + _table(["item", "value"], [[_text(k), _text(v)]
                                                  for k, v in provenance(everything)])
@@ -549,14 +588,16 @@ def on_page(listener: Callable[[Path], None]) -> Iterator[None]:
         _page_listeners.remove(listener)
 
 
-def write_html(everything: pd.DataFrame, folder: Path, source: str) -> Path:
-    """Writes ``folder/index.html`` for the rows ``everything``; returns its path."""
+def write_html(everything: pd.DataFrame, folder: Path, source: str,
+               simulations: dict[str, Any] | None = None) -> Path:
+    """Writes ``folder/index.html`` for the rows ``everything`` (and ``simulations``, see
+    :func:`page`); returns its path."""
     from plotly.offline import get_plotlyjs
 
     path = Path(folder) / "index.html"
     for listener in list(_page_listeners):
         listener(path)
-    text = page(everything, source, get_plotlyjs())
+    text = page(everything, source, get_plotlyjs(), simulations)
     with atomic_path(path) as temporary:
         temporary.write_text(text, encoding="utf-8")
     return path
@@ -571,7 +612,8 @@ TEMPLATE = """<!DOCTYPE html>
 </head><body>
 <header><h1>qpbench: what accuracy costs</h1><p>{summary}</p>
 <nav><a href="#comparison">comparison</a> <a href="#accuracy-cost">accuracy cost</a>
-<a href="#wrappers">wrappers</a> <a href="#answer">fastest overall</a>
+<a href="#wrappers">wrappers</a> <a href="#simulations">whole simulations</a>
+<a href="#answer">fastest overall</a>
 <a href="#work-precision">work-precision</a>
 <a href="#profiles">profiles</a> <a href="#results">table</a> <a href="#problem">one problem</a>
 <a href="#friction">friction</a> <a href="#provenance">machine</a></nav></header>

@@ -540,23 +540,26 @@ def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
 SIM_PRECISION_FILE = "sim_precision.json"
 
 
-def sim_precision_figure(folders: Iterable[Path], out: Path) -> str | None:
-    """The work-precision figure of the first ``sim_precision.json`` (``qpbench
-    sim-precision``) in ``folders``, drawn into ``out/figures``, as a Markdown image line to
-    follow its section; None when there is none or nothing to draw."""
+def sim_precision_report(folders: Iterable[Path]) -> dict[str, Any] | None:
+    """The first ``sim_precision.json`` (``qpbench sim-precision``) in ``folders``, or None
+    when there is none or it is not one."""
     for folder in folders:
-        path = folder / SIM_PRECISION_FILE
         try:
-            content = json.loads(path.read_text(encoding="utf-8"))
+            content = json.loads((folder / SIM_PRECISION_FILE).read_text(encoding="utf-8"))
         except (OSError, ValueError, RecursionError):
             continue
-        if not isinstance(content, dict) or not isinstance(content.get("rows"), list):
-            continue
-        figure = sim_precision.figure(content, out / "figures" / "sim_precision.png")
-        if figure is not None:
-            return ("\n![Final-state error against the inner solves' total time, per pair and "
-                    "level](figures/sim_precision.png)\n")
+        if isinstance(content, dict) and isinstance(content.get("rows"), list):
+            return content
     return None
+
+
+def sim_precision_figure(report: dict[str, Any], out: Path) -> str | None:
+    """``report``'s work-precision figure drawn into ``out/figures``, as a Markdown image line
+    to follow its section; None when there is nothing to draw."""
+    if sim_precision.figure(report, out / "figures" / "sim_precision.png") is None:
+        return None
+    return ("\n![Final-state error against the inner solves' total time, per pair and "
+            "level](figures/sim_precision.png)\n")
 
 
 FUZZ_FILE = "fuzz.json"
@@ -703,7 +706,8 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     top, rest = _frictionless(frame, folder, budget_s, sections) if not frame.empty else (
         ["\n_No frictionless problems in these results._\n"], [])
 
-    html_report.write_html(everything, folder, results.name)
+    simulations = sim_precision_report(dict.fromkeys([results.parent, folder]))
+    html_report.write_html(everything, folder, results.name, simulations)
     out: list[str] = ["# qpbench report\n\n", INDEX_POINTER, _overview(everything, results),
                       _lead(frame, frictional, folder), *top]
     out.append("\n## Machine and versions\n\n" + _provenance(everything))
@@ -720,7 +724,7 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
                + markdown_table(options, {c: str for c in options.columns}))
     for title, markdown in extra_sections(dict.fromkeys([results.parent, folder])):
         out.append(f"\n## {title}\n\n{markdown}")
-    precision = sim_precision_figure(dict.fromkeys([results.parent, folder]), folder)
+    precision = None if simulations is None else sim_precision_figure(simulations, folder)
     if precision is not None:
         out.append(precision)
     fuzzing = fuzz_section(dict.fromkeys([results.parent, folder]))

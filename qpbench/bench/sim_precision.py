@@ -561,11 +561,44 @@ def pair_summary(rows: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
     return sorted(summary, key=lambda item: (item["solver"], -item["accuracy"]))
 
 
+LOOSEST_CAPTION = ("Loosest level from which every tighter level's final state stays within "
+                   "{within:.0e} of the reference, and its inner-solve time over that at "
+                   "{tightest:.0e} (one timing per run)")
+
+
+def loosest_grid(report: dict[str, Any], kind: str
+                 ) -> tuple[list[str], list[tuple[str, list[str]]]]:
+    """The per-scene table of ``report["loosest"]`` for the scenes of ``kind``: the solver
+    names that have a row, and per scene its short name and a cell per solver (the loosest
+    level within WITHIN and its cost ratio, ``none`` or ``skipped``)."""
+    loosest = report["loosest"]
+    solvers = [name for name in report["solvers"]
+               if any(entry["kind"] == kind and entry["solver"] == name for entry in loosest)]
+    cells = {(entry["scene"], entry["solver"]): entry for entry in loosest}
+    grid = []
+    for scene in report["scenes"]:
+        if scene["kind"] != kind:
+            continue
+        row = []
+        for name in solvers:
+            entry = cells.get((scene["scene"], name))
+            if entry is None:
+                row.append("skipped")
+            elif entry["accuracy"] is None:
+                row.append("none")
+            else:
+                ratio = entry["cost_ratio"]
+                row.append(_level(entry["accuracy"])
+                           + ("" if ratio is None else f" ({ratio:.2f}x)"))
+        grid.append((_short(scene["scene"]), row))
+    return solvers, grid
+
+
 def markdown(report: dict[str, Any]) -> str:
     """The measurement as a Markdown section: per kind of scene, a table per pair and level
     (summed times, largest error, failures) and the per-scene table of the loosest level within
     WITHIN of the reference with its cost against the tightest level."""
-    rows, loosest = report["rows"], report["loosest"]
+    rows = report["rows"]
     tightest = min(report["levels"])
     lines = [f"# {report['title']}", "",
              f"Each scene simulated for {report['steps']} steps with each pair as its inner "
@@ -588,28 +621,12 @@ def markdown(report: dict[str, Any]) -> str:
                 f"| {_number(item['max_state_error'])} | {_number(item['median_state_error'])} "
                 f"| {item['within']}/{item['runs']} | {item['failed']} "
                 f"| {item['inaccurate_solves']} |")
-        solvers = [name for name in report["solvers"]
-                   if any(entry["kind"] == kind and entry["solver"] == name for entry in loosest)]
+        solvers, grid = loosest_grid(report, kind)
         if solvers:
-            lines += ["", f"Loosest level from which every tighter level's final state stays "
-                      f"within {WITHIN:.0e} of the reference, and its inner-solve time over "
-                      f"that at {tightest:.0e} (one timing per run):", "",
+            lines += ["", f"{LOOSEST_CAPTION.format(within=WITHIN, tightest=tightest)}:", "",
                       "| scene | " + " | ".join(solvers) + " |",
                       "|---|" + "---|" * len(solvers)]
-            cells = {(entry["scene"], entry["solver"]): entry for entry in loosest}
-            for scene in scenes:
-                row_cells = []
-                for name in solvers:
-                    entry = cells.get((scene["scene"], name))
-                    if entry is None:
-                        row_cells.append("skipped")
-                    elif entry["accuracy"] is None:
-                        row_cells.append("none")
-                    else:
-                        ratio = entry["cost_ratio"]
-                        row_cells.append(_level(entry["accuracy"])
-                                         + ("" if ratio is None else f" ({ratio:.2f}x)"))
-                lines.append(f"| {_short(scene['scene'])} | " + " | ".join(row_cells) + " |")
+            lines += [f"| {scene} | " + " | ".join(cells) + " |" for scene, cells in grid]
         lines.append("")
     unreferenced = [scene["scene"] for scene in report["scenes"]
                     if "reference" in scene and scene["reference"]["pair"] is None]
