@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from qpbench.cli import COMMANDS, build_parser, main
+from qpbench.cli import COMMANDS, build_parser, interrupted_by, main
 
 LISTING = """
 import contextlib, io, json, sys
@@ -51,3 +51,18 @@ def test_each_commands_help_renders(name: str, capsys: pytest.CaptureFixture[str
         main([name.replace("_", "-"), "--help"])
     assert ended.value.code == 0
     assert capsys.readouterr().out.startswith(f"usage: qpbench {name.replace('_', '-')}")
+
+
+def test_an_error_raised_while_handling_ctrl_c_is_the_interrupt() -> None:
+    """A library's clean-up that fails once Ctrl-C cut its work short (zipfile closing with a
+    member half written, say) raises inside the KeyboardInterrupt's handling: exit 130."""
+    def interrupted_clean_up() -> None:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ValueError("can't close the archive while a member is open") from None
+
+    with pytest.raises(ValueError) as raised:
+        interrupted_clean_up()
+    assert interrupted_by(raised.value)
+    assert not interrupted_by(ValueError("a fault of its own"))

@@ -148,7 +148,7 @@ def test_ctrl_c_ends_a_long_simulation_with_130_and_whole_files(tmp_path: Path) 
         _, stderr = process.communicate(timeout=3)
     finally:
         process.kill()
-    assert process.returncode == 130
+    assert process.returncode == 130, stderr
     assert stderr.strip().splitlines()[-1] == "qpbench simulate: interrupted"
     assert not list(capture.glob(".tmp-*"))
     for path in capture.glob("*.npz"):

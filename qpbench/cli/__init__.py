@@ -21,6 +21,7 @@ from typing import NoReturn
 from qpbench import SINGLE_THREAD_ENV, __version__
 from qpbench.atomic import WRITE_ERRNOS, checked_target, os_error_reason
 from qpbench.errors import QpbenchError
+from qpbench.interrupts import EXIT_INTERRUPTED
 
 # Solvers are timed single-threaded (fair, and stable on shared cores) unless the user says
 # otherwise; this must happen before numpy loads its BLAS.
@@ -123,8 +124,26 @@ def os_error_line(error: OSError) -> str | None:
     return f"{where}{what}{os_error_reason(error)}"
 
 
+def interrupted_by(error: BaseException) -> bool:
+    """Whether ``error`` was raised while a KeyboardInterrupt was being handled (a library's
+    clean-up that fails once Ctrl-C cut its work short): then the interrupt is what
+    happened."""
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__context__
+    return False
+
+
 def _internal_error(command: str, error: Exception) -> int:
-    """An internal fault: one line and exit 3, unless QPBENCH_DEBUG asks for the traceback."""
+    """An internal fault: one line and exit 3, unless QPBENCH_DEBUG asks for the traceback;
+    an error raised while handling Ctrl-C is the interrupt (exit 130)."""
+    if interrupted_by(error):
+        print(f"qpbench {command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if os.environ.get("QPBENCH_DEBUG"):
         raise error
     print(f"qpbench {command}: internal error: {type(error).__name__}: {error} "
@@ -147,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 141
     except KeyboardInterrupt:
         print(f"qpbench {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except OSError as error:  # a file the command could not read or write
         line = os_error_line(error)
         if line is None:
