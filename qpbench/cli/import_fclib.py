@@ -4,10 +4,9 @@ files (2D, local or global) to problem files."""
 from __future__ import annotations
 
 import argparse
-import sys
 
-from qpbench.bench.reduced_reference import attach, flag
-from qpbench.problem import fclib, files
+from qpbench.cli.imported import save_imported
+from qpbench.problem import fclib
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -22,12 +21,5 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     # read and check every file before writing anything
     problems = [fclib.read(path) for path in args.files]
-    for problem in problems:
-        if not args.no_reference:
-            attach(problem)
-            why = flag(problem)
-            if why:
-                print(f"qpbench import-fclib: {problem.name}: reference flagged: {why}",
-                      file=sys.stderr)
-        print(files.save(problem, f"{args.output}/{problem.name}"))
+    save_imported(problems, args.output, "import-fclib", not args.no_reference)
     return 0

@@ -6,9 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from qpbench.bench.reduced_reference import attach, flag
+from qpbench.cli.imported import save_imported
 from qpbench.errors import UnsupportedError
-from qpbench.problem import files, siconos_files
+from qpbench.problem import siconos_files
 from qpbench.problem.siconos_import import import_siconos
 
 
@@ -31,12 +31,5 @@ def run(args: argparse.Namespace) -> int:
             problems.append(import_siconos(path, args.kind))
         except UnsupportedError as refused:
             print(f"qpbench import-siconos: skipped: {refused}", file=sys.stderr)
-    for problem in problems:
-        if not args.no_reference:
-            attach(problem)
-            why = flag(problem)
-            if why:
-                print(f"qpbench import-siconos: {problem.name}: reference flagged: {why}",
-                      file=sys.stderr)
-        print(files.save(problem, f"{args.output}/{problem.name}"))
+    save_imported(problems, args.output, "import-siconos", not args.no_reference)
     return 0
