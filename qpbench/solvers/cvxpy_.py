@@ -33,7 +33,7 @@ from qpbench.problem.formulations import certify_psd, factored_rows, primal_qp
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec, reported_times
-from qpbench.solvers.quiet import c_stdout_silenced
+from qpbench.solvers.quiet import c_stdout_silenced, highs_banner_silenced
 from qpbench.solvers.registry import register, register_unusable
 
 if TYPE_CHECKING:
@@ -180,7 +180,8 @@ def _register_all() -> None:
             register(SolverSpec(name=name, formulation=formulation, backend=BACKEND,
                                 solve=make_solve(solver, formulation), version=_version(solver),
                                 warm_start=solver in NLP_SOLVERS,
-                                description=f"{solver} through cvxpy"))
+                                description=f"{solver} through cvxpy",
+                                prepare=highs_banner_silenced if solver == "HIGHS" else None))
 
 
 _register_all()

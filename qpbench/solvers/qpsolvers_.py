@@ -33,7 +33,7 @@ from qpbench.problem.formulations import factored_dual_qp, primal_qp, regularize
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec, reported_times
-from qpbench.solvers.quiet import c_stdout_silenced
+from qpbench.solvers.quiet import c_stdout_silenced, highs_banner_silenced
 from qpbench.solvers.registry import register, register_unusable
 
 BACKEND = "qpsolvers"
@@ -214,7 +214,8 @@ def _register_all() -> None:
             register(SolverSpec(name=solver, formulation=formulation, backend=BACKEND,
                                 solve=make_solve(solver, solver, formulation),
                                 version=_version(solver), warm_start=solver in WARM_START,
-                                description=f"{solver} through qpsolvers"))
+                                description=f"{solver} through qpsolvers",
+                                prepare=highs_banner_silenced if solver == "highs" else None))
     for name, solver in REGULARIZED.items():
         if solver not in qpsolvers.available_solvers:
             register_unusable(name, ("dual",), BACKEND, f"qpsolvers has no '{solver}' installed")

@@ -37,3 +37,23 @@ def c_stdout_silenced() -> Iterator[None]:
                 os.dup2(_saved_stdout, 1)
                 os.close(_saved_stdout)
                 _saved_stdout = None
+
+
+_highs_banner_printed = False
+
+
+def highs_banner_silenced() -> None:
+    """Creates a first ``highspy.Highs`` object with file descriptor 1 silenced: the first one
+    of a process prints HiGHS's banner on standard output, whatever its options, which would
+    corrupt ``--json``. Every pair that reaches HiGHS calls it as its ``SolverSpec.prepare``,
+    outside the clock; later calls return at once, and without highspy it does nothing."""
+    global _highs_banner_printed
+    if _highs_banner_printed:
+        return
+    try:
+        import highspy  # an optional backend
+    except ImportError:
+        return
+    with c_stdout_silenced():
+        highspy.Highs()
+    _highs_banner_printed = True

@@ -33,27 +33,13 @@ from qpbench.solvers.native.common import (
     register_missing,
     register_pairs,
 )
-from qpbench.solvers.quiet import c_stdout_silenced
+from qpbench.solvers.quiet import highs_banner_silenced
 
 NAME = native_name("highs")
 FORMULATIONS = ("dual", "primal", "dual-factored")
 COLUMN_WISE = 1  # HiGHS's MatrixFormat.kColwise
 TRIANGULAR = 1  # HiGHS's HessianFormat.kTriangular (the lower triangle, column-wise)
 MINIMIZE = 1  # HiGHS's ObjSense.kMinimize
-
-
-def print_banner_silenced() -> None:
-    """Creates a first ``Highs`` object with file descriptor 1 silenced: the first one of a
-    process prints HiGHS's banner on standard output, whatever its options, which would
-    corrupt ``--json``. Outside the clock (``SolverSpec.prepare``); later calls return at once."""
-    global _banner_printed
-    if not _banner_printed:
-        with c_stdout_silenced():
-            highspy.Highs()
-        _banner_printed = True
-
-
-_banner_printed = False
 
 
 def _run(hessian: sp.spmatrix, cost: np.ndarray, col_lower: np.ndarray, col_upper: np.ndarray,
@@ -121,4 +107,4 @@ if highspy is None:
     register_missing({NAME: FORMULATIONS}, IMPORT_ERROR)
 else:
     register_pairs(NAME, {formulation: make_solve(formulation) for formulation in FORMULATIONS},
-                   "highspy", prepare=print_banner_silenced)
+                   "highspy", prepare=highs_banner_silenced)
