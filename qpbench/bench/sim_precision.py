@@ -27,8 +27,9 @@ the same measure against it is ``scisim_error``, and ``scisim_agrees`` applies t
 rule (positions within 1e-6, velocities within 1e-6 x max(1, largest SCISim speed)). A scene
 file is matched to a record by its bytes (SHA-256), so a copy anywhere is recognised.
 
-Along the run, at the start of every step with contacts: the largest penetration of a
-circle's contact (ball-ball, ball-plane, ball-drum; box contacts are not measured), and for a
+Along the run, at the start of every step with contacts: the largest penetration, of a
+circle's contact (ball-ball, ball-plane, ball-drum) and of a box against the planes and the
+bodies it touches (:mod:`qpbench.simulation.overlap`), and for a
 frictional scene the Coulomb natural-map residual of the accepted impulses and the
 maximum-dissipation gap ``max_k |u_T,k| d_k |l_T,k + mu_k l_N,k sign(u_T,k)| / scale^2``
 (how far the tangential impulse is from the one that dissipates most at the resulting sliding
@@ -63,7 +64,7 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.metrics import TINY
 from qpbench.scenes import load_scene
 from qpbench.scenes.model import FrictionSolver, ImpactOperator, Scene
-from qpbench.simulation import contacts
+from qpbench.simulation import contacts, overlap
 from qpbench.simulation.operators import ChooseSolve, ChosenSolve
 from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent
 from qpbench.solvers.base import SolverSpec
@@ -297,14 +298,44 @@ def mdp_gap(problem: FrictionalProblem, impulses: np.ndarray) -> float:
 
 
 def penetration(scene: Scene, event: StepEvent) -> float:
-    """The deepest overlap of a circle's contact at the step's start positions (0 if none)."""
+    """The deepest overlap at the step's start: of a circle's contact (its gap), and of every
+    box against the planes and against the bodies it has a contact with
+    (:mod:`qpbench.simulation.overlap`); 0 if none."""
     found = event.contacts
-    if found.count == 0:
-        return 0.0
-    gaps = found.gaps(event.positions, scene.bodies.radii, scene.plane_points,
-                      scene.plane_normals, scene.drum_centers, scene.drum_radii)
-    circles = np.isin(found.kind, CIRCLE_KINDS)
-    return max(0.0, -float(np.min(gaps[circles], initial=0.0)))
+    deepest = 0.0
+    if found.count:
+        gaps = found.gaps(event.positions, scene.bodies.radii, scene.plane_points,
+                          scene.plane_normals, scene.drum_centers, scene.drum_radii)
+        circles = np.isin(found.kind, CIRCLE_KINDS)
+        deepest = max(0.0, -float(np.min(gaps[circles], initial=0.0)))
+    if event.orientations is None or not np.any(scene.bodies.is_box):
+        return deepest
+    return max(deepest, box_overlap(scene, event.positions, event.orientations, found))
+
+
+def box_overlap(scene: Scene, positions: np.ndarray, angles: np.ndarray,
+                found: contacts.Contacts) -> float:
+    """The deepest overlap of a box at ``positions`` and ``angles``: each box against each
+    plane, and each body-body contact pair with a box in it."""
+    bodies = scene.bodies
+    is_box, half_widths, radii = bodies.is_box, bodies.half_widths, bodies.radii
+    deepest = 0.0
+    for k in np.flatnonzero(is_box):
+        for point, normal in zip(scene.plane_points, scene.plane_normals, strict=True):
+            deepest = max(deepest, overlap.box_plane_depth(positions[k], angles[k],
+                                                           half_widths[k], point, normal))
+    pairs = {(int(a), int(b)) for a, b, kind in zip(found.body_a, found.body_b, found.kind,
+                                                    strict=True) if kind == contacts.BODY_BODY}
+    for a, b in pairs:
+        if is_box[a] and is_box[b]:
+            depth = overlap.box_box_depth(positions[a], angles[a], half_widths[a],
+                                          positions[b], angles[b], half_widths[b])
+        else:
+            circle, box = (a, b) if is_box[b] else (b, a)
+            depth = overlap.circle_box_depth(positions[circle], radii[circle],
+                                             positions[box], angles[box], half_widths[box])
+        deepest = max(deepest, depth)
+    return deepest
 
 
 def tally_hook(scene: Scene, tally: RunTally) -> Callable[[StepEvent], None]:

@@ -88,6 +88,7 @@ class StepEvent:
     impulses: np.ndarray  # l, or r = (l_N, l_T) of a frictional problem
     problem: ImpactProblem | FrictionalProblem | None = None
     velocity_shift: np.ndarray | None = None  # dv added after the impulses (symplectic_euler)
+    orientations: np.ndarray | None = None  # start-of-step angles (bodies,) of rigid bodies
 
     @property
     def approaching(self) -> bool:
@@ -522,7 +523,7 @@ class Simulator:
             if self.omega is not None:
                 self.omega = v_plus[:, 2].copy()
         event = StepEvent(self.step_index, self.step_index * self.dt, x0, found, impulses,
-                          problem, shift)
+                          problem, shift, self.theta)
         if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))):
             raise UnsupportedError(f"{self._where}the state is no longer finite at step "
                                    f"{self.step_index} (values beyond floating point range)")
