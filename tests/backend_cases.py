@@ -7,10 +7,14 @@ unique (None when Q is singular and l is not).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
 
 import numpy as np
 
+from qpbench.problem.dumps import import_dump
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reference import attach_reference
 
 
 @dataclass(frozen=True)
@@ -75,3 +79,15 @@ def k3() -> Case:
 
 ALL_CASES = {case.problem.name: case for case in
              (head_on(), mass_ratio(), separating(), against_fixed_ball(), k3())}
+
+
+# the SCISim dumps the repository holds (two of them singular)
+DUMP_FILES = sorted((Path(__file__).resolve().parents[1] / "problems" / "dumps").glob("*"))
+
+
+@cache
+def dump_problem(path: Path) -> ImpactProblem:
+    """The SCISim dump at ``path`` as a problem with its verified reference (read once)."""
+    problem = attach_reference(import_dump(path))
+    assert problem.reference is not None and problem.reference.verified
+    return problem

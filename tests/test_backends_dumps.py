@@ -3,23 +3,18 @@ judged against each problem's verified reference v+."""
 
 from __future__ import annotations
 
-from functools import cache
 from pathlib import Path
 
 import pytest
+from backend_cases import DUMP_FILES, dump_problem
 from known_defects import expect_described
 
-from qpbench.problem.dumps import import_dump
-from qpbench.problem.impact import ImpactProblem
-from qpbench.problem.reference import attach_reference
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.defects import known_defect
 from qpbench.solvers.qpsolvers_ import NOT_POSITIVE_DEFINITE, POSITIVE_DEFINITE_ONLY
 from qpbench.solvers.registry import all_solvers
 from qpbench.solvers.run import solve_and_judge
 
-DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
-DUMP_FILES = sorted(DUMPS.glob("*"))
 SPECS = [spec for spec in all_solvers()
          if spec.backend in ("qpsolvers", "cvxpy", "cyipopt") and "impact" in spec.kinds]
 ACCURACY = 1e-8
@@ -27,13 +22,6 @@ ACCURACY = 1e-8
 ACCURACY_FOR = {"cvxpy-cvxopt": 1e-4}
 V_TOLERANCE = 1e-5
 LOOSE = {"cvxpy-cvxopt": 1e-3}  # its level is 1e-4 (above)
-
-
-@cache
-def dump_problem(path: Path) -> ImpactProblem:
-    problem = attach_reference(import_dump(path))
-    assert problem.reference is not None and problem.reference.verified
-    return problem
 
 
 def test_the_repository_holds_the_dumps() -> None:

@@ -5,17 +5,14 @@ qpsolvers twin's options."""
 
 from __future__ import annotations
 
-from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
-from backend_cases import ALL_CASES, Case
+from backend_cases import ALL_CASES, DUMP_FILES, Case, dump_problem
 from known_defects import expect_described
 
-from qpbench.problem.dumps import import_dump
 from qpbench.problem.impact import ImpactProblem
-from qpbench.problem.reference import attach_reference
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.defects import known_defect
@@ -25,8 +22,6 @@ from qpbench.solvers.registry import all_solvers
 from qpbench.solvers.run import call_solver, solve_and_judge
 
 SPECS = [spec for spec in all_solvers() if spec.backend == BACKEND]
-DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
-DUMP_FILES = sorted(DUMPS.glob("*"))
 ACCURACY = 1e-8
 # ECOS (a conic reformulation) stops near 1e-5 whatever the tolerance, so v+ is checked to
 # 1e-4 on the tiny cases (a wrong sign or formulation is off by O(1)), 1e-5 on the dumps
@@ -142,13 +137,6 @@ def test_a_stopped_backend_claims_no_success_and_the_row_says_so(
     assert "maximum iterations" in output.status.lower()
     assert row["claimed_success"] is False and row["success"] is False
     assert row["status_honest"] is True
-
-
-@cache
-def dump_problem(path: Path) -> ImpactProblem:
-    problem = attach_reference(import_dump(path))
-    assert problem.reference is not None and problem.reference.verified
-    return problem
 
 
 @pytest.mark.parametrize("path", DUMP_FILES, ids=lambda path: path.name)

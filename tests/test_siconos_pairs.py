@@ -6,20 +6,17 @@ Siconos' known defects are rows of qpbench/solvers/defects.toml (package
 
 from __future__ import annotations
 
-from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
-from backend_cases import ALL_CASES
+from backend_cases import ALL_CASES, DUMP_FILES, dump_problem
 from friction_cases import ball_on_floor, pair_on_floor
 from known_defects import expect_described
 
 from qpbench.problem import friction_reference
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.friction_generate import generate
-from qpbench.problem.impact import ImpactProblem
-from qpbench.problem.reference import attach_reference
 from qpbench.solvers import siconos_
 from qpbench.solvers.base import OWN_TIME, ROUND_TRIP_TIME, SolverSpec
 from qpbench.solvers.defects import known_defect
@@ -34,19 +31,11 @@ SICONOS_MISSING = next((spec.reason for spec in SPECS if spec.formulation == "lc
                         and spec.name == "siconos-lemke" and not spec.usable), "")
 pytestmark = pytest.mark.skipif(bool(SICONOS_MISSING), reason=SICONOS_MISSING or "")
 
-DUMP_FILES = sorted((Path(__file__).resolve().parents[1] / "problems" / "dumps").glob("*"))
 FORK_DUMPS = (Path(__file__).resolve().parents[2] / "shared" / "scisim" / "forks"
               / "IsaiahWitzke_scisim" / "ura_research" / "old_simulation_outputs"
               / "5_by_5_grid")
 ACCURACY = 1e-8
 V_TOLERANCE = 1e-5
-
-
-@cache
-def dump_problem(path: Path) -> ImpactProblem:
-    problem = attach_reference(import_dump(path))
-    assert problem.reference is not None and problem.reference.verified
-    return problem
 
 
 def test_make_setup_gives_six_frictionless_and_two_frictional_pairs() -> None:
