@@ -164,8 +164,19 @@ def save(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
             fref = frictional.reference
             for key in _FRICTIONAL_REFERENCE_ARRAYS:
                 arrays[f"fref_{key}"] = getattr(fref, key)
-            header["frictional_reference"] = {"method": fref.method, "residual": fref.residual,
-                                              "unique": fref.unique, "solvable": fref.solvable}
+            header["frictional_reference"] = _frictional_reference_fields(fref)
+    return _write(path, arrays, header)
+
+
+def _frictional_reference_fields(fref: FrictionalReference) -> dict[str, Any]:
+    """The header's fields of a frictional reference (its arrays are stored beside)."""
+    return {"method": fref.method, "residual": fref.residual, "unique": fref.unique,
+            "solvable": fref.solvable}
+
+
+def _write(path: Path, arrays: dict[str, np.ndarray], header: dict[str, Any]) -> Path:
+    """Writes ``arrays`` and ``header`` (as ``header_json``) to the .npz at ``path``,
+    atomically; returns ``path``."""
     arrays["header_json"] = _json_bytes(header)
     with atomic_path(path) as temporary, open(temporary, "wb") as stream:
         np.savez_compressed(stream, **arrays)
@@ -184,12 +195,8 @@ def _save_reduced(problem: ReducedFrictionalProblem, path: Path) -> Path:
     if problem.reference is not None:
         fref = problem.reference
         arrays["fref_impulses"] = fref.impulses
-        header["frictional_reference"] = {"method": fref.method, "residual": fref.residual,
-                                          "unique": fref.unique, "solvable": fref.solvable}
-    arrays["header_json"] = _json_bytes(header)
-    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
-        np.savez_compressed(stream, **arrays)
-    return path
+        header["frictional_reference"] = _frictional_reference_fields(fref)
+    return _write(path, arrays, header)
 
 
 def _load_reduced(header: dict[str, Any], arrays: dict[str, np.ndarray], path: Path
