@@ -30,7 +30,13 @@ _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
 
 
 def following_symlinks() -> bool:
-    """Whether ``QPBENCH_FOLLOW_SYMLINKS`` asks to write through symbolic links."""
+    """Whether ``QPBENCH_FOLLOW_SYMLINKS`` asks to write through symbolic links.
+
+    Returns
+    -------
+    bool
+        True when the variable is set to anything but an empty string or ``0``.
+    """
     return os.environ.get(FOLLOW_SYMLINKS_ENV, "0").strip() not in ("", "0")
 
 
@@ -40,13 +46,37 @@ def _kind(mode: int) -> str:
 
 
 def os_error_reason(error: OSError) -> str:
-    """The reason an OSError gives, on one line: its strerror, else its first line of text."""
+    """The reason an OSError gives, on one line: its strerror, else its first line of text.
+
+    Parameters
+    ----------
+    error : OSError
+        The error to describe.
+
+    Returns
+    -------
+    str
+        The first line of its reason, or the error's class name when it has no text.
+    """
     lines = (error.strerror or str(error)).strip().splitlines()
     return lines[0] if lines else type(error).__name__
 
 
 def cannot_write(path: str | os.PathLike[str], error: OSError) -> OutputError:
-    """The one-line error for a write to ``path`` that failed with ``error``."""
+    """The one-line error for a write to ``path`` that failed with ``error``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The path that could not be written.
+    error : OSError
+        The failure; its reason (:func:`os_error_reason`) ends the message.
+
+    Returns
+    -------
+    OutputError
+        ``PATH: cannot write: REASON``, to be raised by the caller.
+    """
     return OutputError(path, f"cannot write: {os_error_reason(error)}")
 
 
@@ -61,13 +91,34 @@ def _status(path: Path) -> os.stat_result | None:
 
 
 def checked_target(path: str | os.PathLike[str], accept_folder: bool = False) -> Path:
-    """The file that a write to ``path`` replaces: ``path`` itself, or, when symbolic links
-    are followed, the final target of the link at ``path``.
+    """The file that a write to ``path`` replaces.
+
+    That is ``path`` itself, or, when symbolic links are followed, the final target of the
+    link at ``path``.
 
     Nothing there, or a regular file, is accepted; with ``accept_folder`` a folder, or a
     symbolic link to one, is accepted too (an output folder). Anything else is an
     :class:`OutputError` naming ``path`` and what it is: a device, a FIFO, a socket, a folder,
-    or a symbolic link (unless followed)."""
+    or a symbolic link (unless followed).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The path a write is asked for.
+    accept_folder : bool, optional
+        Accept a folder (or a link to one) as well; False by default.
+
+    Returns
+    -------
+    Path
+        ``path``, or the resolved target of the link at ``path`` when links are followed.
+
+    Raises
+    ------
+    OutputError
+        When ``path`` (or its link's target) is neither nothing nor an acceptable file, or
+        cannot be looked at.
+    """
     path = Path(path)
     status = _status(path)
     if status is None or stat.S_ISREG(status.st_mode):
@@ -100,7 +151,13 @@ def _new_file_mode() -> int:
 
 
 def sync_folder(folder: Path) -> None:
-    """Makes a rename in ``folder`` durable (fsync of the directory, where supported)."""
+    """Makes a rename in ``folder`` durable (fsync of the directory, where supported).
+
+    Parameters
+    ----------
+    folder : Path
+        The directory to sync; an OSError on opening or syncing it is ignored.
+    """
     try:
         descriptor = os.open(folder, os.O_RDONLY)
     except OSError:
@@ -115,13 +172,32 @@ def sync_folder(folder: Path) -> None:
 
 @contextmanager
 def atomic_path(path: str | os.PathLike[str], durable: bool = False) -> Iterator[Path]:
-    """Yields a temporary path ``.tmp-<random>-<name>`` beside the file that ``path`` names
-    (:func:`checked_target`: an OutputError before anything is written when that is not a
-    regular file or nothing); when the block ends normally the file is given a new file's
-    mode and renamed over it; on any error it is removed. An OSError while writing (a
+    """Yields a temporary path ``.tmp-<random>-<name>`` beside the file that ``path`` names.
+
+    The target is :func:`checked_target`: an OutputError before anything is written when that
+    is not a regular file or nothing. When the block ends normally the file is given a new
+    file's mode and renamed over it; on any error it is removed. An OSError while writing (a
     read-only or full disk) becomes an OutputError naming ``path``. ``durable``: the file is
     synced before the rename and the folder after it, so the new file survives a power cut,
-    not only a killed process."""
+    not only a killed process.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write; missing parent folders are created.
+    durable : bool, optional
+        Sync the file before the rename and its folder after it; False by default.
+
+    Yields
+    ------
+    Path
+        The temporary file for the block to write.
+
+    Raises
+    ------
+    OutputError
+        When the target cannot be replaced or a write, chmod or rename fails.
+    """
     target = checked_target(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -9,8 +9,22 @@ MAX_QUOTED = 40
 
 
 def shown(text: str) -> str:
-    """``text`` quoted for a one-line message: its repr, cut to MAX_QUOTED characters with its
-    length said when it is longer (a value read from a file may be megabytes long)."""
+    """``text`` quoted for a one-line message.
+
+    Its repr, cut to MAX_QUOTED characters with its length said when it is longer (a value read
+    from a file may be megabytes long).
+
+    Parameters
+    ----------
+    text : str
+        The value to quote.
+
+    Returns
+    -------
+    str
+        ``repr(text)``, or the repr of its first MAX_QUOTED characters followed by
+        ``... (N characters)``.
+    """
     if len(text) <= MAX_QUOTED:
         return repr(text)
     return f"{text[:MAX_QUOTED]!r}... ({len(text)} characters)"

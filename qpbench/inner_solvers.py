@@ -31,8 +31,22 @@ from qpbench.solvers.run import call_solver
 
 
 def solve_with(spec: SolverSpec) -> ImpactSolve:
-    """An inner solve by ``spec`` through :func:`call_solver` (so a raising backend is a
-    failed answer); the warm start reaches only a solver that takes one."""
+    """An inner solve by ``spec`` through :func:`call_solver`.
+
+    Calling through :func:`call_solver` makes a raising backend a failed answer; the warm start
+    reaches only a solver that takes one.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The registered solver and formulation to call.
+
+    Returns
+    -------
+    ImpactSolve
+        A function of (problem, accuracy, warm start or None) giving the
+        :class:`SolvedImpulses`: impulses, whole solve time in seconds and status.
+    """
 
     def solve(problem: ImpactProblem | FrictionalProblem, accuracy: float,
               warm_start: np.ndarray | None) -> SolvedImpulses:
@@ -46,7 +60,21 @@ def solve_with(spec: SolverSpec) -> ImpactSolve:
 
 
 def chosen(spec: SolverSpec, note: str | None = None) -> ChosenSolve:
-    """``spec`` as the inner solve of an operator, named ``NAME/FORMULATION``."""
+    """``spec`` as the inner solve of an operator, named ``NAME/FORMULATION``.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The solver to use.
+    note : str or None, optional
+        Why this solver stands in for the scene's own, shown to the user; None when it is the
+        one asked for.
+
+    Returns
+    -------
+    ChosenSolve
+        The name ``spec.key``, the solve of :func:`solve_with` and the note.
+    """
     return ChosenSolve(name=spec.key, solve=solve_with(spec), note=note)
 
 
@@ -55,7 +83,28 @@ FRICTIONAL = "frictional"
 
 
 def choose_frictional(solver: FrictionSolver, override: str | None) -> ChosenSolve:
-    """The inner solve of a frictional scene (see the module docstring)."""
+    """The inner solve of a frictional scene (see the module docstring).
+
+    Parameters
+    ----------
+    solver : FrictionSolver
+        The scene's friction solver element: So-bogus or staggered projections (with its
+        ``<lcp_impact_solver>``).
+    override : str or None
+        The ``--solver`` name (``NAME[/FORMULATION]``), which must take frictional problems;
+        None to map the scene's own solver.
+
+    Returns
+    -------
+    ChosenSolve
+        The solver for the scene's frictional problems, with a note when :data:`SOBOGUS`
+        replaces a staggered solver that cannot run here.
+
+    Raises
+    ------
+    QpbenchError
+        When ``override`` is unknown or cannot take frictional problems.
+    """
     if override is not None:
         return chosen(get(override, FRICTIONAL))
     if solver.kind == "sobogus":
@@ -72,10 +121,23 @@ def choose_frictional(solver: FrictionSolver, override: str | None) -> ChosenSol
 
 
 def choose_by_name(override: str | None = None) -> ChooseSolve:
-    """The inner solve of each operator: ``override`` (``NAME[/FORMULATION]``) everywhere when
-    given, else the scene's own solver, mapped, with :data:`FALLBACK` when it cannot run here.
+    """The inner solve of each operator.
+
+    ``override`` (``NAME[/FORMULATION]``) everywhere when given, else the scene's own solver,
+    mapped, with :data:`FALLBACK` when it cannot run here.
 
     An unknown or unusable ``override`` raises QpbenchError (one line) when first used.
+
+    Parameters
+    ----------
+    override : str or None, optional
+        The ``--solver`` name; None (the default) to map each operator's own solver.
+
+    Returns
+    -------
+    ChooseSolve
+        A function giving the :class:`ChosenSolve` of an :class:`ImpactOperator` or a
+        :class:`FrictionSolver`.
     """
 
     def choose_solve(operator: ImpactOperator | FrictionSolver) -> ChosenSolve:

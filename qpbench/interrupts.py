@@ -46,18 +46,37 @@ class Watchdog:
         self._lock = threading.Lock()
 
     def sweep(self, folder: str | os.PathLike[str]) -> None:
-        """Registers ``folder``: its ``.tmp-*`` entries made since the watch began are
-        removed on a forced exit."""
+        """Registers ``folder`` for the removal of its temporary files on a forced exit.
+
+        Only its ``.tmp-*`` entries made since the watch began are removed.
+
+        Parameters
+        ----------
+        folder : str or os.PathLike
+            A folder where atomic writes put their temporary files.
+        """
         with self._lock:
             self._folders.append(Path(folder))
 
     def remove_on_exit(self, path: str | os.PathLike[str]) -> None:
-        """Registers a temporary file or folder, removed on a forced exit."""
+        """Registers a temporary file or folder, removed on a forced exit.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file or folder to remove (a folder with all it holds).
+        """
         with self._lock:
             self._paths.append(Path(path))
 
     def forget(self, path: str | os.PathLike[str]) -> None:
-        """Unregisters a path of :meth:`remove_on_exit` (it is gone or kept)."""
+        """Unregisters a path of :meth:`remove_on_exit` (it is gone or kept).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The path given to :meth:`remove_on_exit`.
+        """
         with self._lock:
             self._paths = [known for known in self._paths if known != Path(path)]
 
@@ -111,9 +130,24 @@ def _watch(reader: socket.socket, done: threading.Event, watchdog: Watchdog,
 
 @contextmanager
 def interrupt_watchdog(command: str, grace_s: float = GRACE_S) -> Iterator[Watchdog]:
-    """Watches the block for SIGINT (module docstring); yields the :class:`Watchdog` to
-    register temporary files with. Outside the main thread (where no wakeup descriptor can
-    be set) the block runs unwatched."""
+    """Watches the block for SIGINT (module docstring).
+
+    Yields the :class:`Watchdog` to register temporary files with. Outside the main thread
+    (where no wakeup descriptor can be set) the block runs unwatched.
+
+    Parameters
+    ----------
+    command : str
+        The command's name, said in ``qpbench COMMAND: interrupted``.
+    grace_s : float, optional
+        Seconds the main thread has after SIGINT to leave the block before the process is
+        ended; :data:`GRACE_S` by default.
+
+    Yields
+    ------
+    Watchdog
+        The registry of temporary files to remove on a forced exit.
+    """
     watchdog = Watchdog(command)
     if threading.current_thread() is not threading.main_thread():
         yield watchdog

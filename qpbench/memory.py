@@ -45,7 +45,13 @@ _applied_limit_mb = 0
 
 
 def virtual_memory_mb() -> float:
-    """This process's address space (VmSize) in MiB, NaN where /proc is missing."""
+    """This process's address space (VmSize) in MiB, NaN where /proc is missing.
+
+    Returns
+    -------
+    float
+        VmSize of ``/proc/self/status`` in MiB, or NaN when it cannot be read.
+    """
     try:
         with open("/proc/self/status", encoding="utf-8") as stream:
             for line in stream:
@@ -57,8 +63,21 @@ def virtual_memory_mb() -> float:
 
 
 def limit_memory(limit_mb: int) -> int:
-    """Caps the address space at ``limit_mb`` MiB (raised to VmSize + limit_mb if the loaded
-    process already exceeds it); returns the cap applied in MiB (0: no cap)."""
+    """Caps the address space at ``limit_mb`` MiB with ``RLIMIT_AS``.
+
+    The cap is raised to VmSize + limit_mb if the loaded process already exceeds it, and never
+    exceeds the hard limit.
+
+    Parameters
+    ----------
+    limit_mb : int
+        The cap in MiB; 0 or less applies none.
+
+    Returns
+    -------
+    int
+        The cap applied in MiB (0: no cap).
+    """
     if limit_mb <= 0:
         return 0
     current = virtual_memory_mb()
@@ -72,30 +91,65 @@ def limit_memory(limit_mb: int) -> int:
 
 
 def available_mb() -> int:
-    """The memory the machine has available for new allocations (psutil's ``available``:
-    free memory plus what the kernel can reclaim without swapping), in MiB."""
+    """The memory the machine has available for new allocations, in MiB.
+
+    This is psutil's ``available``: free memory plus what the kernel can reclaim without
+    swapping.
+
+    Returns
+    -------
+    int
+        The available memory in whole MiB.
+    """
     return int(psutil.virtual_memory().available // MIB)
 
 
 def default_limit_mb() -> int:
-    """A command's default cap in MiB: :data:`DEFAULT_FRACTION` of :func:`available_mb`, or
-    the process's present address space plus that where the process already exceeds it."""
+    """A command's default cap in MiB: :data:`DEFAULT_FRACTION` of :func:`available_mb`.
+
+    Where the process already exceeds that, :func:`limit_memory` raises it to the process's
+    present address space plus that.
+
+    Returns
+    -------
+    int
+        The cap in MiB, at least 1.
+    """
     return max(1, int(DEFAULT_FRACTION * available_mb()))
 
 
 def apply_limit(limit_mb: int) -> int:
-    """:func:`limit_memory` for a command (``limit_mb`` 0: no cap), remembered so that the
-    messages of :func:`require` and :func:`out_of_memory_as_error` name it; returns the cap
-    applied in MiB."""
+    """:func:`limit_memory` for a command, remembered for messages.
+
+    The cap is remembered so that the messages of :func:`require` and
+    :func:`out_of_memory_as_error` name it.
+
+    Parameters
+    ----------
+    limit_mb : int
+        The cap in MiB (``--memory-limit``); 0: no cap.
+
+    Returns
+    -------
+    int
+        The cap applied in MiB (0: no cap).
+    """
     global _applied_limit_mb
     _applied_limit_mb = limit_memory(limit_mb)
     return _applied_limit_mb
 
 
 def budget_bytes() -> int:
-    """Bytes this process can still allocate: the machine's available memory, or the room
-    left under the ``RLIMIT_AS`` cap (the cap less the present address space) when that is
-    smaller."""
+    """Bytes this process can still allocate.
+
+    The machine's available memory, or the room left under the ``RLIMIT_AS`` cap (the cap
+    less the present address space) when that is smaller.
+
+    Returns
+    -------
+    int
+        The budget in bytes, never negative.
+    """
     budget = int(psutil.virtual_memory().available)
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     current = virtual_memory_mb()
@@ -105,7 +159,18 @@ def budget_bytes() -> int:
 
 
 def describe_bytes(count: float) -> str:
-    """``count`` bytes as a short figure: ``512 MB``, ``37.3 GB`` (binary units)."""
+    """``count`` bytes as a short figure: ``512 MB``, ``37.3 GB`` (binary units).
+
+    Parameters
+    ----------
+    count : float
+        A number of bytes; a negative one shows as ``0 KB``.
+
+    Returns
+    -------
+    str
+        Three significant digits and the largest unit (KB, MB, GB, TB) not above ``count``.
+    """
     for unit, scale in (("TB", 1024**4), ("GB", 1024**3), ("MB", MIB)):
         if count >= scale:
             return f"{count / scale:.3g} {unit}".replace("e+", "e")
@@ -121,9 +186,24 @@ def _limit_hint() -> str:
 
 
 def require(need_bytes: float, what: str) -> None:
-    """OutOfMemory naming ``what`` (the size asked, e.g. ``scene.xml: 100000 balls``), the
-    bytes it needs and the memory available, when ``need_bytes`` exceeds
-    :func:`budget_bytes`; nothing otherwise (at once below :data:`UNCHECKED_BYTES`)."""
+    """Refuses a request that needs more memory than :func:`budget_bytes`.
+
+    OutOfMemory naming ``what`` (the size asked, e.g. ``scene.xml: 100000 balls``), the bytes
+    it needs and the memory available, when ``need_bytes`` exceeds :func:`budget_bytes`;
+    nothing otherwise (at once below :data:`UNCHECKED_BYTES`).
+
+    Parameters
+    ----------
+    need_bytes : float
+        A lower bound of the bytes the allocation takes.
+    what : str
+        What is asked for, which starts the message.
+
+    Raises
+    ------
+    OutOfMemory
+        When ``need_bytes`` exceeds the budget.
+    """
     if need_bytes < UNCHECKED_BYTES:
         return
     budget = budget_bytes()
@@ -133,23 +213,62 @@ def require(need_bytes: float, what: str) -> None:
 
 
 def product_entries(per_row: np.ndarray) -> int:
-    """The entries scipy reserves for the sparse product ``A^T A`` when row k of A holds
-    ``per_row[k]`` non-zeros: ``sum_k per_row[k]^2``, the bound it allocates before the
-    product (duplicates are merged only afterwards)."""
+    """The entries scipy reserves for the sparse product ``A^T A``.
+
+    When row k of A holds ``per_row[k]`` non-zeros that is ``sum_k per_row[k]^2``, the bound
+    it allocates before the product (duplicates are merged only afterwards).
+
+    Parameters
+    ----------
+    per_row : np.ndarray
+        Non-zeros of each row of A, integers of shape (rows,).
+
+    Returns
+    -------
+    int
+        The number of entries reserved.
+    """
     counts = np.asarray(per_row, dtype=np.int64)
     return int(np.dot(counts, counts))
 
 
 def product_bytes(per_row: np.ndarray) -> int:
-    """The bytes of the arrays scipy allocates for ``A^T A`` (:func:`product_entries` values
-    of 8 bytes and indices of 4, or of 8 beyond 2^31 entries)."""
+    """The bytes of the arrays scipy allocates for ``A^T A``.
+
+    These are :func:`product_entries` values of 8 bytes and indices of 4, or of 8 beyond 2^31
+    entries.
+
+    Parameters
+    ----------
+    per_row : np.ndarray
+        Non-zeros of each row of A, integers of shape (rows,).
+
+    Returns
+    -------
+    int
+        The bytes of the product's values and indices.
+    """
     entries = product_entries(per_row)
     return entries * (16 if entries >= 2**31 else 12)
 
 
 def out_of_memory(what: str, detail: str = "") -> OutOfMemory:
-    """The one-line error of an allocation that failed: ``out of memory while WHAT (DETAIL)``
-    and the cap with how to change it."""
+    """The one-line error of an allocation that failed.
+
+    ``out of memory while WHAT (DETAIL)`` and the cap with how to change it.
+
+    Parameters
+    ----------
+    what : str
+        What was being built, e.g. ``building the Delassus matrix``.
+    detail : str, optional
+        The MemoryError's text (cut to 160 characters); empty by default, then left out.
+
+    Returns
+    -------
+    OutOfMemory
+        The error, to be raised by the caller.
+    """
     detail = detail.strip().rstrip(".")
     detail = f" ({detail[:160]})" if detail else ""
     return OutOfMemory(f"out of memory while {what}{detail}{_limit_hint()}")
@@ -157,9 +276,26 @@ def out_of_memory(what: str, detail: str = "") -> OutOfMemory:
 
 @contextmanager
 def out_of_memory_as_error(what: str) -> Iterator[None]:
-    """Turns a MemoryError raised in the block (an allocation refused under the cap or by
-    the machine) into :func:`out_of_memory`, with the allocation that failed where numpy
-    names it."""
+    """Turns a MemoryError raised in the block into :func:`out_of_memory`.
+
+    The MemoryError is an allocation refused under the cap or by the machine; the error keeps
+    the allocation that failed where numpy names it.
+
+    Parameters
+    ----------
+    what : str
+        What the block builds, named in the message.
+
+    Yields
+    ------
+    None
+        Control to the block.
+
+    Raises
+    ------
+    OutOfMemory
+        When a MemoryError is raised in the block.
+    """
     try:
         yield
     except MemoryError as error:

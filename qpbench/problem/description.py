@@ -32,7 +32,20 @@ DENSE_LIMIT = 2_500  # unknowns: a dense symmetric eigenvalue problem of at most
 
 
 def describe(problem: ImpactProblem | FrictionalProblem) -> dict[str, Any]:
-    """The description of ``problem`` (module docstring), one dict of plain values."""
+    """The description of ``problem`` (module docstring), one dict of plain values.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        A frictionless, frictional or reduced frictional problem.
+
+    Returns
+    -------
+    dict of str to Any
+        ``problem``, ``kind`` (``impact``, ``frictional`` or the reduced kind), ``contacts``,
+        ``dofs``, ``density``, ``rank_deficiency``, ``cond``, ``mu_min`` and ``mu_max``, as
+        the module docstring defines them.
+    """
     frictional = isinstance(problem, FrictionalProblem)
     n = problem.n_contacts
     W = problem.W if frictional else problem.Q

@@ -206,7 +206,30 @@ def _dense(file: str, matrices: dict[str, sp.coo_matrix], name: str,
 
 
 def import_dump(path: str | Path, restitution: float | None = None) -> ImpactProblem:
-    """The ImpactProblem of one dump file; InputError names the file, entry and field at fault."""
+    """The ImpactProblem of one dump file; InputError names the file, entry and field at fault.
+
+    Parameters
+    ----------
+    path : str or Path
+        The dump, in either layout (module docstring); its stem names the problem.
+    restitution : float or None, optional
+        The coefficient of restitution of every contact. None (the default) reads it from
+        ``b`` as the median of ``b / (N^T v0) - 1`` over the moving contacts, or takes 1 when
+        the dump has no ``b``.
+
+    Returns
+    -------
+    ImpactProblem
+        The problem of family ``dump``, with ``Q``, ``b`` and the dumped solutions in
+        ``data`` and the dump's flags and times in ``metadata``.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read, an entry is missing or malformed, ``Minv`` is not
+        diagonal, ``b`` is not ``(1 + CoR) N^T v0`` for one CoR in [0, 1], or the problem is
+        invalid (:meth:`ImpactProblem.validate`).
+    """
     file = str(path)
     try:
         text = Path(path).read_text()

@@ -70,7 +70,20 @@ def _interleaved(n: int) -> np.ndarray:
 
 
 def local_arrays(problem: FrictionalProblem) -> tuple[sp.csc_matrix, np.ndarray]:
-    """W and q in FCLIB's per-contact order."""
+    """W and q in FCLIB's per-contact order.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem, in qpbench's order ``(l_N, l_T)``.
+
+    Returns
+    -------
+    W : sp.csc_matrix
+        The Delassus matrix permuted to ``(N_0, T_0, N_1, ...)``, 2n x 2n.
+    q : np.ndarray
+        The free velocity in that order, shape (2n,).
+    """
     order = interleaved_order(problem.n_contacts)
     back = np.argsort(order)
     W = sp.csr_matrix(problem.W)[back][:, back]
@@ -102,8 +115,29 @@ def _math_info(problem: AnyProblem) -> str:
 
 
 def write(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
-    """Writes ``problem`` to ``path`` in FCLIB's layout (module docstring): a reduced problem
-    as ``/fclib_local``; a frictional or frictionless one with bodies as ``/fclib_global``."""
+    """Writes ``problem`` to ``path`` in FCLIB's layout (module docstring).
+
+    A reduced problem is written as ``/fclib_local``; a frictional or frictionless one with
+    bodies as ``/fclib_global``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem; one with bodies must have finite masses and restitution 0.
+    path : str or os.PathLike
+        The HDF5 file to create (replaced if it exists).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        When a problem with bodies has a kinematic degree of freedom (m_inv = 0) or a nonzero
+        restitution, which FCLIB's global form cannot hold.
+    """
     h5py = _h5py()
     path = Path(path)
     solution = _reference_solution(problem)
@@ -220,9 +254,29 @@ def _spacedim(file: str, top: Any, prefix: str) -> None:
 
 
 def read(path: str | os.PathLike[str]) -> AnyProblem:
-    """The problem of an FCLIB file: ``/fclib_local`` as a reduced problem, ``/fclib_global``
-    as a frictional one (qpbench.problem.siconos_import's mappings, with FCLIB's ``f`` as
-    Siconos' ``q`` and ``w`` as its ``b``)."""
+    """The problem of an FCLIB file.
+
+    ``/fclib_local`` gives a reduced problem, ``/fclib_global`` a frictional one
+    (qpbench.problem.siconos_import's mappings, with FCLIB's ``f`` as Siconos' ``q`` and ``w``
+    as its ``b``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The HDF5 file; its stem names the problem.
+
+    Returns
+    -------
+    ImpactProblem or FrictionalProblem
+        A :class:`ReducedFrictionalProblem` or a :class:`FrictionalProblem` of family
+        :data:`FAMILY`.
+
+    Raises
+    ------
+    InputError
+        When the file is missing or not HDF5, has neither group, is not 2D, or a dataset is
+        missing, malformed, not finite or of a misfitting size.
+    """
     h5py = _h5py()
     file, name = str(path), Path(path).stem
     try:
@@ -276,7 +330,18 @@ def _finite(file: str, field: str, values: np.ndarray) -> None:
 
 
 def read_solution(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """The datasets of ``/solution`` (empty when there is none), FCLIB's order."""
+    """The datasets of ``/solution`` (empty when there is none), FCLIB's order.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The HDF5 file.
+
+    Returns
+    -------
+    dict of str to np.ndarray
+        ``r`` and ``u`` (and ``v`` for a global problem) by name.
+    """
     h5py = _h5py()
     with h5py.File(path, "r") as stream:
         if "solution" not in stream:

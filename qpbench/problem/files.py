@@ -120,7 +120,25 @@ def _csc_of(label: str, arrays: dict[str, np.ndarray], path: Path) -> sp.csc_mat
 
 
 def save(problem: AnyProblem, path: str | os.PathLike[str]) -> Path:
-    """Writes ``problem`` (impact or frictional) to ``path`` atomically; returns the path."""
+    """Writes ``problem`` (impact or frictional) to ``path`` atomically; returns the path.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem, with its reference and stored data (a reduced one as W, q and mu).
+    path : str or os.PathLike
+        The file to write; ``.npz`` is appended when it has another suffix.
+
+    Returns
+    -------
+    Path
+        The path written, ending in ``.npz``.
+
+    Raises
+    ------
+    OutputError
+        When the path cannot be written (:func:`~qpbench.atomic.atomic_path`).
+    """
     path = Path(path)
     if path.suffix != SUFFIX:
         path = path.with_name(path.name + SUFFIX)
@@ -219,8 +237,27 @@ def _load_reduced(header: dict[str, Any], arrays: dict[str, np.ndarray], path: P
 
 
 def load(path: str | os.PathLike[str]) -> AnyProblem:
-    """Reads a problem file written by :func:`save` (an :class:`ImpactProblem` or a
-    :class:`FrictionalProblem`, by its kind); raises InputError on a bad file."""
+    """Reads a problem file written by :func:`save`; raises InputError on a bad file.
+
+    The file gives an :class:`ImpactProblem` or a :class:`FrictionalProblem` (reduced or not),
+    by its kind.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.npz`` file.
+
+    Returns
+    -------
+    ImpactProblem or FrictionalProblem
+        The validated problem, with its reference and stored data.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, unreadable, not such an archive, or its header, an array
+        or the problem it describes is invalid.
+    """
     path = Path(path)
     arrays = read_arrays(path)
     try:
@@ -262,11 +299,27 @@ def load(path: str | os.PathLike[str]) -> AnyProblem:
 
 
 def read_arrays(path: Path) -> dict[str, np.ndarray]:
-    """Every array of the ``.npz`` archive at ``path``, by name, read without pickle;
-    InputError naming the file (and the array, where one is at fault) and saying what is
-    wrong when it is no such archive: a single ``.npy`` array, not a zip archive at all, a
-    damaged or truncated one, a member that is not a ``.npy`` array, or an array of Python
-    objects."""
+    """Every array of the ``.npz`` archive at ``path``, by name, read without pickle.
+
+    InputError naming the file (and the array, where one is at fault) and saying what is wrong
+    when it is no such archive: a single ``.npy`` array, not a zip archive at all, a damaged or
+    truncated one, a member that is not a ``.npy`` array, or an array of Python objects.
+
+    Parameters
+    ----------
+    path : Path
+        The archive.
+
+    Returns
+    -------
+    dict of str to np.ndarray
+        The arrays by member name without ``.npy``.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, a folder, unreadable or not such an archive.
+    """
     try:
         with open(path, "rb") as stream:
             signature = stream.read(len(NPY_SIGNATURE))
@@ -413,7 +466,23 @@ def _check_fields(fields: dict[str, Any], types: dict[str, tuple[type, ...]], pa
 
 
 def find(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
-    """Problem files named directly or found (recursively, sorted) in the folders named."""
+    """Problem files named directly or found (recursively, sorted) in the folders named.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Files and folders; hidden files in the folders are skipped.
+
+    Returns
+    -------
+    list of Path
+        The files, in the order named, each folder's ``.npz`` files sorted.
+
+    Raises
+    ------
+    InputError
+        When a path does not exist.
+    """
     found: list[Path] = []
     for entry in paths:
         entry = Path(entry)
@@ -427,6 +496,22 @@ def find(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
 
 
 def load_all(paths: Iterable[str | os.PathLike[str]]) -> Iterator[AnyProblem]:
-    """Loads every problem file named or found in the folders named."""
+    """Loads every problem file named or found in the folders named.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Files and folders, as :func:`find` takes them.
+
+    Yields
+    ------
+    ImpactProblem or FrictionalProblem
+        Each problem, as :func:`load` reads it.
+
+    Raises
+    ------
+    InputError
+        When a path does not exist or a file is bad.
+    """
     for path in find(paths):
         yield load(path)

@@ -38,14 +38,38 @@ class PrimalQP:
     free: np.ndarray
 
     def v_plus(self, problem: ImpactProblem, v_free: np.ndarray) -> np.ndarray:
-        """The full velocity: v_free on free degrees of freedom, v- elsewhere."""
+        """The full velocity: v_free on free degrees of freedom, v- elsewhere.
+
+        Parameters
+        ----------
+        problem : ImpactProblem
+            The problem this QP was posed from.
+        v_free : np.ndarray
+            The QP's solution, one entry per free degree of freedom.
+
+        Returns
+        -------
+        np.ndarray
+            v+, shape (d,).
+        """
         velocity = problem.v_minus.copy()
         velocity[self.free] = v_free
         return velocity
 
 
 def primal_qp(problem: ImpactProblem) -> PrimalQP:
-    """The velocity-space QP of ``problem`` (see the module docstring), built once."""
+    """The velocity-space QP of ``problem`` (see the module docstring), built once.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem; the QP is kept in ``problem.posed["primal"]``.
+
+    Returns
+    -------
+    PrimalQP
+        The QP.
+    """
     if "primal" not in problem.posed:
         problem.posed["primal"] = _primal_qp(problem)
     return problem.posed["primal"]
@@ -91,13 +115,36 @@ class FactoredDualQP:
     n_contacts: int
 
     def impulses(self, x: np.ndarray) -> np.ndarray:
-        """l = x[:n]."""
+        """l = x[:n].
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The QP's solution (l, y), shape (n + k,).
+
+        Returns
+        -------
+        np.ndarray
+            The impulses l, shape (n,).
+        """
         return np.asarray(x[: self.n_contacts], dtype=float)
 
 
 def factored_rows(problem: ImpactProblem) -> sp.csc_matrix:
-    """L = M^-1/2 G without the rows of kinematic degrees of freedom (k x n, k = free dofs),
-    built once."""
+    """L = M^-1/2 G without the rows of kinematic degrees of freedom, built once.
+
+    L is k x n, with k the free degrees of freedom.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem; L is kept in ``problem.posed["factored_rows"]``.
+
+    Returns
+    -------
+    sp.csc_matrix
+        The rows of L of the degrees of freedom with m_inv > 0, k x n.
+    """
     if "factored_rows" not in problem.posed:
         free = problem.m_inv > 0
         problem.posed["factored_rows"] = sp.csc_matrix(sp.csr_matrix(problem.L)[free])
@@ -105,7 +152,18 @@ def factored_rows(problem: ImpactProblem) -> sp.csc_matrix:
 
 
 def factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
-    """The dual-factored formulation as a QP (see :class:`FactoredDualQP`), built once."""
+    """The dual-factored formulation as a QP (see :class:`FactoredDualQP`), built once.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem; the QP is kept in ``problem.posed["dual-factored"]``.
+
+    Returns
+    -------
+    FactoredDualQP
+        The QP.
+    """
     if "dual-factored" not in problem.posed:
         problem.posed["dual-factored"] = _factored_dual_qp(problem)
     return problem.posed["dual-factored"]
@@ -127,11 +185,26 @@ def _factored_dual_qp(problem: ImpactProblem) -> FactoredDualQP:
 
 
 def pose(problem: ImpactProblem | FrictionalProblem, formulation: str) -> None:
-    """Builds the matrices ``formulation`` hands a solver, kept on ``problem``: ``Q``, ``b``
-    and ``diag(Q)`` for ``dual`` and ``lcp``; :func:`primal_qp` for ``primal``;
-    :func:`factored_dual_qp` (with L) for ``dual-factored``. The same for every solver of a
-    formulation, so it is timed apart (``formulation_time_s``). A frictional problem's
-    formulations are posed by :func:`_pose_frictional`."""
+    """Builds the matrices ``formulation`` hands a solver, kept on ``problem``.
+
+    These are ``Q``, ``b`` and ``diag(Q)`` for ``dual`` and ``lcp``; :func:`primal_qp` for
+    ``primal``; :func:`factored_dual_qp` (with L) for ``dual-factored``. The same for every
+    solver of a formulation, so it is timed apart (``formulation_time_s``). A frictional
+    problem's formulations are posed by :func:`_pose_frictional`.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem; what is built is cached on it.
+    formulation : str
+        One of :data:`FORMULATIONS`, or of :data:`FRICTIONAL_FORMULATIONS` for a frictional
+        problem.
+
+    Raises
+    ------
+    ValueError
+        When ``formulation`` is unknown for the problem's kind.
+    """
     if isinstance(problem, FrictionalProblem):
         _pose_frictional(problem, formulation)
     elif formulation in ("dual", "lcp"):
@@ -186,7 +259,19 @@ EIGENVALUE_LIMIT = 200  # beyond it the Gram check, O(nnz), bounds lambda_min(Q)
 
 
 def certify_psd(problem: ImpactProblem) -> PsdCertificate:
-    """Certifies Q = G^T M^-1 G positive semi-definite (see :class:`PsdCertificate`)."""
+    """Certifies Q = G^T M^-1 G positive semi-definite (see :class:`PsdCertificate`).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem whose Q is checked.
+
+    Returns
+    -------
+    PsdCertificate
+        Whether Q is PSD, by which method (``empty``, ``eigenvalues`` or ``gram``), the
+        value found and the tolerance.
+    """
     Q = problem.Q
     n = problem.n_contacts
     largest = float(np.max(np.abs(Q.data), initial=0.0))
@@ -205,5 +290,18 @@ def certify_psd(problem: ImpactProblem) -> PsdCertificate:
 
 
 def regularized(Q: sp.spmatrix, delta: float) -> sp.csc_matrix:
-    """Q + delta I: a different problem, used only by variants named ``*-reg``."""
+    """Q + delta I: a different problem, used only by variants named ``*-reg``.
+
+    Parameters
+    ----------
+    Q : sp.spmatrix
+        A square matrix.
+    delta : float
+        The shift added to its diagonal.
+
+    Returns
+    -------
+    sp.csc_matrix
+        Q + delta I.
+    """
     return sp.csc_matrix(Q + delta * sp.identity(Q.shape[0], format="csc"))

@@ -82,8 +82,41 @@ class FrictionalProblem:
     def build(cls, name: str, G: Any, T: Any, m_inv: Any, v_minus: Any, mu: float | Any,
               restitution: float | Any = 0.0, n_rel: Any | None = None,
               d_rel: Any | None = None, **kwargs: Any) -> FrictionalProblem:
-        """Builds a problem, broadcasting scalars (mu, restitution) and missing kinematic terms
-        to n contacts; InputError names the field at fault."""
+        """Builds a problem, broadcasting scalars and missing kinematic terms to n contacts.
+
+        Scalars (mu, restitution) and missing kinematic terms (n_rel, d_rel) are broadcast to n
+        contacts; InputError names the field at fault.
+
+        Parameters
+        ----------
+        name : str
+            The problem's name.
+        G, T : array_like or sparse matrix
+            Contact normals and tangents, each d x n (rotation rows carry the arm terms).
+        m_inv : array_like
+            Diagonal of M^-1, d entries (0 for a kinematic degree of freedom).
+        v_minus : array_like
+            Velocities before impact, d entries.
+        mu : float or array_like
+            Friction coefficients, one for all contacts or n, each >= 0.
+        restitution : float or array_like, optional
+            Coefficients of restitution e, one or n; 0 by default.
+        n_rel, d_rel : array_like or None, optional
+            Normal and tangential velocities of moving boundaries, n entries each; None (the
+            default) for zeros.
+        **kwargs
+            Further fields of the normal :class:`ImpactProblem` (family, source, ...).
+
+        Returns
+        -------
+        FrictionalProblem
+            The validated problem.
+
+        Raises
+        ------
+        InputError
+            When :meth:`validate` refuses it.
+        """
         normal = ImpactProblem.build(name, G, m_inv, v_minus, restitution, n_rel, **kwargs)
         n = normal.n_contacts
         problem = cls(
@@ -96,8 +129,22 @@ class FrictionalProblem:
         return problem
 
     def validate(self, file: str | None = None) -> None:
-        """The normal problem's checks, plus T of G's shape with entries as G's, mu >= 0 and
-        d_rel of one entry per contact, and a reference of the problem's shapes."""
+        """The normal problem's checks, plus checks of T, mu, d_rel and the reference.
+
+        T must have G's shape with entries as G's, mu must be >= 0 and d_rel of one entry per
+        contact, and a reference must have the problem's shapes.
+
+        Parameters
+        ----------
+        file : str or None, optional
+            The file named in a message; None (the default) names the problem's source, else its
+            name.
+
+        Raises
+        ------
+        InputError
+            When a check fails.
+        """
         self.normal.validate(file)
         where = file or self.normal.source or self.normal.name
         if self.T.shape != self.normal.G.shape:
@@ -164,23 +211,50 @@ class FrictionalProblem:
         return float(np.max(self.mu, initial=0.0))
 
     def contact_graph(self) -> sp.csr_matrix:
-        """Contacts k, j are adjacent when a body of finite mass carries both (W's 2x2 block
-        (k, j) may be nonzero)."""
+        """Contacts k, j are adjacent when a body of finite mass carries both.
+
+        Then W's 2x2 block (k, j) may be nonzero.
+
+        Returns
+        -------
+        sp.csr_matrix
+            n x n, nonzero at (k, j) when contacts k and j are adjacent (the diagonal included
+            for a contact on a body of finite mass).
+        """
         pattern = (abs(self.normal.G) + abs(self.T)).tocsc()
         pattern.data[:] = 1.0
         moving = sp.diags((self.m_inv > 0).astype(float))
         return sp.csr_matrix(pattern.T @ moving @ pattern)
 
     def blind_copy(self) -> FrictionalProblem:
-        """What a solver may see (as :meth:`ImpactProblem.blind_copy`): fresh arrays, no
-        reference, no stored data."""
+        """What a solver may see (as :meth:`ImpactProblem.blind_copy`).
+
+        Fresh arrays, no reference, no stored data.
+
+        Returns
+        -------
+        FrictionalProblem
+            The copy.
+        """
         return FrictionalProblem(normal=self.normal.blind_copy(), T=self.T.copy(),
                                  mu=self.mu.copy(), d_rel=self.d_rel.copy())
 
     def with_velocities_scaled(self, factor: float) -> FrictionalProblem:
-        """The same contacts with v-, nrel and d_rel multiplied by ``factor`` > 0 (see
-        :meth:`ImpactProblem.with_velocities_scaled`). Coulomb's law is positively
-        homogeneous, so the impulses become ``factor * r``."""
+        """The same contacts with v-, nrel and d_rel multiplied by ``factor`` > 0.
+
+        See :meth:`ImpactProblem.with_velocities_scaled`. Coulomb's law is positively
+        homogeneous, so the impulses become ``factor * r``.
+
+        Parameters
+        ----------
+        factor : float
+            The positive scale of the velocities.
+
+        Returns
+        -------
+        FrictionalProblem
+            The scaled problem, sharing T and mu.
+        """
         return FrictionalProblem(normal=self.normal.with_velocities_scaled(factor), T=self.T,
                                  mu=self.mu, d_rel=factor * self.d_rel)
 
@@ -245,32 +319,100 @@ class FrictionalProblem:
 
     # --- maps of the impulses ----------------------------------------------------------------
     def split(self, impulses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(l_N, l_T) of r = (l_N, l_T)."""
+        """(l_N, l_T) of r = (l_N, l_T).
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            r, shape (2n,).
+
+        Returns
+        -------
+        l_N : np.ndarray
+            The normal impulses, shape (n,).
+        l_T : np.ndarray
+            The tangential impulses, shape (n,).
+        """
         n = self.n_contacts
         impulses = np.asarray(impulses, dtype=float)
         return impulses[:n], impulses[n:]
 
     def v_plus(self, impulses: np.ndarray) -> np.ndarray:
-        """v+ = v- + M^-1 (G l_N + T l_T)."""
+        """v+ = v- + M^-1 (G l_N + T l_T).
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            r = (l_N, l_T), shape (2n,).
+
+        Returns
+        -------
+        np.ndarray
+            The post-impact velocities, shape (d,).
+        """
         return self.v_minus + self.M_inv_H @ np.asarray(impulses, dtype=float)
 
     def u(self, impulses: np.ndarray) -> np.ndarray:
-        """u = W r + q: (u_N, u_T), the post-impact normal (with e u_N-) and tangential
-        relative velocities."""
+        """u = W r + q.
+
+        That is (u_N, u_T), the post-impact normal (with e u_N-) and tangential relative
+        velocities.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            r = (l_N, l_T), shape (2n,).
+
+        Returns
+        -------
+        np.ndarray
+            u = (u_N, u_T), shape (2n,).
+        """
         return self.W @ np.asarray(impulses, dtype=float) + self.q
 
     def kinetic_energy(self, velocity: np.ndarray) -> float:
+        """KE = 1/2 v^T M v over the degrees of freedom with finite mass (the normal problem's).
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Velocities of the degrees of freedom, shape (d,).
+
+        Returns
+        -------
+        float
+            The kinetic energy.
+        """
         return self.normal.kinetic_energy(velocity)
 
     def m_norm(self, velocity: np.ndarray) -> float:
+        """||v||_M = sqrt(v^T M v) over the degrees of freedom with finite mass.
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Velocities of the degrees of freedom, shape (d,).
+
+        Returns
+        -------
+        float
+            The mass norm of ``velocity``.
+        """
         return self.normal.m_norm(velocity)
 
     # --- the views that frictionless solvers take ------------------------------------------------
     def relaxed(self) -> ImpactProblem:
-        """Anitescu's relaxation as an impact problem in z = (z+, z-) >= 0 (2n contacts):
-        columns ``n + mu t`` and ``n - mu t``, so that ``l_N = z+ + z-``,
+        """Anitescu's relaxation as an impact problem in z = (z+, z-) >= 0 (2n contacts).
+
+        Its columns are ``n + mu t`` and ``n - mu t``, so that ``l_N = z+ + z-``,
         ``l_T = mu (z+ - z-)`` and its ``b`` is ``q_N +- mu q_T``, written with the same
-        restitution e and a shifted n_rel (:func:`relaxed_n_rel`). Built once."""
+        restitution e and a shifted n_rel (:func:`relaxed_n_rel`). Built once.
+
+        Returns
+        -------
+        ImpactProblem
+            The relaxed problem, kept in ``posed["ccp"]``.
+        """
         if "ccp" not in self.posed:
             G, T, mu = self.normal.G, self.T, self.mu
             columns = sp.hstack([G + T @ sp.diags(mu), G - T @ sp.diags(mu)], format="csc")
@@ -282,16 +424,40 @@ class FrictionalProblem:
         return self.posed["ccp"]
 
     def from_relaxed(self, z: np.ndarray) -> np.ndarray:
-        """r = (z+ + z-, mu (z+ - z-)) from the relaxed problem's z."""
+        """r = (z+ + z-, mu (z+ - z-)) from the relaxed problem's z.
+
+        Parameters
+        ----------
+        z : np.ndarray
+            The impulses of :meth:`relaxed`, (z+, z-), shape (2n,).
+
+        Returns
+        -------
+        np.ndarray
+            r = (l_N, l_T), shape (2n,).
+        """
         n = self.n_contacts
         z = np.asarray(z, dtype=float)
         plus, minus = z[:n], z[n:]
         return np.concatenate([plus + minus, self.mu * (plus - minus)])
 
     def normal_given(self, tangential: np.ndarray) -> ImpactProblem:
-        """The normal QP of staggered projections for a fixed l_T: the impact problem with
-        ``b + W_NT l_T``, written as ``n_rel + (G^T M^-1 T l_T) / (1 + e)``; its ``b`` is
-        formed as ``q_N + W_NT l_T`` (``W_NT = G^T M^-1 T``, a block of W)."""
+        """The normal QP of staggered projections for a fixed l_T.
+
+        The impact problem with ``b + W_NT l_T``, written as
+        ``n_rel + (G^T M^-1 T l_T) / (1 + e)``; its ``b`` is formed as ``q_N + W_NT l_T``
+        (``W_NT = G^T M^-1 T``, a block of W).
+
+        Parameters
+        ----------
+        tangential : np.ndarray
+            The fixed tangential impulses l_T, shape (n,).
+
+        Returns
+        -------
+        ImpactProblem
+            The normal problem with the shifted ``b``.
+        """
         shift = self.W_NT @ tangential
         normal = self.normal
         sub = ImpactProblem(name=normal.name, G=normal.G, m_inv=normal.m_inv,
@@ -303,18 +469,43 @@ class FrictionalProblem:
 
     def friction_box(self, normal_impulses: np.ndarray
                      ) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray, np.ndarray]:
-        """The friction QP of staggered projections for a fixed l_N:
+        """The friction QP of staggered projections for a fixed l_N.
+
         ``min 1/2 l_T^T W_TT l_T + (q_T + W_TN l_N)^T l_T,  -mu l_N <= l_T <= mu l_N``, as
-        (W_TT, linear term, lower, upper)."""
+        (W_TT, linear term, lower, upper).
+
+        Parameters
+        ----------
+        normal_impulses : np.ndarray
+            The fixed normal impulses l_N, shape (n,); negative entries count as 0 in the bounds.
+
+        Returns
+        -------
+        W_TT : sp.csc_matrix
+            The QP's matrix, n x n.
+        linear : np.ndarray
+            ``q_T + W_TN l_N``, shape (n,).
+        lower, upper : np.ndarray
+            ``-mu max(l_N, 0)`` and ``mu max(l_N, 0)``, shape (n,) each.
+        """
         n = self.n_contacts
         linear = self.q[n:] + self.W_TN @ normal_impulses
         bound = self.mu * np.maximum(normal_impulses, 0.0)
         return self.W_TT, np.asarray(linear, dtype=float), -bound, bound
 
     def stewart_trinkle(self) -> tuple[np.ndarray, np.ndarray]:
-        """The exact 2D problem as one LCP (Stewart-Trinkle), ``z = (l_N, b+, b-, s) >= 0``,
-        ``l_T = b+ - b-``, ``w = A z + c >= 0``, ``z^T w = 0``:
-        rows ``u_N``, ``s + u_T``, ``s - u_T``, ``mu l_N - b+ - b-`` (dense A, 4n x 4n)."""
+        """The exact 2D problem as one LCP (Stewart-Trinkle).
+
+        ``z = (l_N, b+, b-, s) >= 0``, ``l_T = b+ - b-``, ``w = A z + c >= 0``, ``z^T w = 0``:
+        rows ``u_N``, ``s + u_T``, ``s - u_T``, ``mu l_N - b+ - b-`` (dense A, 4n x 4n).
+
+        Returns
+        -------
+        A : np.ndarray
+            The LCP matrix, dense, 4n x 4n.
+        c : np.ndarray
+            The LCP vector ``(q_N, q_T, -q_T, 0)``, shape (4n,).
+        """
         n = self.n_contacts
         W = self.W.toarray()
         NN, NT, TN, TT = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
@@ -330,19 +521,48 @@ class FrictionalProblem:
         return A, c
 
     def from_stewart_trinkle(self, z: np.ndarray) -> np.ndarray:
-        """r = (l_N, b+ - b-) from the Stewart-Trinkle unknowns."""
+        """r = (l_N, b+ - b-) from the Stewart-Trinkle unknowns.
+
+        Parameters
+        ----------
+        z : np.ndarray
+            The unknowns (l_N, b+, b-, s) of :meth:`stewart_trinkle`, shape (4n,).
+
+        Returns
+        -------
+        np.ndarray
+            r = (l_N, l_T), shape (2n,).
+        """
         n = self.n_contacts
         return np.concatenate([z[:n], z[n:2 * n] - z[2 * n:3 * n]])
 
     def summary(self) -> dict[str, Any]:
-        """The normal problem's summary, plus mu_max and the kind."""
+        """The normal problem's summary, plus mu_max and the kind.
+
+        Returns
+        -------
+        dict of str to Any
+            The keys of :meth:`ImpactProblem.summary`, plus ``mu_max`` and ``kind``.
+        """
         return {**self.normal.summary(), "mu_max": self.mu_max, "kind": KIND}
 
 
 def relaxed_n_rel(problem: FrictionalProblem) -> np.ndarray:
-    """The n_rel of the relaxed columns ``n +- mu t`` that makes their
-    ``b = (1 + e)((n +- mu t)^T v- + n_rel')`` equal ``q_N +- mu q_T``:
-    ``n_rel' = n_rel +- mu (d_rel - e t^T v-) / (1 + e)``."""
+    """The n_rel of the relaxed columns ``n +- mu t`` that gives them the right ``b``.
+
+    Their ``b = (1 + e)((n +- mu t)^T v- + n_rel')`` equals ``q_N +- mu q_T`` with
+    ``n_rel' = n_rel +- mu (d_rel - e t^T v-) / (1 + e)``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem being relaxed.
+
+    Returns
+    -------
+    np.ndarray
+        n_rel' of the ``n + mu t`` columns, then of the ``n - mu t`` columns, shape (2n,).
+    """
     e = problem.restitution
     tangential = problem.T.T @ problem.v_minus
     shift = problem.mu * (problem.d_rel - e * tangential) / (1.0 + e)
@@ -351,5 +571,16 @@ def relaxed_n_rel(problem: FrictionalProblem) -> np.ndarray:
 
 
 def kind_of(problem: ImpactProblem | FrictionalProblem) -> str:
-    """``frictional`` or ``impact``: which solvers a problem is offered to (SolverSpec.kinds)."""
+    """``frictional`` or ``impact``: which solvers a problem is offered to (SolverSpec.kinds).
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    str
+        ``frictional`` for a :class:`FrictionalProblem` (reduced ones too), else ``impact``.
+    """
     return KIND if isinstance(problem, FrictionalProblem) else "impact"

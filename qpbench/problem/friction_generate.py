@@ -50,14 +50,38 @@ STEP = 0.01
 
 
 def tangent(normals: np.ndarray) -> np.ndarray:
-    """t = (-n_y, n_x) per row."""
+    """t = (-n_y, n_x) per row.
+
+    Parameters
+    ----------
+    normals : np.ndarray
+        Unit normals, shape (n, 2) (or 2n entries).
+
+    Returns
+    -------
+    np.ndarray
+        The tangents, shape (n, 2).
+    """
     normals = np.asarray(normals, dtype=float).reshape(-1, 2)
     return np.column_stack([-normals[:, 1], normals[:, 0]])
 
 
 def tangents_of(G: sp.spmatrix) -> sp.csc_matrix:
-    """T of a ball2d G (2 dofs per ball): each ball's (n_x, n_y) rows become (-n_y, n_x), with
-    the same sign pattern, so ``t = (-n_y, n_x)`` on the first body and ``-t`` on the other."""
+    """T of a ball2d G (2 dofs per ball), its normals turned into tangents.
+
+    Each ball's (n_x, n_y) rows become (-n_y, n_x), with the same sign pattern, so
+    ``t = (-n_y, n_x)`` on the first body and ``-t`` on the other.
+
+    Parameters
+    ----------
+    G : sp.spmatrix
+        Contact normals of balls, (2 balls) x n.
+
+    Returns
+    -------
+    sp.csc_matrix
+        T, of G's shape.
+    """
     balls = G.shape[0] // 2
     rotation = sp.kron(sp.identity(balls), sp.csr_matrix([[0.0, -1.0], [1.0, 0.0]]))
     return sp.csc_matrix(rotation @ G)
@@ -79,8 +103,26 @@ class Draft:
 
 def balls_draft(layout: Layout, mu: np.ndarray | float,
                 extra: list[tuple[int, int, np.ndarray]] | None = None) -> Draft:
-    """The contacts of ``layout`` (ball pairs, planes, then ``extra`` (a, b, n) with b = -1
-    for a static body) that approach or rest (``G^T v- <= 0``), with tangents."""
+    """The contacts of ``layout`` that approach or rest (``G^T v- <= 0``), with tangents.
+
+    The contacts are the ball pairs, the planes, then ``extra`` (a, b, n) with b = -1 for a
+    static body.
+
+    Parameters
+    ----------
+    layout : Layout
+        The balls and planes.
+    mu : np.ndarray or float
+        Friction coefficients, one for all contacts or one per contact before the
+        approaching ones are kept.
+    extra : list of (int, int, np.ndarray) or None, optional
+        Contacts added after the ball pairs and planes; None (the default) for none.
+
+    Returns
+    -------
+    Draft
+        G, T, M^-1, v-, mu and the layout's restitution of the kept contacts.
+    """
     body_a, body_b, normals = [np.zeros(0, int)], [np.zeros(0, int)], [np.zeros((0, 2))]
     pairs = ball_pairs(layout)
     if len(pairs):
@@ -116,6 +158,23 @@ def _resting(balls: int) -> np.ndarray:
 
 
 def incline(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """Balls resting on a plane tilted at theta, each with its own mu (module docstring).
+
+    Parameters
+    ----------
+    size : int
+        The number of balls.
+    rng : np.random.Generator
+        The draws of theta and the margins of mu.
+    seed : int
+        The problem's seed: 0 gives theta 0.3 and fixed margins; it also sets which balls
+        stick.
+
+    Returns
+    -------
+    Draft
+        The problem, with ``theta``, ``friction_angles`` and ``sticks`` in its metadata.
+    """
     theta = 0.3 if seed == 0 else float(rng.uniform(0.1, 0.6))
     normal = np.array([-math.sin(theta), math.cos(theta)])
     along = np.array([math.cos(theta), math.sin(theta)])
@@ -134,6 +193,22 @@ def incline(size: int, rng: np.random.Generator, seed: int) -> Draft:
 
 
 def rough_floor(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """Rigid discs bouncing with spin on a rough floor, apart from each other (module docstring).
+
+    Parameters
+    ----------
+    size : int
+        The number of discs.
+    rng : np.random.Generator
+        The draws of radii, masses, velocities, spins, mu and e.
+    seed : int
+        Unused (the draws come from ``rng``).
+
+    Returns
+    -------
+    Draft
+        The problem (3 dofs per disc), with ``radii`` and ``sticks`` in its metadata.
+    """
     radius = rng.uniform(0.5, 1.5, size)
     mass = rng.uniform(0.5, 2.0, size)
     inertia = 0.5 * mass * radius ** 2
@@ -159,6 +234,22 @@ def rough_floor(size: int, rng: np.random.Generator, seed: int) -> Draft:
 
 
 def pyramid(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """A triangle of touching unit balls on a rough floor, resting (module docstring).
+
+    Parameters
+    ----------
+    size : int
+        The number of rows.
+    rng : np.random.Generator
+        The draws of the sideways kick and mu.
+    seed : int
+        The problem's seed: 0 gives no kick and mu 0.5.
+
+    Returns
+    -------
+    Draft
+        The problem.
+    """
     centres = [(2.0 * i + row, 1.0 + row * np.sqrt(3.0))
                for row in range(size) for i in range(size - row)]
     positions = np.array(centres, dtype=float)
@@ -173,6 +264,22 @@ def pyramid(size: int, rng: np.random.Generator, seed: int) -> Draft:
 
 
 def wedge(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """Balls dropped with e > 0 into a V steeper than the friction angle (module docstring).
+
+    Parameters
+    ----------
+    size : int
+        The number of balls, each in its own V.
+    rng : np.random.Generator
+        The draws of mu, face angles, e and velocities.
+    seed : int
+        The problem's seed: 0 gives the canonical case (mu 0.8, e 0.5, straight down).
+
+    Returns
+    -------
+    Draft
+        The problem, with ``face_angles`` and ``friction_angles`` in its metadata.
+    """
     positions = np.column_stack([10.0 * np.arange(size), np.zeros(size)])
     mu = 0.8 if seed == 0 else rng.uniform(0.5, 1.0, size)
     mu = np.broadcast_to(mu, (size,))
@@ -195,6 +302,22 @@ def wedge(size: int, rng: np.random.Generator, seed: int) -> Draft:
 
 
 def friction_mass_ratio(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """A row of touching balls on a rough floor with masses log-uniform over 1e-3 .. 1e3.
+
+    Parameters
+    ----------
+    size : int
+        The number of balls.
+    rng : np.random.Generator
+        The draws of velocities, masses and mu.
+    seed : int
+        Unused (the draws come from ``rng``).
+
+    Returns
+    -------
+    Draft
+        The problem.
+    """
     positions = np.column_stack([2.0 * np.arange(size), np.ones(size)])
     velocities = np.column_stack([rng.uniform(-1.0, 1.0, size), -rng.uniform(0.5, 1.0, size)])
     masses = libm(lambda exponent: 10.0 ** exponent, rng.uniform(-3.0, 3.0, size))
@@ -204,6 +327,22 @@ def friction_mass_ratio(size: int, rng: np.random.Generator, seed: int) -> Draft
 
 
 def rough_box(size: int, rng: np.random.Generator, seed: int) -> Draft:
+    """The frictionless ``box`` family's dense box, with tangents, e = 0.
+
+    Parameters
+    ----------
+    size : int
+        The number of balls.
+    rng : np.random.Generator
+        The draws of mu, one per contact in [0.1, 0.6].
+    seed : int
+        The seed of the ``box`` problem.
+
+    Returns
+    -------
+    Draft
+        The problem.
+    """
     box = generate_frictionless("box", size=size, seed=seed, restitution=0.0)[0]
     mu = rng.uniform(0.1, 0.6, box.n_contacts)
     return Draft(box.G, tangents_of(box.G), box.m_inv, box.v_minus, mu, 0.0)
@@ -226,7 +365,32 @@ def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1
              restitution: float | None = None, mu: float | None = None
              ) -> list[FrictionalProblem]:
     """``count`` problems of the frictional ``family``; problem i uses seed ``seed + i``.
-    ``restitution`` and ``mu`` replace the family's own values on every contact."""
+
+    ``restitution`` and ``mu`` replace the family's own values on every contact.
+
+    Parameters
+    ----------
+    family : str
+        One of :data:`FRICTION_FAMILIES`.
+    size : int or None, optional
+        The family's size; None (the default) for its default size.
+    seed : int, optional
+        The first problem's seed; 0 by default.
+    count : int, optional
+        The number of problems; 1 by default.
+    restitution, mu : float or None, optional
+        Values for every contact; None (the default) keeps the family's own.
+
+    Returns
+    -------
+    list of FrictionalProblem
+        The problems, named ``FAMILY-SIZE-sSEED``.
+
+    Raises
+    ------
+    QpbenchError
+        When the family is unknown or the size below 1.
+    """
     builder, size = family_entry(FRICTION_FAMILIES, family, size, "frictional family")
     problems = []
     for index in range(count):

@@ -27,9 +27,23 @@ from qpbench.problem.metrics import TINY
 
 def project_on_cone(normal: np.ndarray, tangential: np.ndarray, mu: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """P_K(x) per contact, K = {|x_T| <= mu x_N}:
+    """P_K(x) per contact, K = {|x_T| <= mu x_N}.
+
     x inside K; 0 where ``mu |x_T| <= -x_N`` (in the polar cone); otherwise the projection on
-    the nearer edge, ``(x_N + mu |x_T|) / (1 + mu^2) * (1, mu sign x_T)``."""
+    the nearer edge, ``(x_N + mu |x_T|) / (1 + mu^2) * (1, mu sign x_T)``.
+
+    Parameters
+    ----------
+    normal, tangential : np.ndarray
+        x_N and x_T, shape (n,) each.
+    mu : np.ndarray
+        Friction coefficients, shape (n,).
+
+    Returns
+    -------
+    projected_normal, projected_tangential : np.ndarray
+        The normal and tangential parts of P_K(x), shape (n,) each.
+    """
     magnitude = np.abs(tangential)
     inside = magnitude <= mu * normal
     polar = mu * magnitude <= -normal
@@ -42,7 +56,27 @@ def project_on_cone(normal: np.ndarray, tangential: np.ndarray, mu: np.ndarray
 
 def natural_map(problem: FrictionalProblem, impulses: np.ndarray, model: str = "coulomb"
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """(F_N, F_T) of the scaled natural map (module docstring) for ``model``."""
+    """(F_N, F_T) of the scaled natural map (module docstring) for ``model``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+    model : str, optional
+        ``coulomb`` (the default, De Saxce's u^) or ``ccp`` (u^ = u).
+
+    Returns
+    -------
+    F_N, F_T : np.ndarray
+        The normal and tangential parts of F, shape (n,) each.
+
+    Raises
+    ------
+    ValueError
+        When ``model`` is not one of :data:`MODELS`.
+    """
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r} (known: {', '.join(MODELS)})")
     normal, tangential = problem.split(impulses)
@@ -56,7 +90,22 @@ def natural_map(problem: FrictionalProblem, impulses: np.ndarray, model: str = "
 
 
 def residual(problem: FrictionalProblem, impulses: np.ndarray, model: str = "coulomb") -> float:
-    """||F||_inf / scale for ``model`` (module docstring)."""
+    """||F||_inf / scale for ``model`` (module docstring).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+    model : str, optional
+        ``coulomb`` (the default) or ``ccp``.
+
+    Returns
+    -------
+    float
+        The scaled residual; 0 for a problem without contacts.
+    """
     if problem.n_contacts == 0:
         return 0.0
     F_normal, F_tangential = natural_map(problem, impulses, model)
@@ -65,7 +114,21 @@ def residual(problem: FrictionalProblem, impulses: np.ndarray, model: str = "cou
 
 
 def infeasibility(problem: FrictionalProblem, impulses: np.ndarray) -> float:
-    """max(0, -min(d l_N), max(d (|l_T| - mu l_N)), -min(u_N)) / scale."""
+    """max(0, -min(d l_N), max(d (|l_T| - mu l_N)), -min(u_N)) / scale.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+
+    Returns
+    -------
+    float
+        The scaled violation of l_N >= 0, the friction cone and u_N >= 0; 0 for a problem
+        without contacts.
+    """
     if problem.n_contacts == 0:
         return 0.0
     normal, tangential = problem.split(impulses)
@@ -78,8 +141,23 @@ def infeasibility(problem: FrictionalProblem, impulses: np.ndarray) -> float:
 
 
 def complementarity(problem: FrictionalProblem, impulses: np.ndarray) -> float:
-    """|d r^T u^| / scale^2 with the De Saxce u^: the normal complementarity plus the
-    dissipation gap ``mu l_N |u_T| + l_T u_T`` (zero when sliding opposes the slip)."""
+    """|d r^T u^| / scale^2 with the De Saxce u^.
+
+    That is the normal complementarity plus the dissipation gap ``mu l_N |u_T| + l_T u_T``
+    (zero when sliding opposes the slip).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+
+    Returns
+    -------
+    float
+        The scaled complementarity gap.
+    """
     normal, tangential = problem.split(impulses)
     u_normal, u_tangential = problem.split(problem.u(impulses))
     d = problem.diag_N
@@ -89,15 +167,45 @@ def complementarity(problem: FrictionalProblem, impulses: np.ndarray) -> float:
 
 
 def v_error(problem: FrictionalProblem, impulses: np.ndarray, v_plus_ref: np.ndarray) -> float:
-    """||v+(r) - v+_ref||_M / ||v-||_M."""
+    """||v+(r) - v+_ref||_M / ||v-||_M.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+    v_plus_ref : np.ndarray
+        The reference post-impact velocity, shape (d,).
+
+    Returns
+    -------
+    float
+        The relative error of v+ in the mass norm (||v-||_M replaced by tiny when zero).
+    """
     difference = problem.m_norm(problem.v_plus(impulses) - v_plus_ref)
     return difference / max(problem.m_norm(problem.v_minus), TINY)
 
 
 def energy_gain(problem: FrictionalProblem, impulses: np.ndarray) -> float:
-    """(KE+ - KE-) / KE-, signed. With mu > 0 and e > 0 Newton's law may add energy when slip
-    reverses, so it is a diagnostic there, not a verdict. NaN for a problem without degrees
-    of freedom (a reduced one: W, q, mu only), whose energy is not known."""
+    """(KE+ - KE-) / KE-, signed.
+
+    With mu > 0 and e > 0 Newton's law may add energy when slip reverses, so it is a
+    diagnostic there, not a verdict. NaN for a problem without degrees of freedom (a reduced
+    one: W, q, mu only), whose energy is not known.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+
+    Returns
+    -------
+    float
+        The relative change of kinetic energy, or NaN.
+    """
     if problem.v_minus.size == 0:
         return math.nan
     before = problem.kinetic_energy(problem.v_minus)
@@ -106,18 +214,53 @@ def energy_gain(problem: FrictionalProblem, impulses: np.ndarray) -> float:
 
 
 def is_finite(impulses: np.ndarray | None, problem: FrictionalProblem) -> bool:
-    """r exists, has 2n entries and all are finite."""
+    """r exists, has 2n entries and all are finite.
+
+    Parameters
+    ----------
+    impulses : np.ndarray or None
+        The answer r; None when the solver gave none.
+    problem : FrictionalProblem
+        The problem it answers.
+
+    Returns
+    -------
+    bool
+        Whether r has shape (2n,) and only finite entries.
+    """
     return (impulses is not None and np.shape(impulses) == (2 * problem.n_contacts,)
             and bool(np.all(np.isfinite(impulses))))
 
 
 def evaluate(problem: FrictionalProblem, impulses: np.ndarray | None, accuracy: float,
              model: str = "coulomb") -> dict[str, Any]:
-    """Every metric of an answer and qpbench's verdict: finite r and the residual of ``model``
-    (the one the formulation solves) <= accuracy. ``coulomb_residual`` is always the exact
-    law's; for a ``ccp`` answer it is the model error, never the verdict. ``v_error`` only
-    where the reference is verified and unique. A problem with no solution is marked
-    (``solvable`` False) and no answer to it counts as a success or a failure."""
+    """Every metric of an answer and qpbench's verdict.
+
+    The verdict is finite r and the residual of ``model`` (the one the formulation solves)
+    <= accuracy. ``coulomb_residual`` is always the exact law's; for a ``ccp`` answer it is
+    the model error, never the verdict. ``v_error`` only where the reference is verified and
+    unique. A problem with no solution is marked (``solvable`` False) and no answer to it
+    counts as a success or a failure.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray or None
+        The answer r; None (or a wrong shape or non-finite entries) is a failure with NaN
+        metrics.
+    accuracy : float
+        The largest residual that counts as a success.
+    model : str, optional
+        The law the formulation solves: ``coulomb`` (the default) or ``ccp``.
+
+    Returns
+    -------
+    dict of str to Any
+        ``success``, ``residual``, ``coulomb_residual``, ``model_error``, ``v_error``,
+        ``energy_gain``, ``complementarity``, ``infeasibility``, ``energy_identity_gap``
+        (NaN), ``model``, ``solvable`` and ``mu_max``.
+    """
     nan = math.nan
     reference = problem.reference
     solvable = reference is None or reference.solvable
@@ -148,9 +291,24 @@ def evaluate(problem: FrictionalProblem, impulses: np.ndarray | None, accuracy: 
 
 
 def fclib_merit(problem: FrictionalProblem, impulses: np.ndarray) -> float:
-    """FCLIB's MERIT_1 for 2D: ``||F||_2 / (1 + ||q||_2)`` with the unscaled natural map
-    ``F_k = r_k - P_K(r_k - u^_k)`` (De Saxce's ``u^``, no ``d_k`` weights), over all contacts.
-    (FCLIB's own 3D code divides by ``1 + sqrt(||q||_2)``; this is the documented form.)"""
+    """FCLIB's MERIT_1 for 2D: ``||F||_2 / (1 + ||q||_2)``.
+
+    F is the unscaled natural map ``F_k = r_k - P_K(r_k - u^_k)`` (De Saxce's ``u^``, no
+    ``d_k`` weights), over all contacts. (FCLIB's own 3D code divides by
+    ``1 + sqrt(||q||_2)``; this is the documented form.)
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+
+    Returns
+    -------
+    float
+        The merit.
+    """
     normal, tangential = problem.split(impulses)
     u_normal, u_tangential = problem.split(problem.u(impulses))
     u_normal = u_normal + problem.mu * np.abs(u_tangential)

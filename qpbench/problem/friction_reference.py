@@ -17,11 +17,11 @@ problem by :func:`qpbench.problem.friction_metrics.residual`:
   complete up to the tolerances. ``unique`` is True when all solutions share one v+
   (M-norm, relative 1e-9); it is None where v+ could vary inside a singular pattern.
 * ``lemke``: a dense Lemke method with lexicographic degeneracy resolution
-  (:func:`lemke`, written here so that the reference does not depend on the solvers under
-  test) on the Stewart-Trinkle LCP of :meth:`FrictionalProblem.stewart_trinkle`. It is the
-  method for n > ENUMERATION_LIMIT (``unique`` None: nothing proves uniqueness there) and a
-  cross-check of the enumeration below it: a Lemke solution that the enumeration did not
-  list makes ``unique`` None.
+  (:func:`~qpbench.problem.lexicographic_lemke.lemke`, qpbench's own, so that the reference
+  does not depend on the solvers under test) on the Stewart-Trinkle LCP of
+  :meth:`FrictionalProblem.stewart_trinkle`. It is the method for n > ENUMERATION_LIMIT
+  (``unique`` None: nothing proves uniqueness there) and a cross-check of the enumeration
+  below it: a Lemke solution that the enumeration did not list makes ``unique`` None.
 * ``ccp_certificate``: the LP ``min q^T d`` over ``d in K_mu`` (``|d_T| <= mu d_N``),
   ``H d = 0`` (equivalently ``W d = 0``), ``0 <= d_N <= 1``. A negative optimum proves that
   Anitescu's relaxation has no solution (its QP is unbounded below: at a solution
@@ -49,6 +49,7 @@ import scipy.sparse as sp
 
 from qpbench.problem import friction_metrics as fm
 from qpbench.problem.friction import REFERENCE_RESIDUAL, FrictionalProblem, FrictionalReference
+from qpbench.problem.lexicographic_lemke import lemke
 from qpbench.problem.metrics import TINY
 
 ENUMERATION_LIMIT = 8
@@ -83,7 +84,18 @@ class Scaled:
 
 
 def scaled(problem: FrictionalProblem) -> Scaled:
-    """The scaled local problem of ``problem``."""
+    """The scaled local problem of ``problem``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem (W is made dense).
+
+    Returns
+    -------
+    Scaled
+        ``W~ = S W S`` (symmetrized), ``q~ = S q``, mu, s, diag(W~_NN) and the scale.
+    """
     d = problem.diag_N
     root = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 1.0)
     s = np.concatenate([root, root])
@@ -95,8 +107,20 @@ def scaled(problem: FrictionalProblem) -> Scaled:
 
 
 def scaled_residual(problem: Scaled, impulses: np.ndarray) -> np.ndarray:
-    """The Coulomb natural map of the scaled problem, ``max |F| / scale``, for one r~ or a
-    stack of them (rows)."""
+    """The Coulomb natural map of the scaled problem, ``max |F| / scale``, per r~.
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+    impulses : np.ndarray
+        One r~ (2n,) or a stack of them (rows).
+
+    Returns
+    -------
+    np.ndarray
+        The residual of each r~, shape (rows,).
+    """
     n = problem.n
     R = np.atleast_2d(impulses)
     U = R @ problem.W + problem.q
@@ -113,9 +137,23 @@ def scaled_residual(problem: Scaled, impulses: np.ndarray) -> np.ndarray:
 
 # --- the pattern systems ----------------------------------------------------------------
 def pattern_systems(problem: Scaled, patterns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(A, c) of each pattern (rows of ``patterns``, one state per contact), row-normalised:
-    row k is ``l_N = 0`` (separate) or ``u_N = 0``; row n + k is ``l_T = 0`` (separate),
-    ``u_T = 0`` (stick) or ``l_T +- mu l_N = 0`` (slide+-)."""
+    """(A, c) of each pattern (rows of ``patterns``, one state per contact), row-normalised.
+
+    Row k is ``l_N = 0`` (separate) or ``u_N = 0``; row n + k is ``l_T = 0`` (separate),
+    ``u_T = 0`` (stick) or ``l_T +- mu l_N = 0`` (slide+-).
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+    patterns : np.ndarray
+        States, shape (count, n) or (n,).
+
+    Returns
+    -------
+    A, c : np.ndarray
+        The systems ``A r~ = c``, shapes (count, 2n, 2n) and (count, 2n).
+    """
     n = problem.n
     patterns = np.atleast_2d(patterns)
     identity = np.eye(2 * n)
@@ -136,9 +174,23 @@ def pattern_systems(problem: Scaled, patterns: np.ndarray) -> tuple[np.ndarray, 
 
 def pattern_inequalities(problem: Scaled, pattern: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """(B, h) with ``B r + h >= 0`` the inequalities of the states of ``pattern``:
-    separate ``u_N >= 0``; stick ``mu l_N -+ l_T >= 0``, ``l_N >= 0``; slide+ ``l_N >= 0``,
-    ``u_T >= 0``; slide- ``l_N >= 0``, ``-u_T >= 0``."""
+    """(B, h) with ``B r + h >= 0`` the inequalities of the states of ``pattern``.
+
+    Separate ``u_N >= 0``; stick ``mu l_N -+ l_T >= 0``, ``l_N >= 0``; slide+ ``l_N >= 0``,
+    ``u_T >= 0``; slide- ``l_N >= 0``, ``-u_T >= 0``.
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+    pattern : np.ndarray
+        One state per contact, shape (n,).
+
+    Returns
+    -------
+    B, h : np.ndarray
+        One row of B and one entry of h per inequality.
+    """
     n = problem.n
     W, q, mu = problem.W, problem.q, problem.mu
     identity = np.eye(2 * n)
@@ -258,8 +310,25 @@ def _velocity_varies(problem: Scaled, velocity_map: np.ndarray, pattern: np.ndar
 
 
 def classify(problem: Scaled, impulses: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """The state of each contact read off r~: separate where l_N is (relatively) zero, slide
-    where |l_T| reaches mu l_N (sign: slide+ when l_T < 0), stick otherwise."""
+    """The state of each contact read off r~.
+
+    Separate where l_N is (relatively) zero, slide where |l_T| reaches mu l_N (sign: slide+
+    when l_T < 0), stick otherwise.
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+    impulses : np.ndarray
+        r~, shape (2n,).
+    tol : float, optional
+        The tolerance, relative to max |r~|.
+
+    Returns
+    -------
+    np.ndarray
+        The state of each contact, shape (n,).
+    """
     n = problem.n
     normal, tangential = impulses[:n], impulses[n:]
     size = max(float(np.max(np.abs(impulses), initial=0.0)), TINY)
@@ -272,9 +341,25 @@ def classify(problem: Scaled, impulses: np.ndarray, tol: float = 1e-9) -> np.nda
 
 
 def polish(problem: Scaled, impulses: np.ndarray, rounds: int = 3) -> np.ndarray:
-    """Newton steps on the linear system of the contact states read off r~ (plus, as extra
-    rows, the inequalities that are tight): each step is the minimum-norm correction, so a
-    point of a singular pattern stays where it is; the best iterate is kept."""
+    """Newton steps on the linear system of the contact states read off r~.
+
+    The tight inequalities are extra rows; each step is the minimum-norm correction, so a point
+    of a singular pattern stays where it is; the best iterate is kept.
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+    impulses : np.ndarray
+        The starting r~, shape (2n,).
+    rounds : int, optional
+        The most steps.
+
+    Returns
+    -------
+    np.ndarray
+        The r~ of smallest scaled residual.
+    """
     best, best_value = impulses, float(scaled_residual(problem, impulses)[0])
     current = impulses
     for _ in range(rounds):
@@ -311,13 +396,25 @@ def _all_patterns(n: int) -> np.ndarray:
 
 
 def enumerate_solutions(problem: FrictionalProblem) -> Enumeration:
-    """Every solution of the law reachable by the patterns of contact states (module
-    docstring); exhaustive, so only for n <= ENUMERATION_LIMIT.
+    """Every solution of the law reachable by the patterns of contact states (module docstring).
+
+    Exhaustive, so only for n <= ENUMERATION_LIMIT (ValueError above it).
 
     Regular patterns are solved in batches. A singular, consistent pattern whose
     minimum-norm point fails the inequalities is decided by an LP, except where v+ is the
     same at every point of its affine set (its null space leaves ``H r`` alone) and equals
-    the v+ of a solution already found: it cannot add a distinct v+, so it is skipped."""
+    the v+ of a solution already found: it cannot add a distinct v+, so it is skipped.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    Enumeration
+        The solutions, their patterns, whether v+ may vary and the LPs solved.
+    """
     n = problem.n_contacts
     if n > ENUMERATION_LIMIT:
         raise ValueError(f"{problem.name}: enumeration is for n <= {ENUMERATION_LIMIT}, "
@@ -456,7 +553,20 @@ def _accepted(problem: FrictionalProblem, local: Scaled,
 
 def distinct_velocities(problem: FrictionalProblem, solutions: list[np.ndarray]
                         ) -> list[np.ndarray]:
-    """One representative r per distinct v+ (M-norm, relative SAME_VELOCITY)."""
+    """One representative r per distinct v+ (M-norm, relative SAME_VELOCITY).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    solutions : list of np.ndarray
+        Impulses r, shape (2n,) each.
+
+    Returns
+    -------
+    list of np.ndarray
+        The first r of each distinct v+.
+    """
     representatives: list[np.ndarray] = []
     velocities: list[np.ndarray] = []
     for impulses in solutions:
@@ -468,82 +578,38 @@ def distinct_velocities(problem: FrictionalProblem, solutions: list[np.ndarray]
 
 
 def same_velocity(problem: FrictionalProblem, v_a: np.ndarray, v_b: np.ndarray) -> bool:
-    """||v_a - v_b||_M <= SAME_VELOCITY * max(||v-||_M, ||v_a||_M, ||v_b||_M, tiny)."""
+    """||v_a - v_b||_M <= SAME_VELOCITY * max(||v-||_M, ||v_a||_M, ||v_b||_M, tiny).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem, whose masses give the norm.
+    v_a, v_b : np.ndarray
+        Velocities, shape (d,) each.
+
+    Returns
+    -------
+    bool
+        Whether they are the same v+.
+    """
     unit = max(problem.m_norm(problem.v_minus), problem.m_norm(v_a), problem.m_norm(v_b), TINY)
     return problem.m_norm(v_a - v_b) <= SAME_VELOCITY * unit
 
 
 # --- Lemke ------------------------------------------------------------------------------------
-def lemke(A: np.ndarray, c: np.ndarray, covering: np.ndarray | None = None,
-          max_pivots: int | None = None, pivot_tol: float = 1e-11) -> np.ndarray | None:
-    """z with ``z >= 0``, ``w = A z + c >= 0``, ``z^T w = 0`` by Lemke's method (C. E. Lemke,
-    Management Science 11(7), 1965) with the lexicographic ratio test (Cottle, Pang and
-    Stone, *The Linear Complementarity Problem*, 1992, section 4.4); None when it ends on a
-    secondary ray or runs out of pivots. Dense tableau of ``w - A z - covering z0 = c``."""
-    size = c.shape[0]
-    if size == 0 or np.all(c >= 0):
-        return np.zeros(size)
-    covering = np.ones(size) if covering is None else np.asarray(covering, dtype=float)
-    max_pivots = 50 * size + 100 if max_pivots is None else max_pivots
-    # columns: w (0..size-1), z (size..2 size-1), z0 (2 size)
-    tableau = np.hstack([np.eye(size), -np.asarray(A, dtype=float), -covering[:, None]])
-    rhs = np.asarray(c, dtype=float).copy()
-    basis = np.arange(size)
-    artificial = 2 * size
-    # z0 enters at the level that makes every w >= 0: the row of min c_i / covering_i leaves
-    ratios = rhs / covering
-    low = float(ratios.min())
-    row = _lexicographic_min(np.flatnonzero(ratios <= low + 1e-12 * abs(low)), tableau,
-                             covering, size)
-    entering = artificial
-    for _ in range(max_pivots):
-        leaving = int(basis[row])
-        _pivot(tableau, rhs, row, entering)
-        basis[row] = entering
-        if leaving == artificial:
-            z = np.zeros(size)
-            for i, variable in enumerate(basis):
-                if size <= variable < artificial:
-                    z[variable - size] = max(rhs[i], 0.0)
-            return z
-        entering = leaving + size if leaving < size else leaving - size
-        column = tableau[:, entering]
-        rows = np.flatnonzero(column > pivot_tol * max(1.0, float(np.max(np.abs(column)))))
-        if rows.size == 0:
-            return None  # secondary ray
-        ratios = rhs[rows] / column[rows]
-        low = float(ratios.min())
-        tied = rows[ratios <= low + 1e-12 * max(1.0, abs(low))]
-        row = _lexicographic_min(tied, tableau, column, size)
-    return None
-
-
-def _lexicographic_min(tied: np.ndarray, tableau: np.ndarray, column: np.ndarray,
-                       size: int) -> int:
-    """Among rows with the same ratio, the one whose row of B^-1 (the tableau's w columns)
-    divided by its pivot entry is lexicographically smallest."""
-    for j in range(size):
-        if tied.size == 1:
-            break
-        part = tableau[tied, j] / column[tied]
-        low = float(part.min())
-        tied = tied[part <= low + 1e-12 * max(1.0, abs(low))]
-    return int(tied[0])
-
-
-def _pivot(tableau: np.ndarray, rhs: np.ndarray, row: int, column: int) -> None:
-    pivot = tableau[row, column]
-    tableau[row] /= pivot
-    rhs[row] /= pivot
-    factor = tableau[:, column].copy()
-    factor[row] = 0.0
-    tableau -= np.outer(factor, tableau[row])
-    rhs -= factor * rhs[row]
-
-
 def stewart_trinkle_scaled(problem: Scaled) -> tuple[np.ndarray, np.ndarray]:
-    """The Stewart-Trinkle LCP (as :meth:`FrictionalProblem.stewart_trinkle`) of the scaled
-    problem."""
+    """The Stewart-Trinkle LCP (as :meth:`FrictionalProblem.stewart_trinkle`) of ``problem``.
+
+    Parameters
+    ----------
+    problem : Scaled
+        The scaled problem.
+
+    Returns
+    -------
+    A, c : np.ndarray
+        The LCP's dense matrix (4n x 4n) and vector (4n,).
+    """
     n = problem.n
     W = problem.W
     NN, NT, TN, TT = W[:n, :n], W[:n, n:], W[n:, :n], W[n:, n:]
@@ -555,8 +621,23 @@ def stewart_trinkle_scaled(problem: Scaled) -> tuple[np.ndarray, np.ndarray]:
 
 
 def lemke_solution(problem: FrictionalProblem, attempts: int = 3) -> np.ndarray | None:
-    """r from Lemke on the scaled Stewart-Trinkle LCP, polished; tries the covering vector 1
-    and then seeded random positive ones; None when no attempt reaches 1e-12."""
+    """r from Lemke on the scaled Stewart-Trinkle LCP, polished.
+
+    Tries the covering vector 1 and then seeded random positive ones; None when no attempt
+    reaches 1e-12.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+    attempts : int, optional
+        The most covering vectors tried.
+
+    Returns
+    -------
+    np.ndarray or None
+        r, shape (2n,), or None.
+    """
     n = problem.n_contacts
     local = scaled(problem)
     A, c = stewart_trinkle_scaled(local)
@@ -579,9 +660,21 @@ def lemke_solution(problem: FrictionalProblem, attempts: int = 3) -> np.ndarray 
 
 # --- the existence certificate -----------------------------------------------------------------
 def ccp_certificate(problem: FrictionalProblem) -> tuple[float, np.ndarray | None]:
-    """(min q^T d / scale, d) over ``d in K_mu``, ``H d = 0``, ``0 <= d_N <= 1`` (the LP of
-    the module docstring, on the scaled problem; d returned in original units). A negative
-    value below -1e-9 is a certificate that the relaxed problem is unbounded."""
+    """(min q^T d / scale, d) over ``d in K_mu``, ``H d = 0``, ``0 <= d_N <= 1``.
+
+    The LP of the module docstring, on the scaled problem; d returned in original units. A
+    negative value below -1e-9 is a certificate that the relaxed problem is unbounded.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    tuple of (float, np.ndarray or None)
+        The optimum and d; (0.0, None) without contacts or when the LP fails.
+    """
     n = problem.n_contacts
     if n == 0:
         return 0.0, None
@@ -609,8 +702,21 @@ def ccp_certificate(problem: FrictionalProblem) -> tuple[float, np.ndarray | Non
 
 # --- the reference ---------------------------------------------------------------------------
 def components(problem: FrictionalProblem) -> list[np.ndarray]:
-    """Groups of contacts that W couples (|W_ij| above 1e-14 sqrt(W_ii W_jj) between any of
-    their normal or tangential entries): independent local problems, each solved alone."""
+    """Groups of contacts that W couples: independent local problems, each solved alone.
+
+    Coupled: |W_ij| above 1e-14 sqrt(W_ii W_jj) between any of their normal or tangential
+    entries.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    list of np.ndarray
+        The contact indices of each group.
+    """
     n = problem.n_contacts
     W = sp.coo_matrix(problem.W)
     diagonal = np.abs(problem.W.diagonal())
@@ -622,7 +728,20 @@ def components(problem: FrictionalProblem) -> list[np.ndarray]:
 
 
 def subproblem(problem: FrictionalProblem, contacts: np.ndarray) -> FrictionalProblem:
-    """The contacts ``contacts`` of ``problem`` alone (same bodies, v- and masses)."""
+    """The contacts ``contacts`` of ``problem`` alone (same bodies, v- and masses).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The whole problem.
+    contacts : np.ndarray
+        Indices of the contacts to keep, not empty.
+
+    Returns
+    -------
+    FrictionalProblem
+        The subproblem, named ``NAME[FIRST..]``.
+    """
     normal = problem.normal
     return FrictionalProblem.build(
         f"{problem.name}[{contacts[0]}..]", normal.G[:, contacts], problem.T[:, contacts],
@@ -658,10 +777,22 @@ def _solve_part(part: FrictionalProblem) -> _Part:
 
 
 def compute_reference(problem: FrictionalProblem) -> FrictionalReference:
-    """The reference of ``problem`` (module docstring), one component of coupled contacts at a
-    time; also fills ``problem.metadata`` with ``reference_solutions`` (the number of distinct
-    v+ where the enumeration was complete, else None), ``ccp_certificate`` (the LP's value),
-    ``ccp_unbounded`` and, where nothing was found, ``reference_no_solution_proven``."""
+    """The reference of ``problem`` (module docstring), one component of coupled contacts at a time.
+
+    It also fills ``problem.metadata`` with ``reference_solutions`` (the number of distinct v+
+    where the enumeration was complete, else None), ``ccp_certificate`` (the LP's value),
+    ``ccp_unbounded`` and, where nothing was found, ``reference_no_solution_proven``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    FrictionalReference
+        The solution found, or zero impulses marked unsolved.
+    """
     n = problem.n_contacts
     metadata = problem.metadata
     if n == 0:
@@ -707,7 +838,18 @@ def compute_reference(problem: FrictionalProblem) -> FrictionalReference:
 
 
 def attach_reference(problem: FrictionalProblem) -> FrictionalProblem:
-    """Sets ``problem.reference`` and records ``reference_verified`` in its metadata."""
+    """Sets ``problem.reference`` and records ``reference_verified`` in its metadata.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The problem; ``reference_unique`` and ``reference_solvable`` are recorded too.
+
+    Returns
+    -------
+    FrictionalProblem
+        ``problem``.
+    """
     problem.reference = compute_reference(problem)
     problem.metadata["reference_verified"] = problem.reference.verified
     problem.metadata["reference_unique"] = problem.reference.unique
@@ -716,7 +858,18 @@ def attach_reference(problem: FrictionalProblem) -> FrictionalProblem:
 
 
 def describe(reference: FrictionalReference) -> str:
-    """Why a reference is not verified, in a few words ('' when it is)."""
+    """Why a reference is not verified, in a few words ('' when it is).
+
+    Parameters
+    ----------
+    reference : FrictionalReference
+        The reference.
+
+    Returns
+    -------
+    str
+        The reason, or ''.
+    """
     if reference.verified:
         return ""
     if not reference.solvable:

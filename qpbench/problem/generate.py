@@ -40,7 +40,18 @@ class Layout:
 
 
 def ball_pairs(layout: Layout) -> np.ndarray:
-    """Pairs (a, b), a < b, with |x_a - x_b| <= r_a + r_b + touch_tolerance."""
+    """Pairs (a, b), a < b, with |x_a - x_b| <= r_a + r_b + touch_tolerance.
+
+    Parameters
+    ----------
+    layout : Layout
+        The balls.
+
+    Returns
+    -------
+    np.ndarray
+        The pairs, integers of shape (pairs, 2), sorted by a then b.
+    """
     reach = 2.0 * float(np.max(layout.radii)) + layout.touch_tolerance
     pairs = cKDTree(layout.positions).query_pairs(reach, output_type="ndarray")
     if pairs.size == 0:
@@ -58,6 +69,23 @@ def assemble(name: str, family: str, layout: Layout, metadata: dict | None = Non
     """The ImpactProblem of ``layout``: G, M^-1 = diag(1/m, 1/m), v-, one restitution.
 
     ``extra_normals`` adds contacts (a, b, n): +n in a's rows and -n in b's (b = -1 for none).
+
+    Parameters
+    ----------
+    name, family : str
+        The problem's name and family.
+    layout : Layout
+        The balls and planes; with ``approaching_only`` only contacts with ``G^T v- <= 0``
+        are kept.
+    metadata : dict or None, optional
+        The problem's metadata; None (the default) for none.
+    extra_normals : list of (int, int, np.ndarray) or None, optional
+        Contacts added after the ball pairs and planes; None (the default) for none.
+
+    Returns
+    -------
+    ImpactProblem
+        The validated problem, with source ``generated``.
     """
     balls = layout.positions.shape[0]
     # contacts in column order: ball pairs, then planes, then the extra normals
@@ -92,10 +120,25 @@ def assemble(name: str, family: str, layout: Layout, metadata: dict | None = Non
 
 
 def libm(function: Callable[[float], float], values: np.ndarray | float) -> np.ndarray:
-    """``function`` (from ``math``: the C library's) of each value. NumPy's vectorised sin, cos,
-    tan, arctan and power run CPU-specific code (AVX-512 SVML where there is AVX-512) whose
-    last bits differ from the C library's, which would make a generated problem's numbers, and
-    so the committed results' fingerprints, depend on the machine."""
+    """``function`` (from ``math``: the C library's) of each value.
+
+    NumPy's vectorised sin, cos, tan, arctan and power run CPU-specific code (AVX-512 SVML
+    where there is AVX-512) whose last bits differ from the C library's, which would make a
+    generated problem's numbers, and so the committed results' fingerprints, depend on the
+    machine.
+
+    Parameters
+    ----------
+    function : callable
+        A function of one float, e.g. ``math.sin``.
+    values : np.ndarray or float
+        The arguments.
+
+    Returns
+    -------
+    np.ndarray
+        ``function`` of each value, of the shape of ``values``.
+    """
     return np.array([function(float(value)) for value in np.ravel(values)]).reshape(
         np.shape(values))
 
@@ -118,9 +161,24 @@ def _symmetric(positions: np.ndarray, rng: np.random.Generator | None) -> Layout
 
 
 def k3(size: int, rng: np.random.Generator | None) -> Layout:
-    """Three collinear overlapping unit balls at x = -1/2, 0, 1/2 (radius 1), v- = (1, 0, -1) along
-    the line; contacts (0,1), (0,2), (1,2) give Q = [[2,1,-1],[1,2,1],[-1,1,2]] and every solution
-    l = (t, 2 - t, t), 0 <= t <= 2, gives v+_x = (-1, 0, 1) for c = 1."""
+    """Three collinear overlapping unit balls at x = -1/2, 0, 1/2 (radius 1).
+
+    v- = (1, 0, -1) along the line; contacts (0,1), (0,2), (1,2) give
+    Q = [[2,1,-1],[1,2,1],[-1,1,2]] and every solution l = (t, 2 - t, t), 0 <= t <= 2, gives
+    v+_x = (-1, 0, 1) for c = 1.
+
+    Parameters
+    ----------
+    size : int
+        Unused (always three balls).
+    rng : np.random.Generator or None
+        Rotates the layout and scales the velocities when given; None for the canonical case.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     positions = np.array([[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0]])
     velocities = np.array([[1.0, 0.0], [0.0, 0.0], [-1.0, 0.0]])
     if rng is not None:
@@ -131,13 +189,40 @@ def k3(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def k4(size: int, rng: np.random.Generator | None) -> Layout:
-    """Four unit balls (radius 1) on the corners of a unit square, moving to its centre:
-    six contacts, Q of rank 5."""
+    """Four unit balls (radius 1) on the corners of a unit square, moving to its centre.
+
+    Six contacts, Q of rank 5.
+
+    Parameters
+    ----------
+    size : int
+        Unused (always four balls).
+    rng : np.random.Generator or None
+        Rotates the layout and scales each speed when given; None for the canonical case.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     return _symmetric(np.array([[-0.5, 0.5], [0.5, 0.5], [0.5, -0.5], [-0.5, -0.5]]), rng)
 
 
 def k4_middle(size: int, rng: np.random.Generator | None) -> Layout:
-    """K4 plus a fifth ball at rest in the centre: ten contacts."""
+    """K4 plus a fifth ball at rest in the centre: ten contacts.
+
+    Parameters
+    ----------
+    size : int
+        Unused (always five balls).
+    rng : np.random.Generator or None
+        As :func:`k4` takes it.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     layout = k4(size, rng)
     centre = layout.positions.mean(axis=0)
     return Layout(np.vstack([layout.positions, centre]), np.vstack([layout.velocities, [0, 0]]),
@@ -145,8 +230,22 @@ def k4_middle(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def cradle(size: int, rng: np.random.Generator | None) -> Layout:
-    """Newton's cradle: ``size`` touching balls (radius 1/2) in a row, the first moving at
-    v = (1, 0); for size 3 the LCP gives v+ = (-1/3, 2/3, 2/3) in x."""
+    """Newton's cradle: ``size`` touching balls (radius 1/2) in a row.
+
+    The first moves at v = (1, 0); for size 3 the LCP gives v+ = (-1/3, 2/3, 2/3) in x.
+
+    Parameters
+    ----------
+    size : int
+        The number of balls.
+    rng : np.random.Generator or None
+        Draws the first ball's speed in [0.5, 2] when given; None for speed 1.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     positions = np.column_stack([np.arange(size, dtype=float), np.zeros(size)])
     velocities = np.zeros((size, 2))
     velocities[0, 0] = 1.0
@@ -156,8 +255,23 @@ def cradle(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def grid(size: int, rng: np.random.Generator | None) -> Layout:
-    """``size`` x ``size`` balls of radius 1 at spacing 1, perturbed by up to 0.01, velocities
-    uniform in [-1, 1]^2: the overlapping grids on which policy iteration was found to fail."""
+    """``size`` x ``size`` balls of radius 1 at spacing 1, perturbed, with random velocities.
+
+    The positions are perturbed by up to 0.01 and the velocities uniform in [-1, 1]^2: the
+    overlapping grids on which policy iteration was found to fail.
+
+    Parameters
+    ----------
+    size : int
+        Balls per side.
+    rng : np.random.Generator or None
+        The draws; None for seed 0.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     rng = rng or np.random.default_rng(0)
     ii, jj = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
     positions = np.column_stack([ii.ravel(), jj.ravel()]).astype(float)
@@ -167,8 +281,23 @@ def grid(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def box(size: int, rng: np.random.Generator | None) -> Layout:
-    """``size`` balls (radius 1/2) densely packed in a square box with four walls: a jittered
-    square lattice at spacing 0.98 (so neighbours overlap slightly), random velocities."""
+    """``size`` balls (radius 1/2) densely packed in a square box with four walls.
+
+    A jittered square lattice at spacing 0.98 (so neighbours overlap slightly), random
+    velocities.
+
+    Parameters
+    ----------
+    size : int
+        The number of balls.
+    rng : np.random.Generator or None
+        The draws; None for seed 0.
+
+    Returns
+    -------
+    Layout
+        The balls and the four walls.
+    """
     rng = rng or np.random.default_rng(0)
     side = int(np.ceil(np.sqrt(size)))
     spacing = 0.98
@@ -184,7 +313,20 @@ def box(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def mass_ratio(size: int, rng: np.random.Generator | None) -> Layout:
-    """A perturbed grid whose masses are log-uniform over 1e-6 .. 1e6."""
+    """A perturbed grid whose masses are log-uniform over 1e-6 .. 1e6.
+
+    Parameters
+    ----------
+    size : int
+        Balls per side.
+    rng : np.random.Generator or None
+        The draws; None for seed 0.
+
+    Returns
+    -------
+    Layout
+        The balls.
+    """
     rng = rng or np.random.default_rng(0)
     layout = grid(size, rng)
     layout.masses = libm(lambda exponent: 10.0 ** exponent,
@@ -193,8 +335,24 @@ def mass_ratio(size: int, rng: np.random.Generator | None) -> Layout:
 
 
 def near_duplicate(size: int, rng: np.random.Generator | None) -> tuple[Layout, list]:
-    """A perturbed grid where every ball-ball contact appears twice, the copy's normal turned
-    by about 1e-9 rad: Q is numerically rank deficient."""
+    """A perturbed grid where every ball-ball contact appears twice.
+
+    The copy's normal is turned by about 1e-9 rad: Q is numerically rank deficient.
+
+    Parameters
+    ----------
+    size : int
+        Balls per side.
+    rng : np.random.Generator or None
+        The draws; None for seed 0.
+
+    Returns
+    -------
+    layout : Layout
+        The balls.
+    extra : list of (int, int, np.ndarray)
+        The duplicate contacts (a, b, turned normal), for :func:`assemble`.
+    """
     rng = rng or np.random.default_rng(0)
     layout = grid(size, rng)
     extra = []
@@ -226,8 +384,34 @@ FAMILIES: dict[str, tuple[Builder, int]] = {
 
 def family_entry(families: dict[str, tuple[Any, int]], family: str, size: int | None,
                  label: str = "family") -> tuple[Any, int]:
-    """(builder, size) of ``family`` in a family table, its default size when ``size`` is
-    None; QpbenchError for an unknown family or a size below 1."""
+    """(builder, size) of ``family`` in a family table.
+
+    The size is the family's default when ``size`` is None; QpbenchError for an unknown family
+    or a size below 1.
+
+    Parameters
+    ----------
+    families : dict of str to (builder, int)
+        The table: family -> (builder, default size).
+    family : str
+        The family asked for.
+    size : int or None
+        The size asked for; None for the default.
+    label : str, optional
+        What a family is called in the message; ``family`` by default.
+
+    Returns
+    -------
+    builder : Any
+        The family's builder.
+    size : int
+        The size to build.
+
+    Raises
+    ------
+    QpbenchError
+        When the family is unknown or the size is below 1.
+    """
     if family not in families:
         raise QpbenchError(f"unknown {label} '{family}' (known: {', '.join(families)})")
     builder, default_size = families[family]
@@ -247,7 +431,21 @@ BALL_BYTES = 1024
 
 
 def family_balls(family: str, size: int) -> int:
-    """The balls of a problem of ``family`` (frictionless or frictional) at ``size``."""
+    """The balls of a problem of ``family`` (frictionless or frictional) at ``size``.
+
+    Parameters
+    ----------
+    family : str
+        The family.
+    size : int
+        Its size: balls per side, rows of a triangle or balls (see :data:`PER_SIDE_FAMILIES`
+        and :data:`ROW_FAMILIES`).
+
+    Returns
+    -------
+    int
+        The number of balls.
+    """
     if family in PER_SIDE_FAMILIES:
         return size * size
     if family in ROW_FAMILIES:
@@ -256,9 +454,24 @@ def family_balls(family: str, size: int) -> int:
 
 
 def check_family_size(family: str, size: int) -> None:
-    """OutOfMemory (one line, naming the family, the size and its balls, and the memory
-    available) before anything is allocated, when one problem of ``family`` at ``size``
-    needs more than the memory available (:data:`BALL_BYTES` per ball)."""
+    """Refuses a family size that needs more memory than is available.
+
+    OutOfMemory (one line, naming the family, the size and its balls, and the memory
+    available) before anything is allocated, when one problem of ``family`` at ``size`` needs
+    more than the memory available (:data:`BALL_BYTES` per ball).
+
+    Parameters
+    ----------
+    family : str
+        The family.
+    size : int
+        Its size.
+
+    Raises
+    ------
+    OutOfMemory
+        When the problem would not fit.
+    """
     balls = family_balls(family, size)
     require(balls * BALL_BYTES, f"family '{family}' at size {size} ({balls} balls)")
 
@@ -268,6 +481,31 @@ def generate(family: str, size: int | None = None, seed: int = 0, count: int = 1
     """``count`` problems of ``family``; problem i uses seed ``seed + i``.
 
     For k3, k4, k4-middle and cradle, seed 0 is the canonical, unrotated case.
+
+    Parameters
+    ----------
+    family : str
+        One of :data:`FAMILIES`.
+    size : int or None, optional
+        The family's size; None (the default) for its default size.
+    seed : int, optional
+        The first problem's seed; 0 by default.
+    count : int, optional
+        The number of problems; 1 by default.
+    restitution : float or None, optional
+        The coefficient of restitution of every contact; None (the default) for 1.
+
+    Returns
+    -------
+    list of ImpactProblem
+        The problems, named ``FAMILY-SIZE-sSEED``.
+
+    Raises
+    ------
+    QpbenchError
+        When the family is unknown or the size below 1.
+    OutOfMemory
+        When one problem would not fit in memory.
     """
     builder, size = family_entry(FAMILIES, family, size)
     check_family_size(family, size)

@@ -52,7 +52,22 @@ LARGEST_ENTRY = 1e90
 
 
 def check_entries(where: str, label: str, values: np.ndarray) -> None:
-    """InputError naming ``label`` unless every value is finite, ``|value| <= LARGEST_ENTRY``."""
+    """InputError naming ``label`` unless every value is finite, ``|value| <= LARGEST_ENTRY``.
+
+    Parameters
+    ----------
+    where : str
+        The file (or problem) named in the message.
+    label : str
+        The field named in the message.
+    values : np.ndarray
+        The entries to check, of any shape.
+
+    Raises
+    ------
+    InputError
+        When an entry is NaN, infinite or larger in magnitude than LARGEST_ENTRY.
+    """
     if not np.all(np.isfinite(values)):
         raise InputError(where, "contains NaN or infinity", attribute=label)
     if np.any(np.abs(values) > LARGEST_ENTRY):
@@ -61,8 +76,29 @@ def check_entries(where: str, label: str, values: np.ndarray) -> None:
 
 def check_vector(where: str, label: str, vector: np.ndarray, size: int,
                  matrix_shape: tuple[int, ...]) -> None:
-    """InputError naming ``label`` unless ``vector`` has shape (size,) and entries as
-    :func:`check_entries` wants them; ``matrix_shape`` is G's, named in the message."""
+    """InputError naming ``label`` unless ``vector`` has shape (size,) and valid entries.
+
+    The entries must be as :func:`check_entries` wants them; ``matrix_shape`` is G's, named in
+    the message.
+
+    Parameters
+    ----------
+    where : str
+        The file (or problem) named in the message.
+    label : str
+        The field named in the message.
+    vector : np.ndarray
+        The vector to check.
+    size : int
+        Its expected length.
+    matrix_shape : tuple of int
+        The shape of G, quoted when the length does not match.
+
+    Raises
+    ------
+    InputError
+        When the shape is not ``(size,)`` or an entry is invalid.
+    """
     if vector.shape != (size,):
         raise InputError(where, f"shape {vector.shape} does not match G {matrix_shape}",
                          attribute=label)
@@ -99,7 +135,35 @@ class ImpactProblem:
         n_rel: Any | None = None,
         **kwargs: Any,
     ) -> ImpactProblem:
-        """Builds a problem, broadcasting a scalar restitution and a missing nrel to n contacts."""
+        """Builds a problem, broadcasting a scalar restitution and a missing nrel to n contacts.
+
+        Parameters
+        ----------
+        name : str
+            The problem's name.
+        G : array_like or sparse matrix
+            Contact gradients, d x n.
+        m_inv : array_like
+            Diagonal of M^-1, d entries (0 for a kinematic degree of freedom).
+        v_minus : array_like
+            Velocities before impact, d entries.
+        restitution : float or array_like, optional
+            Coefficient of restitution, one for all contacts or n; 1 by default.
+        n_rel : array_like or None, optional
+            Normal velocities of moving boundaries, n entries; None (the default) for zeros.
+        **kwargs
+            Further fields of :class:`ImpactProblem` (family, source, dofs_per_body, ...).
+
+        Returns
+        -------
+        ImpactProblem
+            The validated problem.
+
+        Raises
+        ------
+        InputError
+            When :meth:`validate` refuses it.
+        """
         G = sp.csc_matrix(G, dtype=float)
         n = G.shape[1]
         restitution = np.broadcast_to(np.asarray(restitution, dtype=float), (n,)).copy()
@@ -117,9 +181,23 @@ class ImpactProblem:
         return problem
 
     def validate(self, file: str | None = None) -> None:
-        """Checks shapes, finite entries of magnitude at most LARGEST_ENTRY, positive inverse
-        masses of at least 1 / LARGEST_ENTRY (or 0), 0 <= c <= 1, and a reference of the
-        problem's shapes; InputError names the field."""
+        """Checks shapes, finite entries and physical ranges; InputError names the field.
+
+        Checks shapes, finite entries of magnitude at most LARGEST_ENTRY, positive inverse masses
+        of at least 1 / LARGEST_ENTRY (or 0), 0 <= c <= 1, and a reference of the problem's
+        shapes.
+
+        Parameters
+        ----------
+        file : str or None, optional
+            The file named in a message; None (the default) names the problem's source, else its
+            name.
+
+        Raises
+        ------
+        InputError
+            When a check fails.
+        """
         where = file or self.source or self.name
         d, n = self.G.shape
         check_entries(where, "G", self.G.data)
@@ -144,17 +222,36 @@ class ImpactProblem:
                 check_vector(where, label, vector, size, self.G.shape)
 
     def blind_copy(self) -> ImpactProblem:
-        """What a solver may see: fresh copies of G, M^-1, v-, c and nrel under the same name;
-        no reference, no stored data (dumped answers, warm starts), no metadata or family."""
+        """What a solver may see: fresh copies of G, M^-1, v-, c and nrel under the same name.
+
+        No reference, no stored data (dumped answers, warm starts), no metadata or family.
+
+        Returns
+        -------
+        ImpactProblem
+            The copy.
+        """
         return ImpactProblem(name=self.name, G=self.G.copy(), m_inv=self.m_inv.copy(),
                              v_minus=self.v_minus.copy(), restitution=self.restitution.copy(),
                              n_rel=self.n_rel.copy(), dofs_per_body=self.dofs_per_body)
 
     def with_velocities_scaled(self, factor: float) -> ImpactProblem:
-        """The same contacts with v- and nrel multiplied by ``factor`` > 0 (G, M^-1, c and the
-        metadata shared; no reference, stored data or posing, which belong to the velocities
-        as they were). Q stays and b becomes ``factor * b``, so the impulses become
-        ``factor * l`` and v+ becomes ``factor * v+``."""
+        """The same contacts with v- and nrel multiplied by ``factor`` > 0.
+
+        G, M^-1, c and the metadata are shared; there is no reference, stored data or posing,
+        which belong to the velocities as they were. Q stays and b becomes ``factor * b``, so the
+        impulses become ``factor * l`` and v+ becomes ``factor * v+``.
+
+        Parameters
+        ----------
+        factor : float
+            The positive scale of the velocities.
+
+        Returns
+        -------
+        ImpactProblem
+            The scaled problem.
+        """
         return replace(self, v_minus=factor * self.v_minus, n_rel=factor * self.n_rel,
                        data={}, reference=None, posed={})
 
@@ -214,20 +311,64 @@ class ImpactProblem:
 
     # --- maps of the impulses --------------------------------------------------
     def v_plus(self, impulses: np.ndarray) -> np.ndarray:
-        """v+ = v- + M^-1 G l."""
+        """v+ = v- + M^-1 G l.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            The normal impulses l, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The post-impact velocities, shape (d,).
+        """
         return self.v_minus + self.M_inv_G @ impulses
 
     def w(self, impulses: np.ndarray) -> np.ndarray:
-        """w = Q l + b (the LCP slack: post-impact normal velocities, scaled)."""
+        """w = Q l + b (the LCP slack: post-impact normal velocities, scaled).
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            The normal impulses l, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The slack w, shape (n,).
+        """
         return self.Q @ impulses + self.b
 
     def kinetic_energy(self, velocity: np.ndarray) -> float:
-        """KE = 1/2 v^T M v over the degrees of freedom with finite mass."""
+        """KE = 1/2 v^T M v over the degrees of freedom with finite mass.
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Velocities of the degrees of freedom, shape (d,).
+
+        Returns
+        -------
+        float
+            The kinetic energy.
+        """
         finite = self.m_inv > 0
         return float(0.5 * np.sum(velocity[finite] ** 2 / self.m_inv[finite]))
 
     def m_norm(self, velocity: np.ndarray) -> float:
-        """||v||_M = sqrt(v^T M v) over the degrees of freedom with finite mass."""
+        """||v||_M = sqrt(v^T M v) over the degrees of freedom with finite mass.
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Velocities of the degrees of freedom, shape (d,).
+
+        Returns
+        -------
+        float
+            The mass norm of ``velocity``.
+        """
         return float(np.sqrt(2.0 * self.kinetic_energy(velocity)))
 
     # --- structure -----------------------------------------------------------------
@@ -245,7 +386,14 @@ class ImpactProblem:
         return int(self.n_contacts - np.count_nonzero(singular > tol))
 
     def summary(self) -> dict[str, Any]:
-        """Name, family, source, bodies, contacts, nnz of Q and rank deficiency."""
+        """Name, family, source, bodies, contacts, nnz of Q and rank deficiency.
+
+        Returns
+        -------
+        dict of str to Any
+            Keys ``problem``, ``family``, ``source``, ``bodies``, ``contacts``, ``nnz`` and
+            ``rank_deficiency``.
+        """
         return {
             "problem": self.name,
             "family": self.family,

@@ -29,7 +29,25 @@ import scipy.sparse as sp
 
 def contact_jacobian(body_a: np.ndarray, body_b: np.ndarray, normals: np.ndarray,
                      bodies: int, dofs_per_body: int) -> sp.csc_matrix:
-    """G (bodies * dofs_per_body x n) of n contacts ``(body_a, body_b, normals)``, as above."""
+    """G (bodies * dofs_per_body x n) of n contacts ``(body_a, body_b, normals)``, as above.
+
+    Parameters
+    ----------
+    body_a, body_b : np.ndarray
+        Body indices of each contact, integers of shape (n,); ``body_b`` is -1 for a plane or
+        a drum.
+    normals : np.ndarray
+        Unit normals n_k (the direction of the impulse on a), shape (n, 2).
+    bodies : int
+        The number of bodies.
+    dofs_per_body : int
+        2 for balls, 3 for rigid circles (the rotation row is left empty).
+
+    Returns
+    -------
+    sp.csc_matrix
+        G, (bodies * dofs_per_body) x n.
+    """
     body_a = np.asarray(body_a, dtype=np.int64)
     body_b = np.asarray(body_b, dtype=np.int64)
     normals = np.asarray(normals, dtype=float).reshape(-1, 2)
@@ -46,7 +64,18 @@ def contact_jacobian(body_a: np.ndarray, body_b: np.ndarray, normals: np.ndarray
 
 
 def tangents(normals: np.ndarray) -> np.ndarray:
-    """t = (-n_y, n_x) per contact: [n t] is right-handed, as SCISim's contact bases."""
+    """t = (-n_y, n_x) per contact: [n t] is right-handed, as SCISim's contact bases.
+
+    Parameters
+    ----------
+    normals : np.ndarray
+        Unit normals, shape (n, 2) (or 2n entries).
+
+    Returns
+    -------
+    np.ndarray
+        The tangents, shape (n, 2).
+    """
     normals = np.asarray(normals, dtype=float).reshape(-1, 2)
     return np.stack([-normals[:, 1], normals[:, 0]], axis=1)
 
@@ -54,8 +83,36 @@ def tangents(normals: np.ndarray) -> np.ndarray:
 def tangent_jacobian(body_a: np.ndarray, body_b: np.ndarray, normals: np.ndarray,
                      bodies: int, dofs_per_body: int, arm_a: np.ndarray | None = None,
                      arm_b: np.ndarray | None = None) -> sp.csc_matrix:
-    """T (bodies * dofs_per_body x n), as in the module docstring; ``arm_a``/``arm_b`` are the
-    scalars ``(p_k - x) x t_k`` of body a and body b (used only when ``dofs_per_body == 3``)."""
+    """T (bodies * dofs_per_body x n), as in the module docstring.
+
+    ``arm_a``/``arm_b`` are the scalars ``(p_k - x) x t_k`` of body a and body b (used only
+    when ``dofs_per_body == 3``).
+
+    Parameters
+    ----------
+    body_a, body_b : np.ndarray
+        Body indices of each contact, integers of shape (n,); ``body_b`` is -1 for a plane or
+        a drum.
+    normals : np.ndarray
+        Unit normals n_k, shape (n, 2); the tangents are :func:`tangents` of them.
+    bodies : int
+        The number of bodies.
+    dofs_per_body : int
+        2 for balls, 3 for rigid circles.
+    arm_a, arm_b : np.ndarray or None, optional
+        The arms of body a and body b, shape (n,) each (``arm_b``'s entries of one-body
+        contacts are ignored); required when ``dofs_per_body == 3``, None by default.
+
+    Returns
+    -------
+    sp.csc_matrix
+        T, (bodies * dofs_per_body) x n.
+
+    Raises
+    ------
+    ValueError
+        When ``dofs_per_body == 3`` and an arm is missing.
+    """
     body_a = np.asarray(body_a, dtype=np.int64)
     body_b = np.asarray(body_b, dtype=np.int64)
     T = contact_jacobian(body_a, body_b, tangents(normals), bodies, dofs_per_body)

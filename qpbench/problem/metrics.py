@@ -17,17 +17,52 @@ TINY = 1e-300
 
 
 def vector_scale(values: np.ndarray) -> float:
-    """max(||values||_inf, TINY)."""
+    """max(||values||_inf, TINY).
+
+    Parameters
+    ----------
+    values : np.ndarray
+        A vector, possibly empty.
+
+    Returns
+    -------
+    float
+        Its largest magnitude, at least TINY.
+    """
     return max(float(np.max(np.abs(values), initial=0.0)), TINY)
 
 
 def scale(problem: ImpactProblem) -> float:
-    """max(||b||_inf, TINY): the velocity unit of every scaled metric."""
+    """max(||b||_inf, TINY): the velocity unit of every scaled metric.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        The scale.
+    """
     return vector_scale(problem.b)
 
 
 def is_finite(impulses: np.ndarray | None, problem: ImpactProblem) -> bool:
-    """True when l exists, has n entries and all are finite."""
+    """True when l exists, has n entries and all are finite.
+
+    Parameters
+    ----------
+    impulses : np.ndarray or None
+        The answer l; None when the solver gave none.
+    problem : ImpactProblem
+        The problem it answers.
+
+    Returns
+    -------
+    bool
+        Whether l has shape (n,) and only finite entries.
+    """
     return (
         impulses is not None
         and np.shape(impulses) == (problem.n_contacts,)
@@ -36,26 +71,79 @@ def is_finite(impulses: np.ndarray | None, problem: ImpactProblem) -> bool:
 
 
 def natural_map(problem: ImpactProblem, impulses: np.ndarray) -> np.ndarray:
-    """F(l) = min(D l, w) elementwise, D = diag(Q), w = Q l + b; zero exactly at LCP solutions."""
+    """F(l) = min(D l, w) elementwise, D = diag(Q), w = Q l + b; zero exactly at LCP solutions.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    np.ndarray
+        F(l), shape (n,), in velocity units.
+    """
     return np.minimum(problem.diag_Q * impulses, problem.w(impulses))
 
 
 def residual(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """residual = ||min(D l, Q l + b)||_inf / max(||b||_inf, tiny)."""
+    """residual = ||min(D l, Q l + b)||_inf / max(||b||_inf, tiny).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        The scaled residual; 0 for a problem without contacts.
+    """
     if problem.n_contacts == 0:
         return 0.0
     return float(np.max(np.abs(natural_map(problem, impulses)))) / scale(problem)
 
 
 def complementarity(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity),
-    divided by the scale twice, since its square underflows to 0 below 1e-154."""
+    """complementarity = |(D l)^T w| / max(||b||_inf, tiny)^2 (velocity times velocity).
+
+    It is divided by the scale twice, since its square underflows to 0 below 1e-154.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        The scaled complementarity gap.
+    """
     unit = scale(problem)
     return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / unit / unit
 
 
 def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """infeasibility = max(0, -min(D l), -min(w)) / max(||b||_inf, tiny)."""
+    """infeasibility = max(0, -min(D l), -min(w)) / max(||b||_inf, tiny).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        The scaled violation of l >= 0 and w >= 0; 0 for a problem without contacts.
+    """
     if problem.n_contacts == 0:
         return 0.0
     worst = max(0.0, -float(np.min(problem.diag_Q * impulses)), -float(np.min(problem.w(impulses))))
@@ -63,23 +151,63 @@ def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
 
 
 def v_error(problem: ImpactProblem, impulses: np.ndarray, v_plus_ref: np.ndarray) -> float:
-    """v_error = ||v+(l) - v+_ref||_M / ||v-||_M (||v-||_M replaced by tiny when zero)."""
+    """v_error = ||v+(l) - v+_ref||_M / ||v-||_M (||v-||_M replaced by tiny when zero).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+    v_plus_ref : np.ndarray
+        The reference post-impact velocity, shape (d,).
+
+    Returns
+    -------
+    float
+        The relative error of v+ in the mass norm.
+    """
     difference = problem.m_norm(problem.v_plus(impulses) - v_plus_ref)
     return difference / max(problem.m_norm(problem.v_minus), TINY)
 
 
 def energy_gain(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """energy_gain = (KE+ - KE-) / KE-, signed; KE = 1/2 v^T M v."""
+    """energy_gain = (KE+ - KE-) / KE-, signed; KE = 1/2 v^T M v.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        The relative change of kinetic energy (KE- replaced by tiny when zero).
+    """
     before = problem.kinetic_energy(problem.v_minus)
     after = problem.kinetic_energy(problem.v_plus(impulses))
     return (after - before) / max(before, TINY)
 
 
 def energy_change_identity(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """KE+ - KE- from the impulses alone, true for ANY l:
+    """KE+ - KE- from the impulses alone, true for ANY l.
 
     ``KE+ - KE- = l^T (b / (1 + c) - nrel) + 1/2 l^T Q l``; with nrel = 0 and one c this is
     ``l^T w / (1 + c) - (1 - c) / (2 (1 + c)) * l^T Q l``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        KE+ - KE- by the identity.
     """
     Q_l = problem.Q @ impulses
     u_minus = problem.b / (1.0 + problem.restitution) - problem.n_rel
@@ -87,7 +215,20 @@ def energy_change_identity(problem: ImpactProblem, impulses: np.ndarray) -> floa
 
 
 def energy_identity_gap(problem: ImpactProblem, impulses: np.ndarray) -> float:
-    """|(KE(v+) - KE(v-)) - energy_change_identity(l)| / max(KE-, tiny): checks the assembly."""
+    """|(KE(v+) - KE(v-)) - energy_change_identity(l)| / max(KE-, tiny): checks the assembly.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The impulses l, shape (n,).
+
+    Returns
+    -------
+    float
+        The relative gap between the energy change computed from v+ and by the identity.
+    """
     before = problem.kinetic_energy(problem.v_minus)
     direct = problem.kinetic_energy(problem.v_plus(impulses)) - before
     return abs(direct - energy_change_identity(problem, impulses)) / max(before, TINY)
@@ -99,6 +240,22 @@ def evaluate(
     """Every metric of an answer, and qpbench's verdict: finite l and residual <= accuracy.
 
     ``v_error`` is NaN when the problem has no verified reference.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray or None
+        The answer l; None (or a wrong shape or non-finite entries) is a failure with NaN
+        metrics.
+    accuracy : float
+        The largest residual that counts as a success.
+
+    Returns
+    -------
+    dict of str to Any
+        ``success``, ``residual``, ``v_error``, ``energy_gain``, ``complementarity``,
+        ``infeasibility`` and ``energy_identity_gap``.
     """
     nan = math.nan
     if not is_finite(impulses, problem):

@@ -60,10 +60,28 @@ class GivenQP:
         return np.asarray(self.Q.diagonal()).ravel()
 
     def w(self, impulses: np.ndarray) -> np.ndarray:
-        """w = Q l + b."""
+        """w = Q l + b.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            The impulses l, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The slack w, shape (n,).
+        """
         return self.Q @ impulses + self.b
 
     def blind_copy(self) -> GivenQP:
+        """What a solver may see: fresh copies of Q and b under the same name, nothing stored.
+
+        Returns
+        -------
+        GivenQP
+            The copy.
+        """
         return GivenQP(name=self.name, Q=self.Q.copy(), b=self.b.copy())
 
 
@@ -91,9 +109,42 @@ class ReducedFrictionalProblem(FrictionalProblem):
                    source: str = "", metadata: dict[str, Any] | None = None,
                    reference: FrictionalReference | None = None,
                    where: str | None = None) -> ReducedFrictionalProblem:
-        """The problem of ``W``, ``q``, ``mu`` (qpbench's order); W is symmetrized (its
-        asymmetry ``max|W - W^T| / max|W|`` kept in the metadata as ``w_asymmetry``).
-        InputError names ``where`` (the file) and the field at fault."""
+        """The problem of ``W``, ``q``, ``mu`` (qpbench's order).
+
+        W is symmetrized (its asymmetry ``max|W - W^T| / max|W|`` kept in the metadata as
+        ``w_asymmetry``). InputError names ``where`` (the file) and the field at fault.
+
+        Parameters
+        ----------
+        name : str
+            The problem's name.
+        W : array_like or sparse matrix
+            The Delassus matrix, 2n x 2n, in the order ``(l_N, l_T)``.
+        q : array_like
+            The free velocity (q_N, q_T), 2n entries.
+        mu : array_like
+            Friction coefficients, n entries, each >= 0.
+        family, source : str, optional
+            The problem's family and the file it came from; empty by default.
+        metadata : dict of str to Any or None, optional
+            Further facts to keep; None (the default) for none.
+        reference : FrictionalReference or None, optional
+            A known answer; None by default.
+        where : str or None, optional
+            The file named in a message; None (the default) names ``source``, else ``name``.
+
+        Returns
+        -------
+        ReducedFrictionalProblem
+            The problem.
+
+        Raises
+        ------
+        InputError
+            When W is not square of even size, has a non-finite or too large entry, is not
+            symmetric within ASYMMETRY_LIMIT or has a negative diagonal entry, or when q or mu
+            has the wrong size or mu a negative entry.
+        """
         where = where or source or name
         W = sp.csc_matrix(W, dtype=float)
         q = np.asarray(q, dtype=float).ravel()
@@ -128,7 +179,19 @@ class ReducedFrictionalProblem(FrictionalProblem):
                    reference=reference, given_W=W)
 
     def validate(self, file: str | None = None) -> None:
-        """W square of 2n, finite; q of 2n, mu of n, mu >= 0; a reference of 2n impulses."""
+        """W square of 2n, finite; q of 2n, mu of n, mu >= 0; a reference of 2n impulses.
+
+        Parameters
+        ----------
+        file : str or None, optional
+            The file named in a message; None (the default) names the problem's source, else its
+            name.
+
+        Raises
+        ------
+        InputError
+            When a check fails.
+        """
         where = file or self.source or self.name
         n = self.n_contacts
         if self.given_W.shape != (2 * n, 2 * n):
@@ -168,13 +231,48 @@ class ReducedFrictionalProblem(FrictionalProblem):
         raise AttributeError("a reduced frictional problem has no M^-1 H (only W, q, mu)")
 
     def v_plus(self, impulses: np.ndarray) -> np.ndarray:
-        """Empty: the problem has no degrees of freedom."""
+        """Empty: the problem has no degrees of freedom.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            r = (l_N, l_T), unused.
+
+        Returns
+        -------
+        np.ndarray
+            An empty array.
+        """
         return np.zeros(0)
 
     def kinetic_energy(self, velocity: np.ndarray) -> float:
+        """0: without bodies the kinetic energy is not known.
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Unused (v+ is empty).
+
+        Returns
+        -------
+        float
+            0.0.
+        """
         return 0.0
 
     def m_norm(self, velocity: np.ndarray) -> float:
+        """0: without bodies there is no mass norm.
+
+        Parameters
+        ----------
+        velocity : np.ndarray
+            Unused (v+ is empty).
+
+        Returns
+        -------
+        float
+            0.0.
+        """
         return 0.0
 
     @property
@@ -183,24 +281,55 @@ class ReducedFrictionalProblem(FrictionalProblem):
         return float(np.max(np.abs(self.q), initial=0.0))
 
     def contact_graph(self) -> sp.csr_matrix:
-        """Contacts k, j are adjacent when W's 2x2 block (k, j) has an entry."""
+        """Contacts k, j are adjacent when W's 2x2 block (k, j) has an entry.
+
+        Returns
+        -------
+        sp.csr_matrix
+            n x n, nonzero at (k, j) when contacts k and j are adjacent.
+        """
         n = self.n_contacts
         W = sp.coo_matrix(self.W)
         return sp.csr_matrix((np.ones(W.nnz), (W.row % n, W.col % n)), shape=(n, n))
 
     def blind_copy(self) -> ReducedFrictionalProblem:
+        """What a solver may see: the problem of W, q and mu alone, no reference or stored data.
+
+        Returns
+        -------
+        ReducedFrictionalProblem
+            The copy, with fresh arrays.
+        """
         return ReducedFrictionalProblem.from_local(self.name, self.W.copy(), self.q.copy(),
                                                    self.mu.copy())
 
     def with_velocities_scaled(self, factor: float) -> ReducedFrictionalProblem:
-        """The same W with q multiplied by ``factor`` > 0: the impulses become ``factor r``."""
+        """The same W with q multiplied by ``factor`` > 0: the impulses become ``factor r``.
+
+        Parameters
+        ----------
+        factor : float
+            The positive scale of q.
+
+        Returns
+        -------
+        ReducedFrictionalProblem
+            The scaled problem (no reference).
+        """
         return ReducedFrictionalProblem.from_local(self.name, self.W, factor * self.q, self.mu,
                                                    self.family, self.source,
                                                    dict(self.metadata))
 
     def relaxed(self) -> GivenQP:  # type: ignore[override]
-        """Anitescu's relaxation in z = (z+, z-): ``Q = E^T W E``, ``b = E^T q`` (module
-        docstring). Built once."""
+        """Anitescu's relaxation in z = (z+, z-): ``Q = E^T W E``, ``b = E^T q``.
+
+        See the module docstring. Built once.
+
+        Returns
+        -------
+        GivenQP
+            The relaxed QP (2n unknowns), kept in ``posed["ccp"]``.
+        """
         if "ccp" not in self.posed:
             n = self.n_contacts
             identity, friction = sp.identity(n, format="csc"), sp.diags(self.mu)
@@ -212,13 +341,30 @@ class ReducedFrictionalProblem(FrictionalProblem):
         return self.posed["ccp"]
 
     def normal_given(self, tangential: np.ndarray) -> GivenQP:  # type: ignore[override]
-        """Staggered projections' normal QP for a fixed l_T: ``Q = W_NN``,
-        ``b = q_N + W_NT l_T``."""
+        """Staggered projections' normal QP for a fixed l_T: ``Q = W_NN``, ``b = q_N + W_NT l_T``.
+
+        Parameters
+        ----------
+        tangential : np.ndarray
+            The fixed tangential impulses l_T, shape (n,).
+
+        Returns
+        -------
+        GivenQP
+            The normal QP.
+        """
         n = self.n_contacts
         return GivenQP(name=self.name, Q=self.normal.Q, b=self.q[:n] + self.W_NT @ tangential)
 
     def summary(self) -> dict[str, Any]:
-        """Name, family, source, contacts, nnz of W, mu_max and the kind."""
+        """Name, family, source, contacts, nnz of W, mu_max and the kind.
+
+        Returns
+        -------
+        dict of str to Any
+            Keys ``problem``, ``family``, ``source``, ``bodies`` (0), ``contacts``, ``nnz``,
+            ``mu_max`` and ``kind``.
+        """
         return {"problem": self.name, "family": self.family, "source": self.source,
                 "bodies": 0, "contacts": self.n_contacts, "nnz": int(self.W.nnz),
                 "mu_max": self.mu_max, "kind": KIND}
@@ -226,8 +372,22 @@ class ReducedFrictionalProblem(FrictionalProblem):
 
 def reduced_subproblem(problem: ReducedFrictionalProblem, contacts: np.ndarray
                        ) -> ReducedFrictionalProblem:
-    """The contacts ``contacts`` of ``problem`` alone: W's rows and columns of their normals
-    and tangents, q's entries and their mu."""
+    """The contacts ``contacts`` of ``problem`` alone.
+
+    W's rows and columns of their normals and tangents, q's entries and their mu.
+
+    Parameters
+    ----------
+    problem : ReducedFrictionalProblem
+        The whole problem.
+    contacts : np.ndarray
+        Indices of the contacts to keep, integers in increasing order, not empty.
+
+    Returns
+    -------
+    ReducedFrictionalProblem
+        The subproblem, named ``NAME[FIRST..]``.
+    """
     n = problem.n_contacts
     rows = np.concatenate([contacts, n + contacts])
     W = sp.csr_matrix(problem.W)[rows][:, rows]
@@ -236,6 +396,19 @@ def reduced_subproblem(problem: ReducedFrictionalProblem, contacts: np.ndarray
 
 
 def interleaved_order(n: int) -> np.ndarray:
-    """The permutation from Siconos' and FCLIB's per-contact order ``(N_0, T_0, N_1, T_1, ...)``
-    to qpbench's ``(N_0..N_n-1, T_0..T_n-1)``: qpbench's entry k is their entry order[k]."""
+    """The permutation from Siconos' and FCLIB's per-contact order to qpbench's.
+
+    From ``(N_0, T_0, N_1, T_1, ...)`` to ``(N_0..N_n-1, T_0..T_n-1)``: qpbench's entry k is
+    their entry order[k].
+
+    Parameters
+    ----------
+    n : int
+        The number of contacts.
+
+    Returns
+    -------
+    np.ndarray
+        ``order``, integers of shape (2n,).
+    """
     return np.concatenate([2 * np.arange(n), 2 * np.arange(n) + 1])

@@ -54,7 +54,27 @@ def _qp_solve(qp: qpsolvers.Problem, solver: str) -> qpsolvers.Solution | None:
 
 
 def primal_ipm(problem: ImpactProblem, solver: str = "clarabel") -> tuple[np.ndarray, np.ndarray]:
-    """(v+, l) from ``min 1/2 (v - v-)^T M (v - v-)  s.t.  A v >= lower`` (l = multipliers)."""
+    """(v+, l) from ``min 1/2 (v - v-)^T M (v - v-)  s.t.  A v >= lower`` (l = multipliers).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem; its QP is :func:`primal_qp`.
+    solver : str, optional
+        The qpsolvers backend, run at tight tolerances; ``clarabel`` by default.
+
+    Returns
+    -------
+    v_plus : np.ndarray
+        The post-impact velocities, shape (d,).
+    impulses : np.ndarray
+        The multipliers of the constraints, the impulses l, shape (n,).
+
+    Raises
+    ------
+    ArithmeticError
+        When the backend raises or returns no primal or dual solution.
+    """
     qp = primal_qp(problem)
     solution = _qp_solve(qpsolvers.Problem(P=qp.P, q=qp.q, G=-qp.A, h=-qp.lower), solver)
     if solution is None or solution.x is None or solution.z is None:
@@ -68,8 +88,21 @@ def _min_norm_solve(Q_active: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 
 
 def enumeration(problem: ImpactProblem) -> np.ndarray:
-    """l from the smallest active set S whose minimum-norm solution of Q_SS l_S = -b_S
-    satisfies the LCP within 1e-12 (relative residual); exhaustive, so only for small n."""
+    """l from the smallest active set S that solves the LCP.
+
+    S is the first (by size) whose minimum-norm solution of Q_SS l_S = -b_S satisfies the LCP
+    within 1e-12 (relative residual); exhaustive, so only for small n.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+
+    Returns
+    -------
+    np.ndarray
+        l, shape (n,): the candidate of smallest residual when no active set reaches 1e-12.
+    """
     n = problem.n_contacts
     Q = problem.Q.toarray()
     best, best_residual = np.zeros(n), metrics.residual(problem, np.zeros(n))
@@ -87,8 +120,25 @@ def enumeration(problem: ImpactProblem) -> np.ndarray:
 
 
 def active_set_polish(problem: ImpactProblem, impulses: np.ndarray, rounds: int = 5) -> np.ndarray:
-    """Repeats: A = {i : D_i l_i > w_i}; l_A = min-norm solution of Q_AA l_A = -b_A, l = 0
-    elsewhere; keeps the new l only while the residual decreases."""
+    """Repeats an active-set solve while it lowers the residual.
+
+    Each round: A = {i : D_i l_i > w_i}; l_A = min-norm solution of Q_AA l_A = -b_A, l = 0
+    elsewhere; keeps the new l only while the residual decreases.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    impulses : np.ndarray
+        The starting l, shape (n,).
+    rounds : int, optional
+        The most rounds; 5 by default.
+
+    Returns
+    -------
+    np.ndarray
+        The l of smallest residual found, ``impulses`` itself when no round improves it.
+    """
     best, best_residual = impulses, metrics.residual(problem, impulses)
     Q = problem.Q
     for _ in range(rounds):
@@ -109,8 +159,27 @@ def active_set_polish(problem: ImpactProblem, impulses: np.ndarray, rounds: int 
 
 
 def dual_ipm_polished(problem: ImpactProblem, solver: str = "clarabel") -> np.ndarray:
-    """l from an interior point on ``min 1/2 l^T Q l + b^T l, l >= 0``, then
-    :func:`active_set_polish`."""
+    """l from an interior point on ``min 1/2 l^T Q l + b^T l, l >= 0``, then polished.
+
+    The polish is :func:`active_set_polish`.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+    solver : str, optional
+        The qpsolvers backend, run at tight tolerances; ``clarabel`` by default.
+
+    Returns
+    -------
+    np.ndarray
+        l, shape (n,).
+
+    Raises
+    ------
+    ArithmeticError
+        When the backend raises or returns no solution.
+    """
     solution = _qp_solve(
         qpsolvers.Problem(P=problem.Q, q=problem.b, lb=np.zeros(problem.n_contacts)), solver
     )
@@ -128,7 +197,24 @@ def _best(problem: ImpactProblem, candidates: list[tuple[np.ndarray, np.ndarray,
 
 
 def compute_reference(problem: ImpactProblem) -> Reference:
-    """The reference of ``problem`` from two independent methods (see the module docstring)."""
+    """The reference of ``problem`` from two independent methods (see the module docstring).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem.
+
+    Returns
+    -------
+    Reference
+        v+ and l of the method with the smaller residual, the other's v+ as the check, and
+        their agreement.
+
+    Raises
+    ------
+    ArithmeticError
+        When every backend of one method fails.
+    """
     if problem.n_contacts == 0:
         return Reference(problem.v_minus.copy(), np.zeros(0), "none", problem.v_minus.copy(),
                          "none", 0.0, REFERENCE_TOLERANCE)
@@ -166,7 +252,18 @@ def compute_reference(problem: ImpactProblem) -> Reference:
 
 
 def attach_reference(problem: ImpactProblem) -> ImpactProblem:
-    """Sets ``problem.reference`` and records the agreement in its metadata; returns it."""
+    """Sets ``problem.reference`` and records the agreement in its metadata; returns it.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem, changed in place.
+
+    Returns
+    -------
+    ImpactProblem
+        ``problem``, with ``reference_agreement`` and ``reference_verified`` in its metadata.
+    """
     problem.reference = compute_reference(problem)
     problem.metadata["reference_agreement"] = problem.reference.agreement
     problem.metadata["reference_verified"] = problem.reference.verified

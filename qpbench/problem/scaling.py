@@ -27,18 +27,51 @@ class ScaledProblem:
     original: ImpactProblem
 
     def impulses(self, scaled_impulses: np.ndarray) -> np.ndarray:
-        """l = S l'."""
+        """l = S l'.
+
+        Parameters
+        ----------
+        scaled_impulses : np.ndarray
+            Impulses l' of the scaled problem, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The impulses l of the original problem, shape (n,).
+        """
         return self.contact_scale * scaled_impulses
 
     def velocity(self, scaled_velocity: np.ndarray) -> np.ndarray:
-        """v = M^-1/2 v' on the free degrees of freedom, v- on the kinematic ones."""
+        """v = M^-1/2 v' on the free degrees of freedom, v- on the kinematic ones.
+
+        Parameters
+        ----------
+        scaled_velocity : np.ndarray
+            Velocities v' of the scaled problem, one per free degree of freedom.
+
+        Returns
+        -------
+        np.ndarray
+            The velocities of the original problem, shape (d,).
+        """
         velocity = self.original.v_minus.copy()
         velocity[self.free] = scaled_velocity * np.sqrt(self.original.m_inv[self.free])
         return velocity
 
 
 def jacobi_scaled(problem: ImpactProblem) -> ScaledProblem:
-    """The scaled form of ``problem`` (see the module docstring)."""
+    """The scaled form of ``problem`` (see the module docstring).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem to scale.
+
+    Returns
+    -------
+    ScaledProblem
+        The scaled problem, S, the mask of free degrees of freedom and the original.
+    """
     free = problem.m_inv > 0
     diagonal = problem.diag_Q
     contact_scale = np.where(diagonal > 0, 1.0 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0)),

@@ -135,7 +135,25 @@ def _number(cursor: _Cursor, text: str, field: str) -> float:
 
 
 def read_matrix(cursor: _Cursor, field: str) -> sp.csc_matrix:
-    """One NumericsMatrix block (module docstring) as a CSC matrix."""
+    """One NumericsMatrix block (module docstring) as a CSC matrix.
+
+    Parameters
+    ----------
+    cursor : _Cursor
+        The file being read, placed at the block's ``storage`` number.
+    field : str
+        The matrix's name (``W``, ``M``, ``H``), which starts the field named in an error.
+
+    Returns
+    -------
+    sp.csc_matrix
+        The matrix, ``size0 x size1``.
+
+    Raises
+    ------
+    InputError
+        When the block is malformed, too large or has an entry that is not a finite number.
+    """
     storage = cursor.integer(f"{field}.storage", 0, 2)
     rows = cursor.integer(f"{field}.size0")
     cols = cursor.integer(f"{field}.size1")
@@ -277,8 +295,26 @@ def _read_text(path: str | Path) -> _Cursor:
 
 
 def kind_of_file(path: str | Path) -> str:
-    """``fc2d``, ``gfc2d`` or ``lcp`` from the file name as Siconos' test data names them
-    (``fc2d_*``/``FC2D_*``, ``gfc2d_*``, ``lcp_*``); InputError when the name says none."""
+    """``fc2d``, ``gfc2d`` or ``lcp`` from the file name as Siconos' test data names them.
+
+    The names are ``fc2d_*``/``FC2D_*``, ``gfc2d_*`` and ``lcp_*``; InputError when the name
+    says none.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; only its name is read.
+
+    Returns
+    -------
+    str
+        The kind, one of :data:`KINDS`.
+
+    Raises
+    ------
+    InputError
+        When the name starts with none of the kinds.
+    """
     stem = Path(path).name.lower()
     for kind in ("gfc2d", "fc2d", "lcp"):
         if stem.startswith(kind):
@@ -296,7 +332,23 @@ def _dimension(cursor: _Cursor) -> tuple[int, int]:
 
 
 def read_local(path: str | Path) -> LocalData:
-    """An ``fc2d`` file: W (2nc square), q (2nc), mu (nc)."""
+    """An ``fc2d`` file: W (2nc square), q (2nc), mu (nc).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    LocalData
+        W, q and mu in Siconos' per-contact order.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read, is not 2D or has a malformed or misfitting field.
+    """
     cursor = _read_text(path)
     dimension, contacts = _dimension(cursor)
     W = read_matrix(cursor, "W")
@@ -310,7 +362,23 @@ def read_local(path: str | Path) -> LocalData:
 
 
 def read_global(path: str | Path) -> GlobalData:
-    """A ``gfc2d`` file: M (dofs square), H (dofs x 2nc), q (dofs), b (2nc), mu (nc)."""
+    """A ``gfc2d`` file: M (dofs square), H (dofs x 2nc), q (dofs), b (2nc), mu (nc).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    GlobalData
+        M, H, q, b and mu in Siconos' per-contact order.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read, is not 2D or has a malformed or misfitting field.
+    """
     cursor = _read_text(path)
     dimension, contacts = _dimension(cursor)
     M = read_matrix(cursor, "M")
@@ -327,7 +395,23 @@ def read_global(path: str | Path) -> GlobalData:
 
 
 def read_lcp(path: str | Path) -> LcpData:
-    """An ``lcp`` file: n, M (n x n), q (n)."""
+    """An ``lcp`` file: n, M (n x n), q (n).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    LcpData
+        M as a dense array and q.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read or has a malformed or misfitting field.
+    """
     cursor = _read_text(path)
     size = cursor.integer("size")
     M = read_matrix(cursor, "M")

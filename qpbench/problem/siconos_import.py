@@ -36,7 +36,34 @@ EIGENVALUE_TOLERANCE = 1e-10
 
 def local_problem(name: str, W: sp.spmatrix, q: np.ndarray, mu: np.ndarray, source: str,
                   family: str = FAMILY) -> ReducedFrictionalProblem:
-    """The reduced problem of W, q (Siconos' and FCLIB's per-contact order) and mu."""
+    """The reduced problem of W, q (Siconos' and FCLIB's per-contact order) and mu.
+
+    Parameters
+    ----------
+    name : str
+        The problem's name.
+    W : sp.spmatrix
+        The Delassus matrix, 2n x 2n, in the order ``(N_0, T_0, N_1, ...)``.
+    q : np.ndarray
+        The free velocity, 2n entries in the same order.
+    mu : np.ndarray
+        Friction coefficients, n entries.
+    source : str
+        The file, named in errors and kept as the problem's source.
+    family : str, optional
+        The problem's family; :data:`FAMILY` by default.
+
+    Returns
+    -------
+    ReducedFrictionalProblem
+        The problem in qpbench's order ``(l_N, l_T)``.
+
+    Raises
+    ------
+    InputError
+        When the sizes do not fit n contacts, or as
+        :meth:`ReducedFrictionalProblem.from_local`.
+    """
     n = mu.shape[0]
     if W.shape[0] != 2 * n or q.shape[0] != W.shape[0]:
         raise InputError(source, f"W is {W.shape[0]} x {W.shape[1]} and q has {q.shape[0]} "
@@ -50,7 +77,37 @@ def local_problem(name: str, W: sp.spmatrix, q: np.ndarray, mu: np.ndarray, sour
 
 def global_problem(name: str, M: sp.spmatrix, H: sp.spmatrix, q: np.ndarray, b: np.ndarray,
                    mu: np.ndarray, source: str, family: str = FAMILY) -> FrictionalProblem:
-    """The frictional problem of ``M v = q + H r``, ``u = H^T v + b`` (module docstring)."""
+    """The frictional problem of ``M v = q + H r``, ``u = H^T v + b`` (module docstring).
+
+    Parameters
+    ----------
+    name : str
+        The problem's name.
+    M : sp.spmatrix
+        The mass matrix, diagonal with positive entries, dofs x dofs.
+    H : sp.spmatrix
+        dofs x 2n, columns in the per-contact order ``(N_0, T_0, N_1, ...)``.
+    q : np.ndarray
+        The momentum term, dofs entries (``v- = M^-1 q``).
+    b : np.ndarray
+        The local velocity offset, 2n entries in per-contact order.
+    mu : np.ndarray
+        Friction coefficients, n entries.
+    source : str
+        The file, named in errors and kept as the problem's source.
+    family : str, optional
+        The problem's family; :data:`FAMILY` by default.
+
+    Returns
+    -------
+    FrictionalProblem
+        The problem with restitution 0, ``n_rel = b_N`` and ``d_rel = b_T``.
+
+    Raises
+    ------
+    InputError
+        When M is not diagonal or has a non-positive diagonal entry, or the problem is invalid.
+    """
     M = sp.csc_matrix(M)
     if sp.triu(M, 1).nnz or sp.tril(M, -1).nnz:
         off = sp.csr_matrix(M - sp.diags(M.diagonal()))
@@ -72,8 +129,34 @@ def global_problem(name: str, M: sp.spmatrix, H: sp.spmatrix, q: np.ndarray, b: 
 
 def lcp_problem(name: str, M: np.ndarray, q: np.ndarray, source: str,
                 family: str = FAMILY) -> ImpactProblem:
-    """The impact problem with ``Q = M``, ``b = q`` (module docstring); UnsupportedError
-    naming the file when M is not symmetric positive semi-definite."""
+    """The impact problem with ``Q = M``, ``b = q`` (module docstring).
+
+    UnsupportedError naming the file when M is not symmetric positive semi-definite.
+
+    Parameters
+    ----------
+    name : str
+        The problem's name.
+    M : np.ndarray
+        The LCP's matrix, dense, n x n.
+    q : np.ndarray
+        The LCP's vector, n entries.
+    source : str
+        The file, named in errors and kept as the problem's source.
+    family : str, optional
+        The problem's family; :data:`FAMILY` by default.
+
+    Returns
+    -------
+    ImpactProblem
+        The problem, with M and q kept in ``data`` and the size and rank in ``metadata``.
+
+    Raises
+    ------
+    UnsupportedError
+        When M is not symmetric (within SYMMETRY_TOLERANCE) or has a negative eigenvalue
+        (beyond EIGENVALUE_TOLERANCE), relative to max |M_ij|.
+    """
     largest = max(float(np.max(np.abs(M), initial=0.0)), 1e-300)
     asymmetry = float(np.max(np.abs(M - M.T), initial=0.0)) / largest
     if asymmetry > SYMMETRY_TOLERANCE:
@@ -103,7 +186,29 @@ def lcp_problem(name: str, M: np.ndarray, q: np.ndarray, source: str,
 
 
 def import_siconos(path: str | Path, kind: str | None = None) -> AnyImported:
-    """The qpbench problem of one Siconos file; its kind from ``kind`` or the file name."""
+    """The qpbench problem of one Siconos file; its kind from ``kind`` or the file name.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; its stem names the problem.
+    kind : str or None, optional
+        ``fc2d``, ``gfc2d`` or ``lcp``; None (the default) tells it from the file name
+        (:func:`~qpbench.problem.siconos_files.kind_of_file`).
+
+    Returns
+    -------
+    ImpactProblem or FrictionalProblem
+        A reduced frictional problem for ``fc2d``, a frictional one for ``gfc2d``, an impact
+        problem for ``lcp``.
+
+    Raises
+    ------
+    InputError
+        When the kind is unknown or the file is malformed.
+    UnsupportedError
+        When an LCP's M is not symmetric positive semi-definite.
+    """
     source = str(path)
     kind = kind or siconos_files.kind_of_file(path)
     name = Path(path).stem

@@ -26,7 +26,27 @@ BOX_DT = Fraction(1, 100)
 
 
 def box_scene(n_balls: int, seed: int = 0, restitution: float = 1.0) -> Scene:
-    """``n_balls`` balls packed at random in a square box with four walls (see module doc)."""
+    """``n_balls`` balls packed at random in a square box with four walls (see module doc).
+
+    Parameters
+    ----------
+    n_balls : int
+        The number of balls, at least 1.
+    seed : int, optional
+        The seed of the jitter and the velocities; 0 by default.
+    restitution : float, optional
+        The coefficient of restitution of the ``lcp`` impacts; 1 (elastic) by default.
+
+    Returns
+    -------
+    Scene
+        A ball2d scene with Verlet steps of 1/100 s until t = 1, solved by policy iteration.
+
+    Raises
+    ------
+    ValueError
+        When ``n_balls`` is below 1.
+    """
     if n_balls < 1:
         raise ValueError("a box needs at least one ball")
     rng = np.random.default_rng(seed)
@@ -101,7 +121,19 @@ def _friction_xml(solver: FrictionSolver) -> list[str]:
 
 
 def scene_xml(scene: Scene) -> str:
-    """The scene as SCISim XML in its own dialect."""
+    """The scene as SCISim XML in its own dialect.
+
+    Parameters
+    ----------
+    scene : Scene
+        A ball2d or rigidbody2d scene.
+
+    Returns
+    -------
+    str
+        The XML text, ending with a newline, with floats written so that they read back
+        exactly.
+    """
     bodies = scene.bodies
     lines = [f"<{scene.dialect}_scene>", f'  <integrator type="{scene.integrator}" '
                                          f'dt="{scene.dt}"/>']
@@ -157,7 +189,25 @@ def scene_xml(scene: Scene) -> str:
 
 
 def write_scene(scene: Scene, path: str | os.PathLike[str]) -> Path:
-    """Writes ``scene`` as XML to ``path`` atomically (a temporary file, then a rename)."""
+    """Writes ``scene`` as XML to ``path`` atomically (a temporary file, then a rename).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene, as :func:`scene_xml` writes it.
+    path : str or os.PathLike
+        The file to write.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        When ``path`` cannot be written.
+    """
     with atomic_path(path) as temporary:
         temporary.write_text(scene_xml(scene), encoding="utf-8")
     return Path(path)

@@ -260,7 +260,25 @@ class _Reader:
 
 
 def load_scene(path: str | os.PathLike[str]) -> Scene:
-    """Reads and parses the scene file at ``path``."""
+    """Reads and parses the scene file at ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The SCISim XML file, at most MAX_SCENE_BYTES long.
+
+    Returns
+    -------
+    Scene
+        The scene, as :func:`parse_scene` gives it.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, a folder, too large, unreadable or bad input.
+    UnsupportedError
+        When it asks for something qpbench does not simulate.
+    """
     path = Path(path)
     try:
         size = path.stat().st_size
@@ -277,7 +295,28 @@ def load_scene(path: str | os.PathLike[str]) -> Scene:
 
 
 def parse_scene(data: bytes | str, path: str = "<scene>") -> Scene:
-    """Parses the text of a scene file; ``path`` names it in messages."""
+    """Parses the text of a scene file; ``path`` names it in messages.
+
+    Parameters
+    ----------
+    data : bytes or str
+        The XML text (a str is encoded as UTF-8).
+    path : str, optional
+        The file named in messages and kept as the scene's path; ``<scene>`` by default.
+
+    Returns
+    -------
+    Scene
+        The scene of a ``<ball2d_scene>`` or ``<rigidbody2d_scene>``.
+
+    Raises
+    ------
+    InputError
+        When the XML is malformed or refused, not a SCISim 2D scene, or an element or
+        attribute is invalid.
+    UnsupportedError
+        When the scene asks for something qpbench does not simulate.
+    """
     if isinstance(data, str):
         data = data.encode("utf-8")
     try:

@@ -21,5 +21,16 @@ FALLBACK = "clarabel/dual"
 
 
 def qpbench_name(scisim_name: str) -> str | None:
-    """The qpbench solver for a SCISim solver name, or None when SCISim has no such name."""
+    """The qpbench solver for a SCISim solver name, or None when SCISim has no such name.
+
+    Parameters
+    ----------
+    scisim_name : str
+        The ``name`` of a scene's ``<solver>``.
+
+    Returns
+    -------
+    str or None
+        The qpbench solver name from :data:`SCISIM_TO_QPBENCH`, or None.
+    """
     return SCISIM_TO_QPBENCH.get(scisim_name)
