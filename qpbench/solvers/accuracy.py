@@ -258,16 +258,59 @@ OPTIONS.update({native: dict(OPTIONS[twin]) for native, twin in NATIVE_TWINS.ite
 
 
 def options_for(solver: str, accuracy: float, scale: float = 1.0) -> dict[str, Any]:
-    """The options of ``solver`` for accuracy level ``accuracy`` on a problem of ``scale``
-    (KeyError for a solver without a row: registration refuses those)."""
+    """The options of ``solver`` for accuracy level ``accuracy`` on a problem of ``scale``.
+
+    Each entry of the solver's row is its constant, or its function evaluated at
+    ``(accuracy, scale)``.
+
+    Parameters
+    ----------
+    solver : str
+        The solver's row in OPTIONS.
+    accuracy : float
+        qpbench's accuracy level eps, a bound on its relative residual.
+    scale : float, optional
+        The residual's scale ``max(||b||_inf, tiny)`` of the problem (a velocity); 1 by
+        default, which makes absolute tolerances equal to relative ones.
+
+    Returns
+    -------
+    dict[str, Any]
+        The backend's option names and their values.
+
+    Raises
+    ------
+    KeyError
+        For a solver without a row (registration refuses those).
+    """
     row = OPTIONS[solver]
     return {key: value(accuracy, scale) if callable(value) else value for key, value in row.items()}
 
 
 @contextlib.contextmanager
 def overridden(solver: str, **entries: OptionValue) -> Iterator[None]:
-    """The table with ``entries`` replacing those of ``solver``'s row while the block runs
-    (for a measurement that changes one setting for every pair alike), restored after."""
+    """The table with ``entries`` replacing those of ``solver``'s row while the block runs.
+
+    For a measurement that changes one setting for every pair alike; the replaced entries are
+    restored after the block, also when it raises.
+
+    Parameters
+    ----------
+    solver : str
+        The solver's row in OPTIONS.
+    **entries : OptionValue
+        Option names of that row and their new values (constants or ``f(eps, scale)``).
+
+    Yields
+    ------
+    None
+        Control, once, while the row holds the new entries.
+
+    Raises
+    ------
+    KeyError
+        When the row has no option of one of the names.
+    """
     row = OPTIONS[solver]
     unknown = set(entries) - set(row)
     if unknown:
@@ -281,7 +324,19 @@ def overridden(solver: str, **entries: OptionValue) -> Iterator[None]:
 
 
 def describe(value: OptionValue) -> str:
-    """How a table entry reads in the report: ``eps``, ``eps * scale`` or the constant."""
+    """How a table entry reads in the report: ``eps``, ``eps * scale`` or the constant.
+
+    Parameters
+    ----------
+    value : OptionValue
+        A constant, or a function ``f(eps, scale)`` whose docstring's first line says how
+        it follows from eps (``f(eps, scale)`` when it has none).
+
+    Returns
+    -------
+    str
+        The entry's text for the report.
+    """
     if value is _absolute:
         return "eps * scale"
     if value is _relative:
@@ -292,7 +347,14 @@ def describe(value: OptionValue) -> str:
 
 
 def table_rows() -> list[dict[str, str]]:
-    """One row per (solver, option) with how its value follows from eps, for the report."""
+    """One row per (solver, option) with how its value follows from eps, for the report.
+
+    Returns
+    -------
+    list[dict[str, str]]
+        Rows with keys ``solver``, ``option`` and ``value`` (as :func:`describe` reads it),
+        in the table's order.
+    """
     return [
         {"solver": solver, "option": option, "value": describe(value)}
         for solver, row in OPTIONS.items()

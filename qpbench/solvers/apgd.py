@@ -29,7 +29,18 @@ NAME = "apgd"
 
 
 def gershgorin_scaled(lcp: Lcp) -> float:
-    """max_i sum_j |Q_ij| / sqrt(D_i D_j) >= lambda_max(D^-1/2 Q D^-1/2)."""
+    """max_i sum_j |Q_ij| / sqrt(D_i D_j) >= lambda_max(D^-1/2 Q D^-1/2).
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP; zero diagonal entries count as 1.
+
+    Returns
+    -------
+    float
+        The Gershgorin bound, at least 1 (1 for a problem without contacts).
+    """
     inverse_root = 1.0 / np.sqrt(lcp.safe_diag)
     scaled = sp.diags(inverse_root) @ abs(lcp.Q) @ sp.diags(inverse_root)
     return float(np.max(np.asarray(scaled.sum(axis=1)).ravel(), initial=1.0))
@@ -37,7 +48,32 @@ def gershgorin_scaled(lcp: Lcp) -> float:
 
 def apgd(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, check_every: int
          ) -> tuple[np.ndarray, bool, str, int]:
-    """(l, converged, status, iterations)."""
+    """Run APGD from ``start`` until qpbench's residual reaches ``tol``.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP to solve.
+    start : np.ndarray
+        The first iterate, shape (n,), l >= 0; it is copied, not changed.
+    tol : float
+        qpbench's relative residual to reach.
+    max_iters : int
+        The most gradient steps.
+    check_every : int
+        Steps between residual (and finiteness) checks.
+
+    Returns
+    -------
+    l : np.ndarray
+        The last iterate, shape (n,).
+    converged : bool
+        Whether its residual is at most ``tol``.
+    status : str
+        ``converged``, a divergence or the iteration limit reached.
+    iterations : int
+        The steps taken.
+    """
     x = start.copy()
     if lcp.converged(x, tol):
         return x, True, "converged", 0
@@ -67,6 +103,25 @@ def apgd(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, check_every: i
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
+    """Solve ``problem`` by APGD at accuracy level ``eps``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level, the relative residual to reach; the solver's options
+        follow from it in :mod:`qpbench.solvers.accuracy`.
+    warm_start : np.ndarray or None, optional
+        A guess of l, the start when finite and of the right size (clipped to
+        l >= 0); None or an unusable guess starts at 0.
+
+    Returns
+    -------
+    SolverOutput
+        The impulses, status, the algorithm's own convergence test as claim, and
+        the steps taken.
+    """
     lcp = Lcp.of(problem)
     options = accuracy.options_for(NAME, eps, lcp.scale)
     start = lcp.start(warm_start)

@@ -34,8 +34,26 @@ ROUND_TRIP_TIME = "round_trip_time_s"
 
 
 def reported_times(**seconds: Any) -> dict[str, float]:
-    """The backend-reported times among ``seconds`` (keys of BACKEND_TIMES) that are numbers;
-    a backend that recorded none of them gives an empty dict."""
+    """The backend-reported times among ``seconds`` that are numbers.
+
+    A backend that recorded none of them gives an empty dict.
+
+    Parameters
+    ----------
+    **seconds : Any
+        Times keyed by names in BACKEND_TIMES, in seconds; a value that is not a number
+        (None, a string, a bool) is left out.
+
+    Returns
+    -------
+    dict[str, float]
+        The numeric values as floats, under their keys.
+
+    Raises
+    ------
+    ValueError
+        When a key is not one of BACKEND_TIMES.
+    """
     unknown = set(seconds) - set(BACKEND_TIMES)
     if unknown:
         raise ValueError(f"not a backend time: {sorted(unknown)}")

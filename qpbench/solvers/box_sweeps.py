@@ -27,8 +27,27 @@ from qpbench.solvers import colouring
 @njit(cache=True)
 def box_residual(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, c: np.ndarray,
                  lower: np.ndarray, upper: np.ndarray, x: np.ndarray) -> float:
-    """``||d x - clip(d x - g, d lower, d upper)||_inf``, ``g = P x + c``, ``d = diag P`` (1 where
-    it is 0)."""
+    """The box QP's natural-map residual of ``x``.
+
+    ``||d x - clip(d x - g, d lower, d upper)||_inf``, ``g = P x + c``, ``d = diag P`` (1 where
+    it is 0).
+
+    Parameters
+    ----------
+    indptr, indices, data : np.ndarray
+        P in CSR form, shape (m, m).
+    c : np.ndarray
+        The linear term, shape (m,).
+    lower, upper : np.ndarray
+        The box's bounds, shape (m,).
+    x : np.ndarray
+        The point, shape (m,).
+
+    Returns
+    -------
+    float
+        The residual, 0 for an empty x.
+    """
     worst = 0.0
     for i in range(x.size):
         gradient = c[i]
@@ -49,9 +68,40 @@ def box_sweeps(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, c: np.
                lower: np.ndarray, upper: np.ndarray, diag: np.ndarray, order: np.ndarray,
                x: np.ndarray, tolerance: float, max_sweeps: int, check_every: int
                ) -> tuple[int, bool]:
-    """(sweeps, converged): sweeps over the coordinates ``order`` (each with ``diag > 0``),
-    updating ``x`` in place, until :func:`box_residual` is at most ``tolerance`` (checked every
-    ``check_every`` sweeps) or ``max_sweeps`` are done."""
+    """Sweep the coordinates ``order`` of ``x`` in place until the residual reaches ``tolerance``.
+
+    Each sweep visits ``order`` (coordinates with ``diag > 0``) once; it stops when
+    :func:`box_residual` is at most ``tolerance`` (checked every ``check_every`` sweeps) or
+    ``max_sweeps`` are done.
+
+    Parameters
+    ----------
+    indptr, indices, data : np.ndarray
+        P in CSR form, shape (m, m).
+    c : np.ndarray
+        The linear term, shape (m,).
+    lower, upper : np.ndarray
+        The box's bounds, shape (m,).
+    diag : np.ndarray
+        diag P, shape (m,); positive on every coordinate of ``order``.
+    order : np.ndarray
+        The coordinates to update, in sweep order.
+    x : np.ndarray
+        The start inside the box, shape (m,), updated in place.
+    tolerance : float
+        The residual of :func:`box_residual` to reach (absolute).
+    max_sweeps : int
+        The most sweeps.
+    check_every : int
+        Sweeps between residual checks.
+
+    Returns
+    -------
+    sweeps : int
+        The sweeps done.
+    converged : bool
+        Whether the residual reached ``tolerance``.
+    """
     sweeps = 0
     while sweeps < max_sweeps:
         for _ in range(min(check_every, max_sweeps - sweeps)):
@@ -72,12 +122,45 @@ def box_gauss_seidel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, 
                      lower: np.ndarray, upper: np.ndarray, diag: np.ndarray,
                      colour_order: np.ndarray, start: np.ndarray, tolerance: float,
                      max_sweeps: int, check_every: int) -> tuple[np.ndarray, int, bool]:
-    """(x, sweeps, converged) of projected Gauss-Seidel on the box QP from ``start`` clipped
-    into the box. A coordinate with ``lower == upper`` (an empty box) stays at its bound; one
+    """Projected Gauss-Seidel on the box QP from ``start`` clipped into the box.
+
+    A coordinate with ``lower == upper`` (an empty box) stays at its bound; one
     with ``diag <= 0`` has a zero row (P is PSD) and a constant gradient c_i, so it goes to the
     bound that gradient points to, once; the others are swept (:func:`box_sweeps`) in
     ``colour_order`` (every coordinate, in a stable order of the greedy colours of P's graph),
-    unless :func:`box_residual` is at most ``tolerance`` already (0 sweeps)."""
+    unless :func:`box_residual` is at most ``tolerance`` already (0 sweeps).
+
+    Parameters
+    ----------
+    indptr, indices, data : np.ndarray
+        P in CSR form, shape (m, m), symmetric positive semi-definite.
+    c : np.ndarray
+        The linear term, shape (m,).
+    lower, upper : np.ndarray
+        The box's bounds, shape (m,); ``lower <= upper``.
+    diag : np.ndarray
+        diag P, shape (m,).
+    colour_order : np.ndarray
+        Every coordinate once, in sweep order
+        (:func:`qpbench.solvers.colouring.colour_order`).
+    start : np.ndarray
+        The starting point, shape (m,); not changed.
+    tolerance : float
+        The residual of :func:`box_residual` to reach (absolute).
+    max_sweeps : int
+        The most sweeps.
+    check_every : int
+        Sweeps between residual checks.
+
+    Returns
+    -------
+    x : np.ndarray
+        The last iterate, shape (m,), inside the box.
+    sweeps : int
+        The sweeps done.
+    converged : bool
+        Whether the residual reached ``tolerance``.
+    """
     x = np.minimum(np.maximum(start, lower), upper)
     movable = np.zeros(x.size, dtype=np.bool_)
     for i in range(x.size):

@@ -19,8 +19,20 @@ from qpbench.solvers.counting_sort import stable_order
 
 @njit(cache=True)
 def greedy_colours(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """Colour of each contact: the smallest colour unused by its neighbours (the entries of
-    its row), contacts taken in index order."""
+    """Colour of each contact: the smallest colour unused by its neighbours.
+
+    The neighbours of a contact are the entries of its row; contacts are taken in index order.
+
+    Parameters
+    ----------
+    indptr, indices : np.ndarray
+        The CSR (or CSC) pattern of a symmetric n x n matrix.
+
+    Returns
+    -------
+    np.ndarray
+        The colours 0, 1, ..., shape (n,), int64.
+    """
     n = indptr.size - 1
     colours = np.full(n, -1, dtype=np.int64)
     taken_by = np.full(n + 1, -1, dtype=np.int64)  # taken_by[c] = i: a neighbour of i holds c
@@ -38,13 +50,37 @@ def greedy_colours(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def colour_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """The contacts class by class of :func:`greedy_colours`, in index order within a class
-    (``np.argsort(colours, kind="stable")``, by :func:`stable_order`)."""
+    """The contacts class by class of :func:`greedy_colours`, in index order within a class.
+
+    That is ``np.argsort(colours, kind="stable")``, computed by :func:`stable_order`.
+
+    Parameters
+    ----------
+    indptr, indices : np.ndarray
+        The CSR (or CSC) pattern of a symmetric n x n matrix.
+
+    Returns
+    -------
+    np.ndarray
+        Every contact index once, shape (n,), int64.
+    """
     return stable_order(greedy_colours(indptr, indices))
 
 
 def colours_of(pattern: sp.spmatrix) -> np.ndarray:
-    """:func:`greedy_colours` of a symmetric sparse matrix's pattern."""
+    """:func:`greedy_colours` of a symmetric sparse matrix's pattern.
+
+    Parameters
+    ----------
+    pattern : sp.spmatrix
+        A symmetric n x n sparse matrix; its entries' values do not matter, only their places
+        (a format other than CSR or CSC is converted to CSR).
+
+    Returns
+    -------
+    np.ndarray
+        The colour of each contact, shape (n,), int64.
+    """
     compressed = pattern if sp.isspmatrix_csr(pattern) or sp.isspmatrix_csc(pattern) \
         else sp.csr_matrix(pattern)
     return greedy_colours(compressed.indptr, compressed.indices)

@@ -12,9 +12,22 @@ from numba import njit
 
 @njit(cache=True)
 def stable_order(keys: np.ndarray) -> np.ndarray:
-    """``np.argsort(keys, kind="stable")`` for non-negative integer keys: the indices by
-    rising key, by index among equal keys. Counts per key, their running sums as each key's
-    first place, then each index put at its key's next place (O(n + largest key))."""
+    """``np.argsort(keys, kind="stable")`` for non-negative integer keys.
+
+    The indices by rising key, by index among equal keys. Counts per key, their running sums
+    as each key's first place, then each index put at its key's next place
+    (O(n + largest key)).
+
+    Parameters
+    ----------
+    keys : np.ndarray
+        Non-negative integers, shape (n,).
+
+    Returns
+    -------
+    np.ndarray
+        The permutation, shape (n,), int64.
+    """
     n = keys.size
     largest = 0
     for key in keys:

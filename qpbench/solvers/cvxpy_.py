@@ -49,7 +49,18 @@ NLP_SOLVERS = frozenset({"IPOPT"})  # solved through cvxpy's NLP path, which tak
 
 
 def qpbench_name(solver: str) -> str:
-    """``cvxpy-<solver lower>``."""
+    """``cvxpy-<solver lower>``.
+
+    Parameters
+    ----------
+    solver : str
+        cvxpy's solver name, a key of SOLVERS (``CLARABEL``).
+
+    Returns
+    -------
+    str
+        The name qpbench lists it under (``cvxpy-clarabel``).
+    """
     return f"cvxpy-{solver.lower()}"
 
 
@@ -89,11 +100,26 @@ class Model:
         self.problem = cp.Problem(cp.Minimize(objective), [self.constraint])
 
     def impulses(self) -> np.ndarray | None:
+        """The impulses of the last solve: the constraint's dual value (primal) or l.
+
+        Returns
+        -------
+        np.ndarray or None
+            l, flat; None when cvxpy holds no value (no solve, or a failed one).
+        """
         value = self.constraint.dual_value if self.formulation == "primal" else self.variable.value
         return None if value is None else np.asarray(value, dtype=float).ravel()
 
     def start_at(self, problem: ImpactProblem, warm_start: np.ndarray) -> None:
-        """Sets the variable's value from warm-start impulses (l, or v+(l) for primal)."""
+        """Sets the variable's value from warm-start impulses (l, or v+(l) for primal).
+
+        Parameters
+        ----------
+        problem : ImpactProblem
+            The problem the model was posed from, for v+(l) on its free degrees of freedom.
+        warm_start : np.ndarray
+            A guess of l, shape (n,).
+        """
         impulses = np.asarray(warm_start, dtype=float)
         if self.formulation == "primal":
             self.variable.value = problem.v_plus(impulses)[self.free]
@@ -102,7 +128,24 @@ class Model:
 
 
 def make_solve(solver: str, formulation: str) -> Callable[..., SolverOutput]:
-    """The solve function of ``cvxpy-<solver>`` on ``formulation``."""
+    """The solve function of ``cvxpy-<solver>`` on ``formulation``.
+
+    Parameters
+    ----------
+    solver : str
+        cvxpy's solver name, a key of SOLVERS.
+    formulation : str
+        ``dual``, ``dual-factored`` or ``primal``.
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem: the model posed and
+        solved with the accuracy table's row for ``eps`` at the problem's scale (the warm
+        start used only on the NLP path); its claim is cvxpy's ``optimal``, its backend
+        times cvxpy's compile time and the solver's own, a solver error an output with no
+        impulses.
+    """
     name = qpbench_name(solver)
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None

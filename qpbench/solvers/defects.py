@@ -32,8 +32,19 @@ DEBIAN = "debian:"
 
 @cache
 def debian_version(package: str) -> str | None:
-    """The installed version of Debian package ``package`` as dpkg records it
-    (``4.4.0+dfsg-2``), or None when it is not installed or there is no dpkg."""
+    """The installed version of Debian package ``package`` as dpkg records it.
+
+    Parameters
+    ----------
+    package : str
+        The Debian package's name (``python3-siconos``).
+
+    Returns
+    -------
+    str or None
+        Its version (``4.4.0+dfsg-2``), or None when it is not installed or there is no
+        dpkg.
+    """
     try:
         query = subprocess.run(["dpkg-query", "-W", "-f=${Status}|${Version}", package],
                                capture_output=True, text=True, check=False, timeout=30)
@@ -54,8 +65,16 @@ class Defect:
     what: str
 
     def installed_version(self) -> str | None:
-        """The version of ``package`` installed here: a Python distribution's, or for
-        ``debian:NAME`` that Debian package's (dpkg's record), None when it is missing."""
+        """The version of ``package`` installed here.
+
+        A Python distribution's, or for ``debian:NAME`` that Debian package's (dpkg's
+        record).
+
+        Returns
+        -------
+        str or None
+            The version, None when the package is missing.
+        """
         if self.package.startswith(DEBIAN):
             return debian_version(self.package.removeprefix(DEBIAN))
         try:
@@ -64,14 +83,37 @@ class Defect:
             return None
 
     def applies_here(self) -> bool:
-        """The installed version of ``package`` is within ``versions``."""
+        """The installed version of ``package`` is within ``versions``.
+
+        Returns
+        -------
+        bool
+            False also when the package is not installed; pre-releases count as in range.
+        """
         version = self.installed_version()
         return version is not None and SpecifierSet(self.versions).contains(
             version, prereleases=True)
 
     def hits(self, solver: str, formulation: str, rank_deficiency: int) -> bool:
-        """Whether this row describes ``solver/formulation`` on a problem with that rank
-        deficiency, with the package installed here."""
+        """Whether this row describes a solve of ``solver/formulation`` here.
+
+        The row's pair must match (its formulation ``*`` matches any), its problem kind
+        must fit the rank deficiency, and its package be installed here in its range.
+
+        Parameters
+        ----------
+        solver : str
+            The solver's name.
+        formulation : str
+            The formulation it posed.
+        rank_deficiency : int
+            The problem's rank deficiency of Q (``singular`` rows need it above 0).
+
+        Returns
+        -------
+        bool
+            True when the row applies.
+        """
         pair = self.solver == solver and self.formulation in ("*", formulation)
         kind = self.problems == "any" or (self.problems == "singular" and rank_deficiency > 0)
         return pair and kind and self.applies_here()
@@ -79,7 +121,25 @@ class Defect:
 
 @cache
 def defects(path: Path = TABLE) -> tuple[Defect, ...]:
-    """Every row of the table; InputError naming the row and field on a malformed one."""
+    """Every row of the table, read once per path.
+
+    Parameters
+    ----------
+    path : Path, optional
+        The TOML table; ``defects.toml`` beside this module by default.
+
+    Returns
+    -------
+    tuple[Defect, ...]
+        The rows in the file's order.
+
+    Raises
+    ------
+    InputError
+        Naming the file, row and field on an unreadable table or a malformed row.
+    packaging.specifiers.InvalidSpecifier
+        On a malformed ``versions`` range.
+    """
     try:
         rows = tomllib.loads(path.read_text(encoding="utf-8")).get("defect", [])
     except (OSError, tomllib.TOMLDecodeError) as error:
@@ -103,6 +163,22 @@ def defects(path: Path = TABLE) -> tuple[Defect, ...]:
 
 
 def known_defect(solver: str, formulation: str, rank_deficiency: int) -> Defect | None:
-    """The first row that describes this solve here, or None."""
+    """The first row that describes this solve here, or None.
+
+    Parameters
+    ----------
+    solver : str
+        The solver's name.
+    formulation : str
+        The formulation it posed.
+    rank_deficiency : int
+        The problem's rank deficiency of Q.
+
+    Returns
+    -------
+    Defect or None
+        The first row of :func:`defects` that :meth:`Defect.hits` this solve, None when none
+        does.
+    """
     return next((defect for defect in defects()
                  if defect.hits(solver, formulation, rank_deficiency)), None)

@@ -40,9 +40,21 @@ UNTWINNED_BACKENDS = ("native", "siconos")
 
 
 def frictionless_solvers(specs: list[SolverSpec]) -> list[SolverSpec]:
-    """The impact solvers among ``specs`` of a ``dual`` or ``lcp`` formulation, usable or not,
-    one per name (its ``dual`` form where it has both), in the order given, but for
-    ``UNTWINNED_BACKENDS``."""
+    """The impact solvers among ``specs`` of a ``dual`` or ``lcp`` formulation, usable or not.
+
+    One per name (its ``dual`` form where it has both), in the order given, but for
+    ``UNTWINNED_BACKENDS``.
+
+    Parameters
+    ----------
+    specs : list[SolverSpec]
+        Registered pairs.
+
+    Returns
+    -------
+    list[SolverSpec]
+        The pairs that get a frictional twin.
+    """
     chosen: dict[str, SolverSpec] = {}
     for spec in specs:
         if ("impact" not in spec.kinds or spec.formulation not in INNER_FORMULATIONS
@@ -55,9 +67,25 @@ def frictionless_solvers(specs: list[SolverSpec]) -> list[SolverSpec]:
 
 def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None] | None = None
                ) -> Callable[..., SolverOutput]:
-    """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r;
-    first ``compiled`` (the relaxation, solve and maps in one compiled call) where the solver
-    has one, unless it declines (None)."""
+    """The solve function of a twin: ``inner`` on the relaxed problem, mapped back to r.
+
+    First ``compiled`` (the relaxation, solve and maps in one compiled call) where the solver
+    has one, unless it declines (None).
+
+    Parameters
+    ----------
+    inner : SolveFunction
+        The frictionless solver's solve function.
+    compiled : callable or None, optional
+        ``compiled(problem, eps, warm_start)`` giving the twin's output or None when it
+        declines; None (the default) when the solver has none.
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` on a FrictionalProblem, whose impulses are
+        r = (l_N, l_T).
+    """
 
     def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
@@ -74,9 +102,29 @@ def make_solve(inner: SolveFunction, compiled: Callable[..., SolverOutput | None
 def derived(spec: SolverSpec, formulation: str,
             build: Callable[[SolverSpec], tuple[Callable[..., SolverOutput], str]],
             **fields: Any) -> SolverSpec:
-    """The frictional twin ``NAME/formulation`` of a frictionless solver ``spec``, whose solve
-    function and description ``build(spec)`` gives; unusable with spec's reason if spec is.
-    Its set-up is spec's unless ``fields`` name a ``prepare`` of its own."""
+    """The frictional twin ``NAME/formulation`` of a frictionless solver ``spec``.
+
+    Its solve function and description are what ``build(spec)`` gives; it is unusable with
+    spec's reason if spec is. Its set-up is spec's unless ``fields`` name a ``prepare`` of
+    its own.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The frictionless pair.
+    formulation : str
+        The twin's formulation (``ccp``, ``staggered``).
+    build : callable
+        Gives the twin's solve function and description from ``spec``; not called when
+        ``spec`` is unusable.
+    **fields : Any
+        Further SolverSpec fields of a usable twin (``warm_start``, ``prepare``, ...).
+
+    Returns
+    -------
+    SolverSpec
+        The twin, of kind ``frictional``, with spec's name, backend and version.
+    """
     common = {"name": spec.name, "formulation": formulation, "backend": spec.backend,
               "version": spec.version, "kinds": ("frictional",)}
     if not spec.usable:
@@ -87,7 +135,18 @@ def derived(spec: SolverSpec, formulation: str,
 
 
 def twin(spec: SolverSpec) -> SolverSpec:
-    """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is)."""
+    """``NAME/ccp`` of a frictionless solver ``spec`` (unusable with its reason if it is).
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        A pair of :func:`frictionless_solvers`.
+
+    Returns
+    -------
+    SolverSpec
+        The twin; it takes warm starts when ``spec`` does.
+    """
     return derived(spec, FORMULATION, lambda inner: (
         make_solve(inner.solve, COMPILED_TWINS.get(inner.name)),
         f"Anitescu's relaxation (z >= 0, columns n +- mu t) solved by {inner.key}"),

@@ -105,20 +105,56 @@ def _symmetric_arrays(box: BoxQP) -> tuple[sp.csc_matrix, tuple[np.ndarray, ...]
 
 
 def box_residual(box: BoxQP, x: np.ndarray) -> float:
-    """``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
-    (1 where it is 0): the box QP's natural map, a velocity (``box_sweeps.box_residual``)."""
+    """The box QP's natural-map residual of ``x``, a velocity (``box_sweeps.box_residual``).
+
+    ``||d x - clip(d x - g, d lower, d upper)||_inf`` with ``g = P x + c``, ``d = diag P``
+    (1 where it is 0).
+
+    Parameters
+    ----------
+    box : BoxQP
+        The box QP of m coordinates.
+    x : np.ndarray
+        The point, shape (m,).
+
+    Returns
+    -------
+    float
+        The residual (absolute, not scaled).
+    """
     _, arrays = _symmetric_arrays(box)
     return float(box_sweeps.box_residual(*arrays, np.ascontiguousarray(x, dtype=float)))
 
 
 def box_gauss_seidel(box: BoxQP, tolerance: float, max_sweeps: int, check_every: int,
                      start: np.ndarray) -> BoxAnswer:
-    """Coordinate descent with clamping, ``x_i <- clip(x_i - g_i / P_ii, lower_i, upper_i)``,
-    colour by colour on the graph of P (as ``qpbench.solvers.pgs``), until the box residual
+    """Projected Gauss-Seidel on the box QP, colour by colour on the graph of P.
+
+    Coordinate descent with clamping, ``x_i <- clip(x_i - g_i / P_ii, lower_i, upper_i)``,
+    colour by colour (as ``qpbench.solvers.pgs``), until the box residual
     (:func:`box_residual`) is at most ``tolerance`` (checked every ``check_every`` sweeps); the
     sweeps run compiled (``qpbench.solvers.box_sweeps``). A coordinate with ``P_ii = 0`` has a
     zero row (P is PSD) and a constant gradient c_i: it goes to the bound that gradient points
-    to, once."""
+    to, once.
+
+    Parameters
+    ----------
+    box : BoxQP
+        The box QP of m coordinates.
+    tolerance : float
+        The absolute box residual to reach (a velocity).
+    max_sweeps : int
+        The most sweeps.
+    check_every : int
+        Sweeps between residual checks.
+    start : np.ndarray
+        The starting point, shape (m,); it is clipped into the box first.
+
+    Returns
+    -------
+    BoxAnswer
+        The last iterate, ``converged`` or the sweep limit, the claim and the sweeps done.
+    """
     P, arrays = _symmetric_arrays(box)
     x, sweeps, converged = box_sweeps.box_gauss_seidel(
         *arrays, P.diagonal(), colouring.colour_order(P.indptr, P.indices),
@@ -136,8 +172,22 @@ def _own_box_solver(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> 
 
 # --- the box QP through the backends --------------------------------------------------------
 def on_free_coordinates(solve: BoxSolver) -> BoxSolver:
-    """``solve`` on the coordinates whose box is not empty (``lower < upper``), the others
-    fixed at their bound: the backends get no degenerate bounds."""
+    """``solve`` on the coordinates whose box is not empty (``lower < upper``).
+
+    The others are fixed at their bound and their terms moved into the linear term, so the
+    backends get no degenerate bounds.
+
+    Parameters
+    ----------
+    solve : BoxSolver
+        A box solver for boxes whose coordinates are all free.
+
+    Returns
+    -------
+    BoxSolver
+        The same signature on any box: ``solve`` on the free coordinates (not called when
+        there are none), its answer written back among the fixed ones.
+    """
 
     def restricted(box: BoxQP, eps: float, scale: float, start: np.ndarray) -> BoxAnswer:
         free = box.upper > box.lower
@@ -245,8 +295,22 @@ BOUNDED_BACKENDS: dict[str, tuple[Callable[[str], BoxSolver], str]] = {
 
 
 def box_solver_for(spec: SolverSpec) -> tuple[BoxSolver, str]:
-    """The friction box QP solver that goes with the frictionless solver ``spec``, and how the
-    description names it: its backend's with bounds, else projected Gauss-Seidel."""
+    """The friction box QP solver that goes with the frictionless solver ``spec``.
+
+    Its backend's with bounds (``BOUNDED_BACKENDS``), else projected Gauss-Seidel.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The frictionless pair.
+
+    Returns
+    -------
+    solver : BoxSolver
+        The box solver, ``(box, inner accuracy, scale, start) -> BoxAnswer``.
+    description : str
+        How the twin's description names it.
+    """
     if spec.backend in BOUNDED_BACKENDS:
         make, description = BOUNDED_BACKENDS[spec.backend]
         return on_free_coordinates(make(spec.name)), description.format(name=spec.name)
@@ -276,6 +340,24 @@ class Inner:
 
     def normal(self, tangential: np.ndarray, start: np.ndarray | None
                ) -> tuple[np.ndarray | None, str]:
+        """Solve the normal QP for a fixed l_T with the frictionless solver.
+
+        Parameters
+        ----------
+        tangential : np.ndarray
+            l_T, shape (n,).
+        start : np.ndarray or None
+            A warm start of l_N, shape (n,); passed on only when the solver takes warm
+            starts.
+
+        Returns
+        -------
+        normal : np.ndarray or None
+            l_N clipped to >= 0, shape (n,); None when the solver gave no finite answer of
+            that shape.
+        status : str
+            The solver's status.
+        """
         problem = self.problem
         sub = problem.normal_given(tangential)
         _share_matrices(sub, problem.normal)
@@ -288,6 +370,23 @@ class Inner:
         return np.maximum(np.asarray(impulses, dtype=float), 0.0), output.status
 
     def friction(self, normal: np.ndarray, start: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """Solve the friction box QP for a fixed l_N with the box solver.
+
+        Parameters
+        ----------
+        normal : np.ndarray
+            l_N, shape (n,).
+        start : np.ndarray
+            A start of l_T, shape (n,), clipped into the box before it is handed over.
+
+        Returns
+        -------
+        tangential : np.ndarray or None
+            l_T clipped into ``-mu l_N <= l_T <= mu l_N``, shape (n,); zeros when every box
+            is empty; None when the box solver gave no finite answer of that shape.
+        status : str
+            The box solver's status (``empty boxes`` when it was not called).
+        """
         W_TT, linear, lower, upper = self.problem.friction_box(normal)
         if not np.any(upper > lower):
             return np.zeros(self.problem.n_contacts), "empty boxes"
@@ -310,6 +409,31 @@ def _share_matrices(sub: ImpactProblem, normal: ImpactProblem) -> None:
 
 def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: int,
               warm_start: np.ndarray | None) -> SolverOutput:
+    """Run the staggered-projections loop of the module docstring on ``problem``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    inner : Inner
+        Its two inner solves, which count their iterations.
+    eps : float
+        The Coulomb residual to reach (qpbench's relative residual).
+    max_outer : int
+        The most rounds.
+    warm_start : np.ndarray or None
+        r = (l_N, l_T), shape (2n,); returned as it is when it already meets ``eps``, and
+        its l_T starts the loop; None or an unusable guess starts at 0.
+
+    Returns
+    -------
+    SolverOutput
+        The better of the best iterate and the final normal solve (no impulses when no
+        round finished), claimed when its Coulomb residual is at most ``eps``;
+        ``iterations`` is the inner solvers' sum (None when none reported any), ``info``
+        holds ``outer_iterations``, ``inner_solves`` and, with an answer, its ``residual``
+        and which one was ``returned``.
+    """
     n = problem.n_contacts
     normal = np.zeros(n)
     tangential = np.zeros(n)
@@ -374,7 +498,24 @@ COMPILED_LOOPS = ("pi-robust",)
 
 
 def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverOutput]:
-    """The solve function of ``spec.name/staggered``."""
+    """The solve function of ``spec.name/staggered``.
+
+    For ``COMPILED_LOOPS`` it first tries the compiled loop
+    (``qpbench.solvers.staggered_compiled``) and runs :func:`staggered` when that declines.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        A usable frictionless pair; its solve function solves the normal QP.
+    box_solver : BoxSolver
+        The friction box QP's solver (:func:`box_solver_for`).
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` on a FrictionalProblem, with the options of
+        the accuracy table's ``staggered`` row.
+    """
     assert spec.solve is not None
     normal_solve = spec.solve
 
@@ -394,7 +535,19 @@ def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverO
 
 
 def twin(spec: SolverSpec) -> SolverSpec:
-    """``NAME/staggered`` of a frictionless solver ``spec`` (unusable with its reason)."""
+    """``NAME/staggered`` of a frictionless solver ``spec`` (unusable with its reason).
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        A pair of :func:`qpbench.solvers.friction_ccp.frictionless_solvers`.
+
+    Returns
+    -------
+    SolverSpec
+        The twin: it takes warm starts, stops on qpbench's own residual, and its set-up
+        also loads the compiled box sweeps where it uses them.
+    """
 
     def build(inner: SolverSpec) -> tuple[Callable[..., SolverOutput], str]:
         box_solver, box_name = box_solver_for(inner)

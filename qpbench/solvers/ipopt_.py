@@ -64,28 +64,122 @@ class QuadraticProgram:
         self.iterations = 0
 
     def objective(self, x: np.ndarray) -> float:
+        """The objective ``1/2 x^T H x + c^T x``.
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The point, shape (k,).
+
+        Returns
+        -------
+        float
+            Its value.
+        """
         return float(0.5 * x @ (self.hessian_matrix @ x) + self.linear @ x)
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
+        """The objective's gradient ``H x + c``.
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The point, shape (k,).
+
+        Returns
+        -------
+        np.ndarray
+            The gradient, shape (k,).
+        """
         return self.hessian_matrix @ x + self.linear
 
     def constraints(self, x: np.ndarray) -> np.ndarray:
+        """The constraint values ``J x``.
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The point, shape (k,).
+
+        Returns
+        -------
+        np.ndarray
+            One value per constraint row.
+        """
         return self.jacobian_matrix @ x
 
     def jacobianstructure(self) -> tuple[np.ndarray, np.ndarray]:
+        """The places of J's stored entries.
+
+        Returns
+        -------
+        rows, cols : np.ndarray
+            Their row and column indices, in the order of :meth:`jacobian`'s values.
+        """
         return self.jacobian_rows, self.jacobian_cols
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """J's stored entries, the same at every point (J is constant).
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The point, shape (k,).
+
+        Returns
+        -------
+        np.ndarray
+            The values at :meth:`jacobianstructure`'s places.
+        """
         return self.jacobian_values
 
     def hessianstructure(self) -> tuple[np.ndarray, np.ndarray]:
+        """The places of the lower triangle of H's stored entries.
+
+        Returns
+        -------
+        rows, cols : np.ndarray
+            Their row and column indices, in the order of :meth:`hessian`'s values.
+        """
         return self.hessian_rows, self.hessian_cols
 
     def hessian(self, x: np.ndarray, multipliers: np.ndarray, objective_factor: float
                 ) -> np.ndarray:
+        """The Lagrangian's Hessian: ``objective_factor * H`` (the constraints are linear).
+
+        Parameters
+        ----------
+        x : np.ndarray
+            The point, shape (k,).
+        multipliers : np.ndarray
+            The constraints' multipliers; unused, as linear constraints add no curvature.
+        objective_factor : float
+            IPOPT's factor of the objective.
+
+        Returns
+        -------
+        np.ndarray
+            The lower triangle's values at :meth:`hessianstructure`'s places.
+        """
         return objective_factor * self.hessian_values
 
     def intermediate(self, algorithm_mode: int, iteration: int, *values: Any) -> bool:
+        """IPOPT's per-iteration callback: records the iteration count.
+
+        Parameters
+        ----------
+        algorithm_mode : int
+            0 in the regular mode, 1 in restoration; unused.
+        iteration : int
+            The iteration IPOPT has reached, stored as ``iterations``.
+        *values : Any
+            The iteration's objective, infeasibilities, step sizes and so on; unused.
+
+        Returns
+        -------
+        bool
+            Always True: IPOPT goes on.
+        """
         self.iterations = int(iteration)
         return True
 
@@ -111,7 +205,21 @@ def _posed(formulation: str, problem: ImpactProblem, warm_start: np.ndarray | No
 
 
 def make_solve(formulation: str) -> Callable[..., SolverOutput]:
-    """The solve function of ``ipopt`` on ``formulation``."""
+    """The solve function of ``ipopt`` on ``formulation``.
+
+    Parameters
+    ----------
+    formulation : str
+        ``dual`` (bounds l >= 0) or ``primal`` (velocities with ``A v >= lower``).
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem: the accuracy table's
+        ``ipopt`` row for ``eps`` at the problem's scale, the warm start (l, or v+ of it in
+        the primal) or l = 0 as the start; its claim is IPOPT's status 0, its ``info`` the
+        scale.
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

@@ -42,7 +42,21 @@ class Lcp:
 
     @classmethod
     def of(cls, problem: ImpactProblem, dense_limit: int = 0) -> Lcp:
-        """The LCP of ``problem``; ``op`` dense when it has at most ``dense_limit`` contacts."""
+        """The LCP of ``problem``; ``op`` dense when it has at most ``dense_limit`` contacts.
+
+        Parameters
+        ----------
+        problem : ImpactProblem
+            The impact whose Q, b and diag(Q) are taken.
+        dense_limit : int, optional
+            The most contacts for which ``op`` is Q as a dense array; 0 (the default) keeps
+            it sparse.
+
+        Returns
+        -------
+        Lcp
+            Q in CSR form, b, D, the residual's scale, ``op`` and the problem itself.
+        """
         Q = sp.csr_matrix(problem.Q)
         b = np.asarray(problem.b, dtype=float)
         scale = metrics.vector_scale(b)
@@ -64,24 +78,76 @@ class Lcp:
         return np.where(self.diag > 0.0, self.diag, 1.0)
 
     def w(self, impulses: np.ndarray) -> np.ndarray:
-        """w = Q l + b."""
+        """w = Q l + b.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            l, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            w, shape (n,).
+        """
         return self.op @ impulses + self.b
 
     def residual_of(self, impulses: np.ndarray, w: np.ndarray) -> float:
-        """||min(D l, w)||_inf / scale for a w already computed."""
+        """||min(D l, w)||_inf / scale for a w already computed.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            l, shape (n,).
+        w : np.ndarray
+            Q l + b for these impulses, shape (n,).
+
+        Returns
+        -------
+        float
+            The scaled residual; 0 for a problem without contacts.
+        """
         if impulses.size == 0:
             return 0.0
         return float(np.max(np.abs(np.minimum(self.diag * impulses, w)))) / self.scale
 
     def residual(self, impulses: np.ndarray) -> float:
-        """||min(D l, Q l + b)||_inf / scale (qpbench's residual)."""
+        """||min(D l, Q l + b)||_inf / scale (qpbench's residual).
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            l, shape (n,).
+
+        Returns
+        -------
+        float
+            The scaled residual.
+        """
         return self.residual_of(impulses, self.w(impulses))
 
     def converged(self, impulses: np.ndarray, tol: float, w: np.ndarray | None = None) -> bool:
-        """qpbench's own ``metrics.residual(problem, l) <= tol``, so that a solver's "converged"
-        is exactly qpbench's verdict (the same formula with other products can round
-        differently near 1e-8 on extreme mass ratios); the fast residual only screens out
-        answers ten times above tol."""
+        """Whether qpbench's own ``metrics.residual(problem, l) <= tol``.
+
+        A solver's "converged" is thus exactly qpbench's verdict (the same formula with other
+        products can round differently near 1e-8 on extreme mass ratios); the fast residual
+        only screens out answers ten times above tol. Without a problem the fast residual
+        decides alone.
+
+        Parameters
+        ----------
+        impulses : np.ndarray
+            l, shape (n,).
+        tol : float
+            The residual to reach.
+        w : np.ndarray or None, optional
+            Q l + b when already computed; None computes it.
+
+        Returns
+        -------
+        bool
+            True when the residual is at most ``tol``.
+        """
         fast = self.residual_of(impulses, self.w(impulses) if w is None else w)
         if self.problem is None:
             return fast <= tol
@@ -90,7 +156,18 @@ class Lcp:
         return bool(metrics.residual(self.problem, impulses) <= tol)
 
     def start(self, warm_start: np.ndarray | None) -> np.ndarray:
-        """The warm start clipped to l >= 0 when it has the right size and is finite, else 0."""
+        """The warm start clipped to l >= 0 when it has the right size and is finite, else 0.
+
+        Parameters
+        ----------
+        warm_start : np.ndarray or None
+            A guess of l (flattened); None, a wrong size or a non-finite entry gives zeros.
+
+        Returns
+        -------
+        np.ndarray
+            The starting impulses, shape (n,), all >= 0.
+        """
         if warm_start is not None:
             warm = np.asarray(warm_start, dtype=float).ravel()
             if warm.shape == (self.n,) and np.all(np.isfinite(warm)):
@@ -100,6 +177,25 @@ class Lcp:
 
 def output(impulses: np.ndarray | None, converged: bool, status: str, iterations: int,
            **info: object) -> SolverOutput:
-    """A SolverOutput whose claim is the algorithm's own convergence test."""
+    """A SolverOutput whose claim is the algorithm's own convergence test.
+
+    Parameters
+    ----------
+    impulses : np.ndarray or None
+        l, or None when the algorithm gave none.
+    converged : bool
+        The algorithm's own convergence test; it becomes ``claimed_success``.
+    status : str
+        The algorithm's status in its own words.
+    iterations : int
+        The iterations (or pivots) it took.
+    **info : object
+        Extra facts of the solve, stored as ``info``.
+
+    Returns
+    -------
+    SolverOutput
+        The output, with its times still unset.
+    """
     return SolverOutput(impulses=impulses, status=status, claimed_success=bool(converged),
                         iterations=int(iterations), info=dict(info))

@@ -54,6 +54,18 @@ class NormalMatrix:
         self.factor: object = None
 
     def factorize(self, diagonal: np.ndarray) -> None:
+        """Factors ``Q~ + diag(diagonal)`` for the next solves.
+
+        Parameters
+        ----------
+        diagonal : np.ndarray
+            d, shape (n,), positive.
+
+        Raises
+        ------
+        np.linalg.LinAlgError
+            When the matrix is not positive definite (dense) or exactly singular (sparse).
+        """
         if self.dense:
             matrix = self.Q_dense.copy()
             matrix[np.diag_indices_from(matrix)] += diagonal
@@ -62,14 +74,43 @@ class NormalMatrix:
             self.factor = symmetric_splu(self.Q_csc + sp.diags(diagonal))
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``(Q~ + diag(d))^-1 rhs`` with the last factor.
+
+        Parameters
+        ----------
+        rhs : np.ndarray
+            The right-hand side, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The solution, shape (n,).
+        """
         if self.dense:
             return la.cho_solve(self.factor, rhs, check_finite=False)
         return self.factor.solve(rhs)
 
 
 def symmetric_splu(matrix: sp.spmatrix) -> spla.SuperLU:
-    """SuperLU's factor of a symmetric positive definite sparse matrix (a symmetric ordering,
-    diagonal pivots); ``np.linalg.LinAlgError`` when it is exactly singular."""
+    """SuperLU's factor of a symmetric positive definite sparse matrix.
+
+    A symmetric ordering (minimum degree on A^T + A) and diagonal pivots.
+
+    Parameters
+    ----------
+    matrix : sp.spmatrix
+        The symmetric positive definite matrix.
+
+    Returns
+    -------
+    spla.SuperLU
+        Its factor, whose ``solve`` solves with it.
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When it is exactly singular.
+    """
     try:
         return spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                          options={"SymmetricMode": True})
@@ -78,8 +119,20 @@ def symmetric_splu(matrix: sp.spmatrix) -> spla.SuperLU:
 
 
 def moving_rows(factor: sp.spmatrix) -> sp.csr_matrix:
-    """The rows of ``factor`` (L = M^-1/2 G, or some of its columns) that have an entry: the
-    degrees of freedom that those contacts move."""
+    """The rows of ``factor`` (L = M^-1/2 G, or some of its columns) that have an entry.
+
+    They are the degrees of freedom that those contacts move.
+
+    Parameters
+    ----------
+    factor : sp.spmatrix
+        L or some of its columns, shape (d, k).
+
+    Returns
+    -------
+    sp.csr_matrix
+        Its nonzero rows, in order.
+    """
     factor = sp.csr_matrix(factor)
     return factor[np.flatnonzero(np.diff(factor.indptr))]
 
@@ -110,6 +163,18 @@ class WoodburyFactor:
         return spread - self.inverse * (self.A_T @ self.factor.solve(self.A @ spread))
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``(A^T A + diag(d))^-1 rhs``, refined ``refinements`` times.
+
+        Parameters
+        ----------
+        rhs : np.ndarray
+            The right-hand side, one entry per column of A.
+
+        Returns
+        -------
+        np.ndarray
+            The solution, one entry per column of A.
+        """
         x = self._inverse_times(rhs)
         for _ in range(self.refinements):
             x = x + self._inverse_times(rhs - self.A_T @ (self.A @ x) - self.diagonal * x)
@@ -134,20 +199,69 @@ class FactoredNormalMatrix:
     @classmethod
     def when_smaller(cls, lcp: Lcp, root: np.ndarray, factor: sp.spmatrix
                      ) -> FactoredNormalMatrix | None:
-        """The matrix over the degrees of freedom that move (the rows of ``factor`` = L with
-        an entry) when there are fewer of them than contacts; else None."""
+        """The matrix over the degrees of freedom that move, when fewer than the contacts.
+
+        Those are the rows of ``factor`` = L with an entry.
+
+        Parameters
+        ----------
+        lcp : Lcp
+            The Jacobi-scaled LCP of n contacts.
+        root : np.ndarray
+            Its scaling S = D^-1/2, shape (n,).
+        factor : sp.spmatrix
+            L = M^-1/2 G, shape (d, n).
+
+        Returns
+        -------
+        FactoredNormalMatrix or None
+            The matrix when fewer than n degrees of freedom move; else None.
+        """
         rows = moving_rows(factor)
         return cls(lcp, root, rows) if rows.shape[0] < lcp.n else None
 
     def factorize(self, diagonal: np.ndarray) -> None:
+        """Factors ``Q~ + diag(diagonal)`` for the next solves.
+
+        Parameters
+        ----------
+        diagonal : np.ndarray
+            d, shape (n,), positive.
+        """
         self.factor = WoodburyFactor(self.A, diagonal, A_T=self.A_T)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``(Q~ + diag(d))^-1 rhs`` with the last factor.
+
+        Parameters
+        ----------
+        rhs : np.ndarray
+            The right-hand side, shape (n,).
+
+        Returns
+        -------
+        np.ndarray
+            The solution, shape (n,).
+        """
         return self.factor.solve(rhs)
 
 
 def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
-    """(the LCP in l~ = D^1/2 l, i.e. (S Q S, S b) with S = D^-1/2, unit diagonal; and S)."""
+    """The LCP in l~ = D^1/2 l, i.e. (S Q S, S b) with S = D^-1/2, unit diagonal; and S.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP; zero diagonal entries count as 1.
+
+    Returns
+    -------
+    scaled : Lcp
+        The scaled LCP, with its own residual scale, dense ``op`` when ``lcp``'s is, and no
+        problem attached.
+    root : np.ndarray
+        S's diagonal, shape (n,).
+    """
     root = 1.0 / np.sqrt(lcp.safe_diag)
     Q = sp.csr_matrix(sp.diags(root) @ lcp.Q @ sp.diags(root))
     op = lcp.op * root[:, None] * root[None, :] if lcp.dense else Q
@@ -161,14 +275,15 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
                    try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
                    finish_below: float, end_on_stall: bool = False, prox: float = 0.0
                    ) -> tuple[np.ndarray, bool, int, int]:
-    """(l, converged, interior iterations, finishing solves), iterating on the Jacobi-scaled
-    LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``; ``normal`` factors its matrices) and
-    judging by the original ``lcp``. ``try_finish(l, w)`` is called on an iterate whose
-    residual is below ``finish_below`` (then below a tenth of the last failed try's) and
-    returns a converged l or None. ``end_on_stall``: once five iterations in a row have not
-    cut the best residual by 10% (complementarity can outrun feasibility on degenerate
-    piles, after which the steps shrink to nothing), the best iterate is handed to
-    ``try_finish`` and the interior point ends there.
+    """Mehrotra's predictor-corrector on the Jacobi-scaled LCP, judged on the original.
+
+    It iterates on the Jacobi-scaled LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``;
+    ``normal`` factors its matrices), judging by the original ``lcp``. ``try_finish(l, w)`` is
+    called on an iterate whose residual is below ``finish_below`` (then below a tenth of the last
+    failed try's) and returns a converged l or None. ``end_on_stall``: once five iterations in a row
+    have not cut the best residual by 10% (complementarity can outrun feasibility on degenerate
+    piles, after which the steps shrink to nothing), the best iterate is handed to ``try_finish``
+    and the interior point ends there.
 
     ``prox`` > 0: the iterates solve the proximal LCP ``(Q~ + prox I) l~ + b~ = w~`` around
     0 instead (Rockafellar's proximal point; the regularization of PIQP's interior point).
@@ -177,7 +292,45 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     converge where the plain ones stall. Its solution misses the LCP by at most
     ``prox max(l~)`` (scaled): once the LCP's residual is 100 times the proximal one's, more
     iterations cannot lower it, and with ``end_on_stall`` the iterate is handed on as on a
-    stall."""
+    stall.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The original LCP, whose residual (and qpbench's test) judges the iterates.
+    scaled : Lcp
+        ``lcp`` Jacobi-scaled (:func:`jacobi_scaled`).
+    root : np.ndarray
+        The scaling S = D^-1/2, shape (n,).
+    normal : NormalMatrix or FactoredNormalMatrix
+        Factors and solves ``Q~ + diag(d)`` of ``scaled``.
+    tol : float
+        qpbench's relative residual to reach.
+    max_iters : int
+        The most interior iterations.
+    try_finish : callable
+        ``try_finish(l, w)`` on the original LCP: a converged l, or None.
+    finish_below : float
+        The residual below which an iterate is first handed to ``try_finish``.
+    end_on_stall : bool, optional
+        End on a stall (or the proximal floor) after one last ``try_finish``; False by
+        default.
+    prox : float, optional
+        The proximal shift of the scaled LCP; 0 (the default) solves the LCP itself.
+
+    Returns
+    -------
+    l : np.ndarray
+        The converged answer, else the best iterate by residual, shape (n,).
+    converged : bool
+        Whether ``l`` passed qpbench's test (directly or through ``try_finish``).
+    iterations : int
+        The interior iterations done (``max_iters`` when it ran out, or when an iterate
+        stopped being finite).
+    finishing : int
+        1 when the run ended on a ``try_finish`` call (a success, or the one after a
+        stall), else 0.
+    """
     n = scaled.n
     impulses = np.full(n, scaled.scale)
     slack = np.maximum(scaled.w(impulses), scaled.scale)

@@ -75,11 +75,38 @@ def _lexicographic_row(tableau: np.ndarray, rhs: np.ndarray, column: np.ndarray,
 def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
                            pivot_tol: float = 1e-9
                            ) -> tuple[np.ndarray, np.ndarray, str, int, np.ndarray]:
-    """Lemke's method on a general LCP ``w = A z + c >= 0, z >= 0, z^T w = 0`` (dense A, not
-    necessarily symmetric): (z, the indices of the basic z, status, pivots, ray). Variables:
-    w_0..w_{n-1}, z_n..z_{2n-1}, z0 = 2n. ``ray``: on a secondary ray, the direction in which
-    z moves along it (the entering variable rises by one, each basic z_j by ``-d_i``, d the
-    entering column, none of whose entries is positive); else zeros."""
+    """Lemke's method on a general LCP ``w = A z + c >= 0, z >= 0, z^T w = 0``.
+
+    A is dense, not necessarily symmetric. Variables: w_0..w_{n-1}, z_n..z_{2n-1},
+    z0 = 2n. ``ray``: on a secondary ray, the direction in which z moves along it (the
+    entering variable rises by one, each basic z_j by ``-d_i``, d the entering column, none
+    of whose entries is positive); else zeros.
+
+    Parameters
+    ----------
+    A : np.ndarray
+        The LCP's matrix, shape (n, n).
+    c : np.ndarray
+        Its constant term, shape (n,).
+    max_pivots : int
+        The most pivots.
+    pivot_tol : float, optional
+        Entries of the entering column at most this count as zero in the ratio test;
+        1e-9 by default (meant for a unit diagonal).
+
+    Returns
+    -------
+    z : np.ndarray
+        z at the last basis, shape (n,), >= 0.
+    basic : np.ndarray
+        The indices of the basic z.
+    status : str
+        ``converged``, ``ray termination`` or the pivot limit reached.
+    pivots : int
+        The pivots done.
+    ray : np.ndarray
+        z's direction along a secondary ray, shape (n,); zeros on any other ending.
+    """
     n = c.shape[0]
     # columns: w (identity), z (-A), z0 (-e); each row reads w_i - (A z)_i - z0 = c_i
     tableau = np.hstack([np.eye(n), -A, -np.ones((n, 1))])
@@ -126,14 +153,31 @@ def complementary_pivoting(A: np.ndarray, c: np.ndarray, max_pivots: int,
 
 
 def no_solution_certified(Q: np.ndarray, b: np.ndarray, direction: np.ndarray) -> bool:
-    """``direction`` y proves that LCP(Q, b) with a symmetric positive semi-definite Q has no
-    feasible point, hence no solution: ``y >= 0``, ``Q y = 0`` and ``b^T y < 0`` (for any
+    """Whether ``direction`` proves that LCP(Q, b) has no feasible point.
+
+    For a symmetric positive semi-definite Q, a y proves it has no feasible point, hence no
+    solution, when ``y >= 0``, ``Q y = 0`` and ``b^T y < 0`` (for any
     l >= 0 with Q l + b >= 0, ``0 <= y^T (Q l + b) = b^T y``), each to ``CERTIFICATE_TOL``
     relative to ``max |Q| ||y||_1`` and ``||b||_inf ||y||_1``. Along a secondary ray of Lemke's
     method on such a Q, z's direction zh is such a y in exact arithmetic: complementarity
     along the ray gives ``zh^T Q zh + z0h e^T zh = 0``, both terms are non-negative, so
     ``Q zh = 0``, and then ``b^T zh = -z0 e^T zh < 0`` (Cottle, Pang and Stone, 1992,
-    section 4.4)."""
+    section 4.4).
+
+    Parameters
+    ----------
+    Q : np.ndarray
+        The LCP's symmetric positive semi-definite matrix, shape (n, n), dense.
+    b : np.ndarray
+        Its constant term, shape (n,).
+    direction : np.ndarray
+        The candidate y, shape (n,): a secondary ray's direction of z.
+
+    Returns
+    -------
+    bool
+        True when y passes the three checks; False also for a zero or non-finite y.
+    """
     size = float(np.abs(direction).sum())
     if size == 0.0 or not np.all(np.isfinite(direction)):
         return False
@@ -147,7 +191,29 @@ def no_solution_certified(Q: np.ndarray, b: np.ndarray, direction: np.ndarray) -
 
 
 def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str, int]:
-    """(l, converged, status, pivots)."""
+    """Lemke's method on the Jacobi-scaled impact LCP, polished and judged by qpbench.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP to solve (its Q densified for the tableau).
+    tol : float
+        qpbench's relative residual to reach.
+    max_pivots : int
+        The most pivots.
+
+    Returns
+    -------
+    l : np.ndarray
+        The answer, shape (n,); zeros when ``b >= 0`` (no contact approaches).
+    converged : bool
+        Whether pivoting ended at a solution whose residual is at most ``tol``.
+    status : str
+        ``converged``, a certified or uncertified ray, the pivot limit, or an ending above
+        tolerance.
+    pivots : int
+        The pivots done.
+    """
     n = lcp.n
     b = lcp.b
     if n == 0 or np.all(b >= 0.0):
@@ -207,9 +273,25 @@ def _polish_frictional(problem: FrictionalProblem, A: np.ndarray, c: np.ndarray,
 
 
 def solve_frictional(problem: FrictionalProblem, eps: float) -> SolverOutput:
-    """Lemke on the Stewart-Trinkle LCP (4n unknowns, not symmetric, zero diagonal in the slip
-    rows), Jacobi-scaled where the diagonal is positive; converged means qpbench's Coulomb
-    residual <= tol."""
+    """Lemke on the Stewart-Trinkle LCP of a frictional problem.
+
+    The LCP has 4n unknowns, is not symmetric and has a zero diagonal in the slip rows; it
+    is Jacobi-scaled where the diagonal is positive. Converged means qpbench's Coulomb
+    residual <= tol. The LCP is posed once and kept in ``problem.posed["lcp"]``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    eps : float
+        qpbench's accuracy level; the ``lemke`` row of the accuracy table follows from it.
+
+    Returns
+    -------
+    SolverOutput
+        r = (l_N, l_T) with the status and pivots; no impulses, declined, when 4n is above
+        ``max_contacts``.
+    """
     options = accuracy.options_for(NAME, eps, problem.scale)
     n = problem.n_contacts
     if 4 * n > options["max_contacts"]:
@@ -239,7 +321,24 @@ def solve_frictional(problem: FrictionalProblem, eps: float) -> SolverOutput:
 
 def solve(problem: ImpactProblem | FrictionalProblem, eps: float,
           warm_start: np.ndarray | None = None) -> SolverOutput:
-    """The impact LCP, or for a frictional problem its Stewart-Trinkle LCP."""
+    """Solve the impact LCP, or for a frictional problem its Stewart-Trinkle LCP, by Lemke.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to solve.
+    eps : float
+        qpbench's accuracy level, the relative residual to reach; the ``lemke`` row of the
+        accuracy table follows from it.
+    warm_start : np.ndarray or None, optional
+        Ignored: pivoting starts from its own basis.
+
+    Returns
+    -------
+    SolverOutput
+        The impulses (l, or r for a frictional problem), status, the algorithm's own test
+        as claim and the pivots done; no impulses, declined, above ``max_contacts``.
+    """
     if isinstance(problem, FrictionalProblem):
         return solve_frictional(problem, eps)
     lcp = Lcp.of(problem)

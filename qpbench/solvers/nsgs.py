@@ -61,14 +61,38 @@ VERSION = __version__
 
 
 def contact_graph(problem: FrictionalProblem) -> sp.csr_matrix:
-    """Contacts k, j are adjacent when W's 2x2 block (k, j) may be nonzero
-    (:meth:`FrictionalProblem.contact_graph`)."""
+    """The contact graph: k, j adjacent when W's 2x2 block (k, j) may be nonzero.
+
+    It is :meth:`FrictionalProblem.contact_graph`.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+
+    Returns
+    -------
+    sp.csr_matrix
+        The graph's symmetric n x n pattern.
+    """
     return problem.contact_graph()
 
 
 def start_in_cone(problem: FrictionalProblem, warm_start: np.ndarray | None) -> np.ndarray:
-    """The warm start clipped into the cone (l_N >= 0, |l_T| <= mu l_N) when it has 2n finite
-    entries, else 0."""
+    """The warm start clipped into the cone (l_N >= 0, |l_T| <= mu l_N), else 0.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    warm_start : np.ndarray or None
+        r = (l_N, l_T), flattened; used when it has 2n finite entries.
+
+    Returns
+    -------
+    np.ndarray
+        The start r, shape (2n,), inside the cone; zeros for no usable warm start.
+    """
     n = problem.n_contacts
     if warm_start is not None:
         warm = np.asarray(warm_start, dtype=float).ravel()
@@ -82,9 +106,24 @@ def start_in_cone(problem: FrictionalProblem, warm_start: np.ndarray | None) -> 
 def local_solve(block: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
                 b_normal: np.ndarray, b_tangential: np.ndarray, mu: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """The exact solution (r_N, r_T) of each contact's 2x2 Coulomb problem
-    ``u = W_kk r + b`` (module docstring), vectorized over contacts. ``block`` is
-    (W_NN, W_NT, W_TN, W_TT) of each contact's W_kk."""
+    """The exact solution (r_N, r_T) of each contact's 2x2 Coulomb problem ``u = W_kk r + b``.
+
+    The cases of the module docstring, vectorized over contacts.
+
+    Parameters
+    ----------
+    block : tuple of np.ndarray
+        (W_NN, W_NT, W_TN, W_TT) of each contact's W_kk, each of shape (k,).
+    b_normal, b_tangential : np.ndarray
+        Each contact's local free velocity b = (b_N, b_T), shape (k,).
+    mu : np.ndarray
+        Each contact's friction coefficient, shape (k,).
+
+    Returns
+    -------
+    normal, tangential : np.ndarray
+        r_N and r_T of each contact, shape (k,).
+    """
     a, c_nt, c_tn, d = block
     with np.errstate(divide="ignore", invalid="ignore"):
         # stick: W_kk r = -b by Cramer's rule
@@ -177,18 +216,50 @@ class ContactSweep:
 
 
 def contact_errors(problem: FrictionalProblem, impulses: np.ndarray) -> np.ndarray:
-    """Each contact's own natural-map error ``max(|F_N|, |F_T|) / scale``
-    (``friction_metrics.natural_map``)."""
+    """Each contact's own natural-map error ``max(|F_N|, |F_T|) / scale``.
+
+    F is ``friction_metrics.natural_map``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    impulses : np.ndarray
+        r = (l_N, l_T), shape (2n,).
+
+    Returns
+    -------
+    np.ndarray
+        The errors, shape (n,), relative to the problem's scale.
+    """
     F_normal, F_tangential = friction_metrics.natural_map(problem, impulses)
     return np.maximum(np.abs(F_normal), np.abs(F_tangential)) / problem.scale
 
 
 def finish_block(problem: FrictionalProblem, errors: np.ndarray, tol: float, limit: int
                  ) -> np.ndarray:
-    """The contacts of the pivoting finish: those whose ``errors`` exceed ``tol`` (the
-    ``limit`` largest when there are more) grown by whole rings of neighbours in the contact
-    graph while the block stays within ``limit`` contacts (it stops growing at the edge of
-    its coupled groups)."""
+    """The contacts of the pivoting finish.
+
+    Those whose ``errors`` exceed ``tol`` (the ``limit`` largest when there are more) grown
+    by whole rings of neighbours in the contact graph while the block stays within ``limit``
+    contacts (it stops growing at the edge of its coupled groups).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    errors : np.ndarray
+        Each contact's error (:func:`contact_errors`), shape (n,).
+    tol : float
+        The error above which a contact is unsolved.
+    limit : int
+        The most contacts in the block.
+
+    Returns
+    -------
+    np.ndarray
+        The block's contact indices, ascending; empty when no contact is unsolved.
+    """
     unsolved = np.flatnonzero(errors > tol)
     if unsolved.size > limit:
         unsolved = unsolved[np.argsort(-errors[unsolved], kind="stable")[:limit]]
@@ -208,7 +279,24 @@ def block_lcp(W_block: np.ndarray, q_block: np.ndarray, mu: np.ndarray
     ``w = A z + c``: ``z = (l_N, t, s)`` with ``t = l_T + mu l_N`` and the slack s, rows
     ``(u_N, u_T + s, 2 mu l_N - t)``. ``t`` complementary to ``u_T + s`` and ``s`` to
     ``mu l_N - l_T`` give stick (``u_T = 0``), slide with ``u_T > 0`` (``t = 0``) and slide
-    with ``u_T < 0`` (``s = -u_T``, ``l_T = mu l_N``)."""
+    with ``u_T < 0`` (``s = -u_T``, ``l_T = mu l_N``).
+
+    Parameters
+    ----------
+    W_block : np.ndarray
+        W on the k contacts' rows and columns, order ``(l_N, l_T)``, shape (2k, 2k).
+    q_block : np.ndarray
+        Their free velocity (the other contacts' impulses included), shape (2k,).
+    mu : np.ndarray
+        Their friction coefficients, shape (k,).
+
+    Returns
+    -------
+    A : np.ndarray
+        The LCP's matrix, shape (3k, 3k), not symmetric.
+    c : np.ndarray
+        Its constant term, shape (3k,).
+    """
     k = mu.shape[0]
     NN, NT = W_block[:k, :k], W_block[:k, k:]
     TN, TT = W_block[k:, :k], W_block[k:, k:]
@@ -221,8 +309,30 @@ def block_lcp(W_block: np.ndarray, q_block: np.ndarray, mu: np.ndarray
 
 def pivoting_finish(problem: FrictionalProblem, impulses: np.ndarray, tol: float,
                     limit: int, pivots_per_contact: int) -> np.ndarray | None:
-    """The iterate with the finish's block (:func:`finish_block`) replaced by Lemke's answer on
-    :func:`block_lcp` (Jacobi-scaled, other contacts fixed), or None when there is no block."""
+    """The iterate with the finish's block replaced by Lemke's answer on its LCP.
+
+    The block is :func:`finish_block`'s, its LCP :func:`block_lcp`'s (Jacobi-scaled, other
+    contacts fixed).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    impulses : np.ndarray
+        The iterate r, shape (2n,); not changed.
+    tol : float
+        The contact error above which a contact joins the block.
+    limit : int
+        The most contacts in the block.
+    pivots_per_contact : int
+        Lemke's most pivots per unknown of the block's LCP (3 unknowns per contact).
+
+    Returns
+    -------
+    np.ndarray or None
+        The new iterate, shape (2n,); None when there is no block or the answer is not
+        finite.
+    """
     n = problem.n_contacts
     block = finish_block(problem, contact_errors(problem, impulses), tol, limit)
     if block.size == 0:
@@ -247,10 +357,46 @@ def pivoting_finish(problem: FrictionalProblem, impulses: np.ndarray, tol: float
 def nsgs(problem: FrictionalProblem, sweep: ContactSweep, start: np.ndarray, tol: float,
          max_sweeps: int, check_every: int, stall_sweeps: int = 0, pivot_contacts: int = 0,
          pivots_per_contact: int = 0) -> tuple[np.ndarray, bool, str, int, float]:
-    """(r, converged, status, sweeps, residual) with the best checked iterate; the pivoting
-    finish (module docstring) whenever the best residual has not halved over the last
-    ``stall_sweeps`` sweeps, none of them before the previous finish (never when
-    ``pivot_contacts`` is 0), until a finish fails to improve it."""
+    """Sweep from ``start`` until qpbench's Coulomb residual reaches ``tol``.
+
+    With the pivoting finish (module docstring) whenever the best residual has not halved
+    over the last ``stall_sweeps`` sweeps, none of them before the previous finish (never
+    when ``pivot_contacts`` is 0), until a finish fails to improve it.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    sweep : ContactSweep
+        Its colour-ordered sweep, which updates r in place.
+    start : np.ndarray
+        The first iterate r, shape (2n,); copied, not changed.
+    tol : float
+        qpbench's relative Coulomb residual to reach.
+    max_sweeps : int
+        The most sweeps.
+    check_every : int
+        Sweeps between residual checks (the first check comes after one sweep).
+    stall_sweeps : int, optional
+        The sweeps over which the best residual must halve before a finish.
+    pivot_contacts : int, optional
+        The most contacts of a finish's block; 0 (the default) turns the finish off.
+    pivots_per_contact : int, optional
+        Lemke's most pivots per unknown of a finish's LCP.
+
+    Returns
+    -------
+    r : np.ndarray
+        The converged iterate, else the best checked one, shape (2n,).
+    converged : bool
+        Whether its residual is at most ``tol``.
+    status : str
+        ``converged`` (after a pivoting finish or not), a divergence or the sweep limit.
+    sweeps : int
+        The sweeps done.
+    residual : float
+        r's Coulomb residual.
+    """
     impulses = start.copy()
     residual = friction_metrics.residual(problem, impulses)
     best, best_residual = impulses.copy(), residual
@@ -294,6 +440,25 @@ def nsgs(problem: FrictionalProblem, sweep: ContactSweep, start: np.ndarray, tol
 
 def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
+    """Solve a frictional problem by nonsmooth Gauss-Seidel at accuracy level ``eps``.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem to solve.
+    eps : float
+        qpbench's accuracy level, the Coulomb residual to reach; the ``nsgs`` row of the
+        accuracy table follows from it.
+    warm_start : np.ndarray or None, optional
+        A guess of r = (l_N, l_T), clipped into the cone when it has 2n finite entries;
+        otherwise the start is 0.
+
+    Returns
+    -------
+    SolverOutput
+        r, status, the Coulomb residual's test as claim and the sweeps done; ``info``
+        holds the sweeps, colours, residual and sweep order.
+    """
     options = accuracy.options_for(NAME, eps, problem.scale)
     sweep = ContactSweep(problem)
     start = start_in_cone(problem, warm_start)

@@ -27,7 +27,36 @@ NAME = "penalty"
 
 def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
             ) -> tuple[np.ndarray | None, bool, str, int]:
-    """(l, converged, status, linear solves)."""
+    """Run the penalty iteration from l = 0 until qpbench's residual reaches ``tol``.
+
+    The penalty of a contact with ``l_i < 0`` is ``kappa * D_ii`` (1 in place of a zero
+    ``D_ii``).
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP to solve.
+    tol : float
+        qpbench's relative residual to reach.
+    kappa : float
+        The penalty factor, relative to diag(Q).
+    max_iters : int
+        The most linear solves.
+    dense_limit : int
+        The most contacts for the dense least-squares solve; above it, sparse LU.
+
+    Returns
+    -------
+    l : np.ndarray or None
+        The last solution, shape (n,); None when the sparse system was singular.
+    converged : bool
+        Whether its residual is at most ``tol``.
+    status : str
+        ``converged`` or why it stopped (a singular system, divergence, a repeated
+        penalized set, the iteration limit).
+    solves : int
+        The linear solves done.
+    """
     n = lcp.n
     impulses = np.zeros(n)
     if lcp.converged(impulses, tol):
@@ -58,6 +87,24 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
+    """Solve ``problem`` by the penalty method at accuracy level ``eps``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level, the relative residual to reach; the solver's options
+        follow from it in :mod:`qpbench.solvers.accuracy`.
+    warm_start : np.ndarray or None, optional
+        Ignored: the method always starts at l = 0.
+
+    Returns
+    -------
+    SolverOutput
+        The impulses, status, the algorithm's own convergence test as claim, and
+        the linear solves done.
+    """
     lcp = Lcp.of(problem)
     options = accuracy.options_for(NAME, eps, lcp.scale)
     impulses, converged, status, iterations = penalty(lcp, **options)

@@ -48,7 +48,34 @@ class Sweep:
 
 def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
         check_every: int) -> tuple[np.ndarray, bool, str, int]:
-    """(l, converged, status, sweeps)."""
+    """Sweep from ``start`` until qpbench's residual reaches ``tol``.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP to solve.
+    sweep : Sweep
+        The colour-ordered sweep of that LCP, which updates impulses in place.
+    start : np.ndarray
+        The first iterate, shape (n,), l >= 0; it is copied, not changed.
+    tol : float
+        qpbench's relative residual to reach.
+    max_sweeps : int
+        The most sweeps.
+    check_every : int
+        Sweeps between residual (and finiteness) checks.
+
+    Returns
+    -------
+    l : np.ndarray
+        The last iterate, shape (n,).
+    converged : bool
+        Whether its residual is at most ``tol``.
+    status : str
+        ``converged``, a divergence or the sweep limit reached.
+    sweeps : int
+        The sweeps taken.
+    """
     impulses = start.copy()
     if lcp.converged(impulses, tol):
         return impulses, True, "converged", 0
@@ -66,6 +93,25 @@ def pgs(lcp: Lcp, sweep: Sweep, start: np.ndarray, tol: float, max_sweeps: int,
 
 def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
           ) -> SolverOutput:
+    """Solve ``problem`` by projected Gauss-Seidel at accuracy level ``eps``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level, the relative residual to reach; the solver's options
+        follow from it in :mod:`qpbench.solvers.accuracy`.
+    warm_start : np.ndarray or None, optional
+        A guess of l, the start when finite and of the right size (clipped to
+        l >= 0); None or an unusable guess starts at 0.
+
+    Returns
+    -------
+    SolverOutput
+        The impulses, status, the algorithm's own convergence test as claim, the
+        sweeps taken, and the sweep order and number of colours in ``info``.
+    """
     lcp = Lcp.of(problem)
     options = accuracy.options_for(NAME, eps, lcp.scale)
     sweep = Sweep(lcp)

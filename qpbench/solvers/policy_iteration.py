@@ -30,12 +30,44 @@ from qpbench.solvers.registry import register
 
 
 def policy_of(lcp: Lcp, impulses: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """The policy P = {i : w_i < D_i l_i} as a boolean mask."""
+    """The policy P = {i : w_i < D_i l_i} as a boolean mask.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP, for D = diag(Q).
+    impulses : np.ndarray
+        l, shape (n,).
+    w : np.ndarray
+        Q l + b, shape (n,).
+
+    Returns
+    -------
+    np.ndarray
+        The mask of P, shape (n,), bool.
+    """
     return w < lcp.diag * impulses
 
 
 def policy_value(lcp: Lcp, policy: np.ndarray, cg_rtol: float, cg_max_iters: int) -> np.ndarray:
-    """l with ``Q_PP l_P = -b_P`` (conjugate gradients from zero) and ``l_i = 0`` outside P."""
+    """l with ``Q_PP l_P = -b_P`` (conjugate gradients from zero) and ``l_i = 0`` outside P.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP.
+    policy : np.ndarray
+        The mask of P, shape (n,), bool.
+    cg_rtol : float
+        CG's relative tolerance on the residual of ``Q_PP l_P = -b_P``.
+    cg_max_iters : int
+        The most CG iterations; CG's last iterate is taken when it does not converge.
+
+    Returns
+    -------
+    np.ndarray
+        l, shape (n,).
+    """
     impulses = np.zeros(lcp.n)
     index = np.flatnonzero(policy)
     if index.size == 0:
@@ -50,8 +82,39 @@ def policy_value(lcp: Lcp, policy: np.ndarray, cg_rtol: float, cg_max_iters: int
 def policy_iteration(lcp: Lcp, start: np.ndarray, tol: float, max_iters: int, cg_rtol: float,
                      cg_max_iters: int, rng: np.random.Generator | None = None
                      ) -> tuple[np.ndarray, bool, str, int]:
-    """(l, converged, status, policies solved). ``rng`` given: on a repeated policy jump to a
-    random one (pi-v2); ``rng`` None: a repeated policy ends the run as ``cycled`` (pi)."""
+    """Run policy iteration from ``start`` until qpbench's residual reaches ``tol``.
+
+    ``rng`` given: on a repeated policy jump to a random one (pi-v2); ``rng`` None: a
+    repeated policy ends the run as ``cycled`` (pi).
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP to solve.
+    start : np.ndarray
+        The first iterate, shape (n,); its policy is the first one solved.
+    tol : float
+        qpbench's relative residual to reach.
+    max_iters : int
+        The most policies solved.
+    cg_rtol : float
+        CG's relative tolerance in each policy's solve.
+    cg_max_iters : int
+        The most CG iterations of each policy's solve.
+    rng : np.random.Generator or None, optional
+        The source of random policies; None (the default) stops on a repeated policy.
+
+    Returns
+    -------
+    l : np.ndarray
+        The last iterate, shape (n,).
+    converged : bool
+        Whether its residual is at most ``tol``.
+    status : str
+        ``converged``, a cycle, a divergence or the iteration limit reached.
+    policies : int
+        The policies solved.
+    """
     impulses = start
     w = lcp.w(impulses)
     if lcp.converged(impulses, tol, w):

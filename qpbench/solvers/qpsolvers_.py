@@ -120,7 +120,26 @@ def _refused_positive_definite(messages: list[str]) -> bool:
 
 
 def make_solve(name: str, solver: str, formulation: str) -> Callable[..., SolverOutput]:
-    """The solve function of ``name`` (a qpsolvers backend, or its ``-reg`` variant)."""
+    """The solve function of ``name`` (a qpsolvers backend, or its ``-reg`` variant).
+
+    Parameters
+    ----------
+    name : str
+        The solver's name in qpbench, whose accuracy-table row gives the options
+        (``quadprog-reg``'s includes the regularization).
+    solver : str
+        The qpsolvers backend that runs it (``quadprog``).
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored``.
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem: the options for ``eps``
+        at the problem's scale, the warm start in the formulation's variables as qpsolvers'
+        ``initvals``; its claim is qpsolvers' ``found``, a refused singular P reads
+        ``unsupported: not positive definite``, and ``info`` holds the scale (and delta).
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

@@ -15,9 +15,17 @@ _saved_stdout: int | None = None
 
 @contextlib.contextmanager
 def c_stdout_silenced() -> Iterator[None]:
-    """Sends file descriptor 1 to /dev/null for the block: OSQP's and IPOPT's C code print
-    ("Polishing not needed ...") even when not verbose, which would corrupt ``--json``.
-    Nested and concurrent blocks share one redirection; the last to leave restores fd 1."""
+    """Sends file descriptor 1 to /dev/null for the block.
+
+    OSQP's and IPOPT's C code print ("Polishing not needed ...") even when not verbose,
+    which would corrupt ``--json``. Nested and concurrent blocks share one redirection; the
+    last to leave restores fd 1.
+
+    Yields
+    ------
+    None
+        Control, once, while fd 1 is silenced.
+    """
     global _silence_depth, _saved_stdout
     with _SILENCE_LOCK:
         if _silence_depth == 0:
@@ -43,10 +51,13 @@ _highs_banner_printed = False
 
 
 def highs_banner_silenced() -> None:
-    """Creates a first ``highspy.Highs`` object with file descriptor 1 silenced: the first one
-    of a process prints HiGHS's banner on standard output, whatever its options, which would
-    corrupt ``--json``. Every pair that reaches HiGHS calls it as its ``SolverSpec.prepare``,
-    outside the clock; later calls return at once, and without highspy it does nothing."""
+    """Creates a first ``highspy.Highs`` object with file descriptor 1 silenced.
+
+    The first one of a process prints HiGHS's banner on standard output, whatever its
+    options, which would corrupt ``--json``. Every pair that reaches HiGHS calls it as its
+    ``SolverSpec.prepare``, outside the clock; later calls return at once, and without
+    highspy it does nothing.
+    """
     global _highs_banner_printed
     if _highs_banner_printed:
         return

@@ -25,6 +25,21 @@ def register(spec: SolverSpec) -> SolverSpec:
 
     A solver that can run must have its row in the accuracy-options table
     (``qpbench.solvers.accuracy.OPTIONS``): none runs on defaults nobody chose.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The solver-formulation pair, usable or not.
+
+    Returns
+    -------
+    SolverSpec
+        ``spec`` itself.
+
+    Raises
+    ------
+    QpbenchError
+        When a usable ``spec`` has no row in the accuracy-options table.
     """
     if spec.solve is not None and spec.name not in accuracy.OPTIONS:
         raise QpbenchError(f"solver '{spec.name}' has no row in the accuracy-options table "
@@ -35,7 +50,19 @@ def register(spec: SolverSpec) -> SolverSpec:
 
 
 def register_unusable(name: str, formulations: tuple[str, ...], backend: str, reason: str) -> None:
-    """Records that ``name`` exists but cannot run here, and why."""
+    """Records that ``name`` exists but cannot run here, and why.
+
+    Parameters
+    ----------
+    name : str
+        The solver's name.
+    formulations : tuple[str, ...]
+        The formulations it would pose; one unusable pair is registered for each.
+    backend : str
+        The backend family that would run it.
+    reason : str
+        Why it cannot run (the import error, say), shown wherever it is listed.
+    """
     for formulation in formulations:
         register(SolverSpec(name=name, formulation=formulation, backend=backend, solve=None,
                             reason=reason))
@@ -59,9 +86,17 @@ def _import_extra_solvers() -> None:
 
 
 def register_derivation(derive: Derivation) -> None:
-    """Adds a rule that derives pairs from those the families register. Every rule runs once,
-    after every family is imported (:func:`all_solvers`), on all the pairs they registered,
-    so no family depends on the order in which the families are imported."""
+    """Adds a rule that derives pairs from those the families register.
+
+    Every rule runs once, after every family is imported (:func:`all_solvers`), on all the
+    pairs they registered, so no family depends on the order in which the families are
+    imported.
+
+    Parameters
+    ----------
+    derive : Derivation
+        Takes every registered pair, sorted by key, and gives the pairs to register.
+    """
     _DERIVATIONS.append(derive)
 
 
@@ -78,23 +113,56 @@ def _derive() -> None:
 
 
 def all_solvers() -> list[SolverSpec]:
-    """Every registered solver-formulation pair, usable or not, sorted by key: the families'
-    own, those derived from them, and those of $QPBENCH_EXTRA_SOLVERS. Every family is
-    imported by then: importing this module imports its package first, whose ``__init__``
-    imports every family module (``qpbench.solvers.FAMILIES``)."""
+    """Every registered solver-formulation pair, usable or not, sorted by key.
+
+    The families' own, those derived from them, and those of $QPBENCH_EXTRA_SOLVERS. Every
+    family is imported by then: importing this module imports its package first, whose
+    ``__init__`` imports every family module (``qpbench.solvers.FAMILIES``).
+
+    Returns
+    -------
+    list[SolverSpec]
+        The pairs, sorted by ``NAME/FORMULATION``.
+
+    Raises
+    ------
+    QpbenchError
+        When a module of $QPBENCH_EXTRA_SOLVERS cannot be imported.
+    """
     _derive()
     _import_extra_solvers()
     return [_SOLVERS[key] for key in sorted(_SOLVERS)]
 
 
 def usable_solvers() -> list[SolverSpec]:
+    """The registered pairs that can run here.
+
+    Returns
+    -------
+    list[SolverSpec]
+        The usable pairs of :func:`all_solvers`, sorted by key.
+    """
     return [spec for spec in all_solvers() if spec.usable]
 
 
 def resolve(names: list[str] | str) -> list[SolverSpec]:
     """Solver specs for names; ``NAME`` alone is every formulation it supports, ``NAME/FORM`` one.
 
-    Raises QpbenchError for an unknown name or one that is not usable here (with why).
+    Parameters
+    ----------
+    names : list[str] or str
+        Solver names, ``NAME`` or ``NAME/FORMULATION``, as a list or one comma-separated
+        string.
+
+    Returns
+    -------
+    list[SolverSpec]
+        The usable pairs they name, each once, in the order named.
+
+    Raises
+    ------
+    QpbenchError
+        For an unknown name or one that is not usable here (with why).
     """
     if isinstance(names, str):
         names = [part for part in names.split(",") if part.strip()]
@@ -118,9 +186,28 @@ DEFAULT_FORMULATIONS = {"impact": ("dual", "lcp", "primal", "dual-factored"),
 
 
 def get(name: str, kind: str = "impact") -> SolverSpec:
-    """The usable solver ``NAME/FORMULATION`` for problems of ``kind``; ``NAME`` alone means
-    its default formulation for that kind, the first it has of DEFAULT_FORMULATIONS[kind].
-    QpbenchError when it takes no problems of that kind."""
+    """The usable solver ``NAME/FORMULATION`` for problems of ``kind``.
+
+    ``NAME`` alone means its default formulation for that kind, the first it has of
+    DEFAULT_FORMULATIONS[kind] (any of its formulations when it has none of those).
+
+    Parameters
+    ----------
+    name : str
+        ``NAME`` or ``NAME/FORMULATION``.
+    kind : str, optional
+        ``impact`` (the default) or ``frictional``.
+
+    Returns
+    -------
+    SolverSpec
+        The chosen pair.
+
+    Raises
+    ------
+    QpbenchError
+        For an unknown or unusable name, or one that takes no problems of that kind.
+    """
     specs = [spec for spec in resolve([name]) if kind in spec.kinds]
     if not specs:
         raise QpbenchError(f"solver '{name}' takes no {kind} problems")

@@ -17,7 +17,21 @@ from qpbench.solvers.base import SolverOutput
 
 def relaxed_start(problem: FrictionalProblem, warm_start: np.ndarray | None
                   ) -> np.ndarray | None:
-    """z of the relaxed problem from a warm start r (module docstring), or None."""
+    """z of the relaxed problem from a warm start r (module docstring), or None.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    warm_start : np.ndarray or None
+        r = (l_N, l_T), flattened to shape (2n,).
+
+    Returns
+    -------
+    np.ndarray or None
+        z = (z+, z-), shape (2n,), z >= 0; None when there is no warm start or it has the
+        wrong size or a non-finite entry.
+    """
     n = problem.n_contacts
     if warm_start is None:
         return None
@@ -31,8 +45,24 @@ def relaxed_start(problem: FrictionalProblem, warm_start: np.ndarray | None
 
 
 def mapped_back(problem: FrictionalProblem, output: SolverOutput) -> SolverOutput:
-    """An output on ``problem.relaxed()`` (z) as an output on ``problem``: r = from_relaxed(z)
-    (none when z has the wrong shape), the claim, status and times as they are."""
+    """An output on ``problem.relaxed()`` (z) as an output on ``problem``.
+
+    The impulses become r = from_relaxed(z) (none when z has the wrong shape); the claim,
+    status, iterations and backend times stay as they are.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts whose relaxation was solved.
+    output : SolverOutput
+        The solve of ``problem.relaxed()``, impulses z of shape (2n,).
+
+    Returns
+    -------
+    SolverOutput
+        The same solve with impulses r = (l_N, l_T), and ``relaxed_contacts`` (2n) added to
+        ``info``.
+    """
     z = output.impulses
     impulses = None
     if z is not None and np.shape(z) == (2 * problem.n_contacts,):

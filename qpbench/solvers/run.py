@@ -33,8 +33,9 @@ NO_SOLUTION = "no-solution"
 
 def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, accuracy: float,
                 warm_start: np.ndarray | None = None) -> SolverOutput:
-    """``spec.solve`` on a blind copy of ``problem``, timed, with any exception turned into an
-    output with status ``error: ...``.
+    """``spec.solve`` on a blind copy of ``problem``, timed, exceptions turned into outputs.
+
+    An exception of the solve becomes an output with status ``error: ...``.
 
     The solver gets :meth:`ImpactProblem.blind_copy` (fresh arrays; no reference, no stored
     data) with its formulation's matrices already built (``formulation_time_s``), and a copy
@@ -42,6 +43,23 @@ def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, ac
     solver that ``reports_own_time`` (it solves in another process), the time it measured
     across that boundary, with this stopwatch's round trip kept as ``info[ROUND_TRIP_TIME]``.
     ``problem`` itself is never handed over, so it stays untouched for judging.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        A usable pair; its ``prepare`` runs first, outside the clock.
+    problem : ImpactProblem or FrictionalProblem
+        The problem, of a kind the pair takes.
+    accuracy : float
+        qpbench's accuracy level passed to the solver.
+    warm_start : np.ndarray or None, optional
+        A guess of the impulses, copied before it is handed over; None for none.
+
+    Returns
+    -------
+    SolverOutput
+        The solver's output with impulses as a flat float array, ``time_s`` and
+        ``formulation_time_s`` set.
     """
     assert spec.solve is not None, f"{spec.key} is not usable: {spec.reason}"
     if spec.prepare is not None:
@@ -93,6 +111,24 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
     ``status`` is qpbench's verdict (``solved`` / ``inaccurate`` / ``failed``, or
     ``no-solution`` for a problem known to have none);
     ``solver_status`` is the backend's own; ``status_honest`` is whether its claim agreed.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The pair that solved.
+    problem : ImpactProblem or FrictionalProblem
+        The untouched original problem.
+    output : SolverOutput
+        What :func:`call_solver` gave.
+    accuracy : float
+        qpbench's accuracy level the verdict is held to.
+
+    Returns
+    -------
+    dict[str, Any]
+        The row: the pair's name, formulation, backend and version, the accuracy, verdict,
+        the solver's status and claim, its honesty, the metrics, iteration counts, times and
+        backend-reported times (NaN where not reported).
     """
     if isinstance(problem, FrictionalProblem):
         model = "ccp" if spec.formulation == "ccp" else "coulomb"
@@ -132,6 +168,25 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
 def solve_and_judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
                     accuracy: float,
                     warm_start: np.ndarray | None = None) -> tuple[dict[str, Any], SolverOutput]:
-    """call_solver then judge."""
+    """call_solver then judge.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        A usable pair.
+    problem : ImpactProblem or FrictionalProblem
+        The problem; the solver gets a blind copy, the verdict uses the original.
+    accuracy : float
+        qpbench's accuracy level.
+    warm_start : np.ndarray or None, optional
+        A guess of the impulses; None for none.
+
+    Returns
+    -------
+    row : dict[str, Any]
+        The result row of :func:`judge`.
+    output : SolverOutput
+        The solver's output of :func:`call_solver`.
+    """
     output = call_solver(spec, problem, accuracy, warm_start)
     return judge(spec, problem, output, accuracy), output

@@ -117,11 +117,39 @@ class SiconosServer:
         self.ask({"problem": "ping"}, {})
 
     def alive(self) -> bool:
+        """Whether the server runs and was started by this process (not one it forked from).
+
+        Returns
+        -------
+        bool
+            True when this process may still send it requests.
+        """
         return self.owner == os.getpid() and self.process.poll() is None
 
     def ask(self, header: dict[str, Any], arrays: dict[str, np.ndarray]
             ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """Sends one request and reads its answer; RuntimeError when the server has ended."""
+        """Sends one request and reads its answer.
+
+        Parameters
+        ----------
+        header : dict[str, Any]
+            The request's JSON header (``problem``, ``solver``, ``iparam``, ``dparam``; or
+            ``{"problem": "ping"}``).
+        arrays : dict[str, np.ndarray]
+            The request's arrays by name (see ``siconos_server``).
+
+        Returns
+        -------
+        header : dict[str, Any]
+            The answer's header.
+        arrays : dict[str, np.ndarray]
+            The answer's arrays (``l`` for a solve).
+
+        Raises
+        ------
+        RuntimeError
+            When the server has ended (with the reason and its exit status).
+        """
         stdin: IO[bytes] | None = self.process.stdin
         stdout: IO[bytes] | None = self.process.stdout
         assert stdin is not None and stdout is not None
@@ -156,8 +184,16 @@ _SERVER: SiconosServer | None = None
 
 
 def server() -> SiconosServer:
-    """This process's server, started if there is none (or it ended, or it belongs to the
-    process this one was forked from)."""
+    """This process's server, started if there is none.
+
+    Also started anew when it ended, or when it belongs to the process this one was forked
+    from.
+
+    Returns
+    -------
+    SiconosServer
+        The running server of this process.
+    """
     global _SERVER
     if _SERVER is None or not _SERVER.alive():
         _SERVER = SiconosServer()
@@ -177,8 +213,18 @@ def _close_server() -> None:
 
 
 def probe() -> tuple[dict[str, Any] | None, str]:
-    """(Siconos' versions and missing solvers, '') when /usr/bin/python3 can import
-    ``siconos.numerics``, else (None, why not)."""
+    """Whether /usr/bin/python3 can import ``siconos.numerics``, and what it has.
+
+    Runs the server script once with ``--probe`` and every pair's solver id.
+
+    Returns
+    -------
+    found : dict[str, Any] or None
+        Siconos' versions (``version``, ``debian``, ``numpy``) and ``missing``, the solver
+        ids this build lacks with why; None when Siconos cannot be imported.
+    reason : str
+        Why not, in one line; empty when ``found`` is given.
+    """
     if not os.access(SYSTEM_PYTHON, os.X_OK):
         return None, f"{SYSTEM_PYTHON} not found (Siconos runs in the system interpreter)"
     ids = [pair.solver_id for pair in PAIRS]
@@ -196,7 +242,18 @@ def probe() -> tuple[dict[str, Any] | None, str]:
 
 
 def csc_arrays(matrix: sp.spmatrix) -> dict[str, np.ndarray]:
-    """The CSC arrays of ``matrix`` as the server reads them."""
+    """The CSC arrays of ``matrix`` as the server reads them.
+
+    Parameters
+    ----------
+    matrix : sp.spmatrix
+        A square sparse matrix (Q or W).
+
+    Returns
+    -------
+    dict[str, np.ndarray]
+        ``data`` (little-endian float64), ``indices`` and ``indptr`` (little-endian int64).
+    """
     csc = sp.csc_matrix(matrix)
     return {"data": np.asarray(csc.data, dtype="<f8"),
             "indices": np.asarray(csc.indices, dtype="<i8"),
@@ -204,14 +261,41 @@ def csc_arrays(matrix: sp.spmatrix) -> dict[str, np.ndarray]:
 
 
 def status_of(info: int, error: str | None) -> str:
-    """Siconos' own outcome in words: its ``info`` (0: converged) or the error it raised."""
+    """Siconos' own outcome in words: its ``info`` (0: converged) or the error it raised.
+
+    Parameters
+    ----------
+    info : int
+        The driver's return value.
+    error : str or None
+        The text of the exception the solve raised in the server; None when none.
+
+    Returns
+    -------
+    str
+        ``error: ...``, or ``info N (converged)`` / ``info N (not converged)``.
+    """
     if error is not None:
         return f"error: {error}"
     return f"info {info} ({'converged' if info == 0 else 'not converged'})"
 
 
 def make_solve(pair: Pair) -> Callable[..., SolverOutput]:
-    """The solve function of ``pair``."""
+    """The solve function of ``pair``.
+
+    Parameters
+    ----------
+    pair : Pair
+        The Siconos solver and its formulation (``lcp`` or ``fc2d``).
+
+    Returns
+    -------
+    Callable[..., SolverOutput]
+        ``solve(problem, eps, warm_start=None)`` (no warm start is used): sends Q and b (or
+        W, q and mu) to the server with the pair's tolerance and iteration limit for
+        ``eps``; declines above the pair's size limit; its claim is Siconos' ``info == 0``,
+        ``info[OWN_TIME]`` the server's own time.
+    """
 
     def solve(problem: ImpactProblem | FrictionalProblem, eps: float,
               warm_start: np.ndarray | None = None) -> SolverOutput:

@@ -42,8 +42,10 @@ import numpy as np
 
 
 def die_with_parent() -> None:
-    """Asks Linux to end this process when the process that started it ends (even by kill -9),
-    so that no server outlives its worker; a no-op elsewhere."""
+    """Asks Linux to end this process when the process that started it ends (even by kill -9).
+
+    So no server outlives its worker; a no-op elsewhere.
+    """
     if not sys.platform.startswith("linux"):
         return
     try:
@@ -58,7 +60,25 @@ def die_with_parent() -> None:
 
 
 def read_exactly(stream: BinaryIO, size: int) -> bytes:
-    """``size`` bytes from ``stream``; EOFError when it ends first."""
+    """``size`` bytes from ``stream``.
+
+    Parameters
+    ----------
+    stream : BinaryIO
+        The stream to read.
+    size : int
+        The number of bytes.
+
+    Returns
+    -------
+    bytes
+        Exactly ``size`` bytes.
+
+    Raises
+    ------
+    EOFError
+        When the stream ends first.
+    """
     chunks = []
     left = size
     while left > 0:
@@ -71,7 +91,24 @@ def read_exactly(stream: BinaryIO, size: int) -> bytes:
 
 
 def receive(stream: BinaryIO) -> tuple[dict[str, Any], dict[str, np.ndarray]] | None:
-    """The next message (header, arrays), or None when the stream has ended."""
+    """The next message (header, arrays), or None when the stream has ended.
+
+    Parameters
+    ----------
+    stream : BinaryIO
+        The stream to read, at the start of a message.
+
+    Returns
+    -------
+    tuple[dict[str, Any], dict[str, np.ndarray]] or None
+        The header without its ``arrays`` list, and the arrays by name (read-only views of
+        the bytes read); None at the stream's end.
+
+    Raises
+    ------
+    EOFError
+        When the stream ends inside a message.
+    """
     line = stream.readline()
     if not line:
         return None
@@ -86,7 +123,17 @@ def receive(stream: BinaryIO) -> tuple[dict[str, Any], dict[str, np.ndarray]] | 
 
 
 def send(stream: BinaryIO, header: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    """Writes one message and flushes it."""
+    """Writes one message and flushes it.
+
+    Parameters
+    ----------
+    stream : BinaryIO
+        The stream to write.
+    header : dict[str, Any]
+        The JSON header; the ``arrays`` list is added to a copy of it.
+    arrays : dict[str, np.ndarray]
+        The arrays by name, written in that order in C order.
+    """
     contiguous = {name: np.ascontiguousarray(array) for name, array in arrays.items()}
     header = {**header, "arrays": [[name, array.dtype.str, list(array.shape)]
                                    for name, array in contiguous.items()]}
@@ -98,7 +145,20 @@ def send(stream: BinaryIO, header: dict[str, Any], arrays: dict[str, np.ndarray]
 
 def dense_from_csc(data: np.ndarray, indices: np.ndarray, indptr: np.ndarray,
                    size: int) -> np.ndarray:
-    """The dense ``size x size`` matrix of CSC arrays (duplicates summed), Fortran order."""
+    """The dense ``size x size`` matrix of CSC arrays (duplicates summed), Fortran order.
+
+    Parameters
+    ----------
+    data, indices, indptr : np.ndarray
+        The matrix in CSC form.
+    size : int
+        Its number of rows and columns.
+
+    Returns
+    -------
+    np.ndarray
+        The dense matrix, Fortran order.
+    """
     matrix = np.zeros((size, size), order="F")
     columns = np.repeat(np.arange(size), np.diff(indptr))
     np.add.at(matrix, (indices, columns), data)
@@ -107,7 +167,28 @@ def dense_from_csc(data: np.ndarray, indices: np.ndarray, indptr: np.ndarray,
 
 def solve(numerics: Any, header: dict[str, Any], arrays: dict[str, np.ndarray]
           ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """One request's answer (see the module docstring)."""
+    """One request's answer (see the module docstring).
+
+    An exception of Siconos becomes the answer's ``error``, with ``info`` -1 and an empty l.
+
+    Parameters
+    ----------
+    numerics : Any
+        The ``siconos.numerics`` module.
+    header : dict[str, Any]
+        The request's header: ``problem`` (``lcp`` or ``fc2d``), ``solver``, ``iparam``,
+        ``dparam``.
+    arrays : dict[str, np.ndarray]
+        The request's arrays: the CSC arrays of Q (or W), ``q`` and, for fc2d, ``mu``.
+
+    Returns
+    -------
+    answer : dict[str, Any]
+        The answer's header: ``info``, ``iterations``, ``residual``, the times and
+        ``error``.
+    arrays : dict[str, np.ndarray]
+        ``l``, in qpbench's order, little-endian float64.
+    """
     q = arrays["q"]
     size = int(q.shape[0])
     setup_time_s = solve_time_s = float("nan")
@@ -168,8 +249,19 @@ def solve(numerics: Any, header: dict[str, Any], arrays: dict[str, np.ndarray]
 
 
 def probe(solver_ids: list[str]) -> dict[str, Any]:
-    """Siconos' version (the package's and Debian's) and, per asked solver id that this build
-    cannot run, why."""
+    """Siconos' version (the package's and Debian's) and which asked solvers it lacks.
+
+    Parameters
+    ----------
+    solver_ids : list[str]
+        Names of Siconos solver ids (``SICONOS_LCP_LEMKE``).
+
+    Returns
+    -------
+    dict[str, Any]
+        ``version``, ``debian``, ``numpy`` and ``missing``: each asked id that this build
+        cannot run, with why.
+    """
     import siconos
     import siconos.numerics as numerics
 
@@ -185,7 +277,13 @@ def probe(solver_ids: list[str]) -> dict[str, Any]:
 
 
 def debian_version() -> str:
-    """The version of Debian's python3-siconos from dpkg's status file, '' when not found."""
+    """The version of Debian's python3-siconos from dpkg's status file.
+
+    Returns
+    -------
+    str
+        The version, '' when the file or the package is not found.
+    """
     try:
         with open("/var/lib/dpkg/status", encoding="utf-8", errors="replace") as status:
             package = ""
@@ -200,6 +298,11 @@ def debian_version() -> str:
 
 
 def main() -> None:
+    """Serve solve requests on stdin until it closes, or answer ``--probe`` and exit.
+
+    Siconos' own printing is discarded; a failure of the server itself is printed on the
+    worker's stderr and ends it with exit status 1.
+    """
     if sys.argv[1:2] == ["--probe"]:
         print(json.dumps(probe(sys.argv[2:])))
         return

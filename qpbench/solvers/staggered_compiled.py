@@ -65,10 +65,32 @@ def _csr_product(A: Csc, x: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def coulomb_residual(W: Csc, q: np.ndarray, diag_N: np.ndarray, mu: np.ndarray, scale: float,
                      impulses: np.ndarray) -> float:
-    """``||F||_inf / scale`` of r = (l_N, l_T), F the natural map of Coulomb's law with the De
-    Saxce term: per contact, with ``u = W r + q`` (W's CSC product), ``u^ = (u_N + mu |u_T|,
-    u_T)``, ``x = d r - u^`` (d = diag W_NN) and P_K the projection on ``|x_T| <= mu x_N``,
-    ``F = d r - P_K(x)``; as ``friction_metrics.residual``."""
+    """``||F||_inf / scale`` of r = (l_N, l_T), F the natural map of Coulomb's law.
+
+    F with the De Saxce term: per contact, with ``u = W r + q`` (W's CSC product),
+    ``u^ = (u_N + mu |u_T|, u_T)``, ``x = d r - u^`` (d = diag W_NN) and P_K the projection
+    on ``|x_T| <= mu x_N``, ``F = d r - P_K(x)``; as ``friction_metrics.residual``.
+
+    Parameters
+    ----------
+    W : Csc
+        W's CSC arrays, shape (2n, 2n), order ``(l_N, l_T)``.
+    q : np.ndarray
+        The free velocity, shape (2n,).
+    diag_N : np.ndarray
+        d = diag W_NN, shape (n,).
+    mu : np.ndarray
+        The friction coefficients, shape (n,).
+    scale : float
+        The problem's residual scale (a velocity).
+    impulses : np.ndarray
+        r, shape (2n,).
+
+    Returns
+    -------
+    float
+        The relative Coulomb residual; 0 without contacts.
+    """
     n = diag_N.size
     if n == 0:
         return 0.0
@@ -129,12 +151,64 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
                         eps: float, max_outer: int, normal_options: np.ndarray,
                         order_above: int, max_work: float, box_tolerance: float,
                         box_max_sweeps: int, box_check_every: int):
-    """(r, Coulomb residual, how it ended, rounds, inner iterations, inner solves, which
-    answer) of staggered projections with pi-robust inside (module docstring). ``W`` is W's
-    CSC arrays, ``W_NN`` its normal block's (pi-robust's Q), ``W_NT`` and ``W_TN`` the
-    coupling blocks' CSR arrays, ``W_TT`` the tangential block's sorted CSR arrays;
-    ``colour_order`` the contacts in a stable order of their greedy colours on W_TT;
-    ``warm_start`` r or an empty array."""
+    """Staggered projections with pi-robust inside (module docstring), in one compiled call.
+
+    Parameters
+    ----------
+    W : Csc
+        W's CSC arrays, shape (2n, 2n), for the Coulomb residual.
+    W_NN : Csc
+        The normal block's CSC arrays (pi-robust's Q).
+    W_NT, W_TN : Csc
+        The coupling blocks' CSR arrays.
+    W_TT : Csc
+        The tangential block's CSR arrays, indices sorted (the box QP's P).
+    q : np.ndarray
+        The free velocity, shape (2n,).
+    diag_N, diag_T : np.ndarray
+        The diagonals of W_NN and W_TT, shape (n,).
+    mu : np.ndarray
+        The friction coefficients, shape (n,).
+    scale : float
+        The problem's residual scale (a velocity).
+    colour_order : np.ndarray
+        The contacts in a stable order of their greedy colours on W_TT.
+    warm_start : np.ndarray
+        r, shape (2n,), or an empty array for none.
+    eps : float
+        The Coulomb residual to reach.
+    max_outer : int
+        The most rounds.
+    normal_options : np.ndarray
+        pi-robust's kernel options at the inner accuracy, packed.
+    order_above : int
+        Above this many contacts the kernel reorders a wide envelope.
+    max_work : float
+        The kernel's most work for one envelope factorization; above it, it declines.
+    box_tolerance : float
+        The box residual to reach (inner accuracy times scale).
+    box_max_sweeps : int
+        The most sweeps of each box solve.
+    box_check_every : int
+        Sweeps between the box residual's checks.
+
+    Returns
+    -------
+    r : np.ndarray
+        The answer, shape (2n,), or empty when no round gave one.
+    residual : float
+        Its Coulomb residual.
+    ending : int
+        How the call ended: CONVERGED, MAX_OUTER, WARM_START or FALLBACK.
+    rounds : int
+        The rounds done.
+    iterations : int
+        The inner iterations (pi-robust's linear solves and box sweeps).
+    solves : int
+        The inner solves.
+    returned : int
+        Which answer: BEST_ITERATE, FINAL_NORMAL_SOLVE or GIVEN_START.
+    """
     n = diag_N.size
     normal, tangential = np.zeros(n), np.zeros(n)
     best, best_residual = np.zeros(0), np.inf
@@ -192,8 +266,10 @@ _warm = False
 
 
 def warm_up() -> None:
-    """Compiles (or loads from numba's cache) the loop once in this process, on one ball
-    sliding on the floor, outside any clock."""
+    """Compiles (or loads from numba's cache) the loop once in this process.
+
+    It runs on one ball sliding on the floor, outside any clock.
+    """
     global _warm
     if _warm:
         return
@@ -211,9 +287,31 @@ def warm_up() -> None:
 
 def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None,
           options: dict[str, Any], box_options: dict[str, Any]) -> SolverOutput | None:
-    """pi-robust/staggered in one compiled call, with the ``staggered`` row's ``options`` at
-    eps and ``box_options`` at the inner accuracy; None when the Python loop must run instead
-    (no contacts, more than pi-robust's ``compiled_limit``, or ``FALLBACK``)."""
+    """pi-robust/staggered in one compiled call, or None when the Python loop must run.
+
+    The Python loop runs instead with no contacts, more than pi-robust's
+    ``compiled_limit``, on ``FALLBACK``, or when the residual lies at eps and qpbench's
+    own metric decides otherwise.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem to solve.
+    eps : float
+        The Coulomb residual to reach.
+    warm_start : np.ndarray or None
+        A guess of r = (l_N, l_T); None for none.
+    options : dict[str, Any]
+        The ``staggered`` row's options at eps (``max_outer``, ``inner_accuracy``).
+    box_options : dict[str, Any]
+        The same row at the inner accuracy (``box_max_sweeps``, ``box_check_every``).
+
+    Returns
+    -------
+    SolverOutput or None
+        r, status, the Coulomb residual's test as claim, the inner iterations and the
+        loop's facts in ``info``; None when the Python loop must run.
+    """
     n = problem.n_contacts
     inner_eps = options["inner_accuracy"]
     settings = pi_robust.settings_for(inner_eps)

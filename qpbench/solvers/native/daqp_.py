@@ -53,7 +53,23 @@ def _output(x: np.ndarray, exitflag: int, info: dict, impulses: np.ndarray | Non
 
 def solve_dual(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
                ) -> SolverOutput:
-    """``min 1/2 l^T Q l + b^T l`` with the simple bounds ``0 <= l``."""
+    """``min 1/2 l^T Q l + b^T l`` with the simple bounds ``0 <= l``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level; the options follow from it at the problem's scale.
+    warm_start : np.ndarray or None, optional
+        A guess of l, DAQP's primal start; None for none.
+
+    Returns
+    -------
+    SolverOutput
+        l (none unless DAQP's exit flag is positive, its claim), status, iterations
+        and DAQP's own set-up and solve times.
+    """
     scale = metrics.scale(problem)
     n = problem.n_contacts
     x, _, exitflag, info = daqp.solve(
@@ -64,7 +80,24 @@ def solve_dual(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None
 
 def solve_primal(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
                  ) -> SolverOutput:
-    """``min 1/2 v^T M v + q^T v`` with ``lower <= G^T v``; the impulses are ``-lam``."""
+    """``min 1/2 v^T M v + q^T v`` with ``lower <= G^T v``; the impulses are ``-lam``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level; the options follow from it at the problem's scale.
+    warm_start : np.ndarray or None, optional
+        A guess of l, passed as DAQP's primal start v+(l) on the free degrees of
+        freedom; None for none.
+
+    Returns
+    -------
+    SolverOutput
+        l (none unless DAQP's exit flag is positive, its claim), status, iterations
+        and DAQP's own set-up and solve times.
+    """
     scale = metrics.scale(problem)
     primal = primal_qp(problem)
     n = problem.n_contacts

@@ -67,7 +67,21 @@ def _solved(cost: np.ndarray, rows: sp.spmatrix, bounds: np.ndarray, R: sp.spmat
 
 
 def make_solve(formulation: str) -> SolveFunction:
-    """The solve function of ``ecos-native`` in ``formulation``."""
+    """The solve function of ``ecos-native`` in ``formulation``.
+
+    Parameters
+    ----------
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored``.
+
+    Returns
+    -------
+    SolveFunction
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem, with the accuracy
+        table's options for ``eps`` at the problem's scale; the warm start is ignored. Its
+        claim is ECOS's exit flag 0; a dual whose Q has no Cholesky factor reads
+        ``unsupported: not positive definite``.
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

@@ -72,7 +72,21 @@ def _run(hessian: sp.spmatrix, cost: np.ndarray, col_lower: np.ndarray, col_uppe
 
 
 def make_solve(formulation: str) -> SolveFunction:
-    """The solve function of ``highs-native`` in ``formulation``."""
+    """The solve function of ``highs-native`` in ``formulation``.
+
+    Parameters
+    ----------
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored``.
+
+    Returns
+    -------
+    SolveFunction
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem, with the accuracy
+        table's options for ``eps`` at the problem's scale; the warm start is ignored. Its
+        claim is HiGHS's model status ``kOptimal``; no impulses when HiGHS holds no valid
+        solution.
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

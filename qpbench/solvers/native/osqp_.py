@@ -63,7 +63,21 @@ def _solved(P: Any, q: np.ndarray, A: Any, lower: np.ndarray, upper: np.ndarray,
 
 
 def make_solve(formulation: str) -> SolveFunction:
-    """The solve function of ``osqp-native`` in ``formulation``."""
+    """The solve function of ``osqp-native`` in ``formulation``.
+
+    Parameters
+    ----------
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored``.
+
+    Returns
+    -------
+    SolveFunction
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem, with the accuracy
+        table's options for ``eps`` at the problem's scale and the warm start in the
+        formulation's variables. Its claim is OSQP's ``solved``, its backend times OSQP's
+        own set-up and solve times.
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

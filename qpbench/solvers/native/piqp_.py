@@ -59,7 +59,25 @@ def _solved(solver: Any, impulses_of: Callable[[Any], np.ndarray], scale: float
 
 
 def make_solve(name: str, formulation: str, dense: bool) -> SolveFunction:
-    """The solve function of ``name`` (sparse or dense PIQP) in ``formulation``."""
+    """The solve function of ``name`` (sparse or dense PIQP) in ``formulation``.
+
+    Parameters
+    ----------
+    name : str
+        ``piqp-native`` or ``piqp-dense-native``, whose accuracy-table row gives the
+        options.
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored`` (sparse only).
+    dense : bool
+        Whether the dense solver runs it (the sparse one otherwise).
+
+    Returns
+    -------
+    SolveFunction
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem, with the accuracy
+        table's options for ``eps`` at the problem's scale; the warm start is ignored. Its
+        claim is PIQP's ``PIQP_SOLVED``.
+    """
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:

@@ -68,7 +68,25 @@ def _solved(qp: Any, start: np.ndarray | None, impulses: Any, scale: float) -> S
 
 
 def make_solve(name: str, formulation: str, dense: bool) -> SolveFunction:
-    """The solve function of ``name`` (sparse or dense ProxQP) in ``formulation``."""
+    """The solve function of ``name`` (sparse or dense ProxQP) in ``formulation``.
+
+    Parameters
+    ----------
+    name : str
+        ``proxqp-native`` or ``proxqp-dense-native``, whose accuracy-table row gives the
+        options.
+    formulation : str
+        ``dual``, ``primal`` or ``dual-factored`` (sparse only).
+    dense : bool
+        Whether the dense solver runs it (the sparse one otherwise).
+
+    Returns
+    -------
+    SolveFunction
+        ``solve(problem, eps, warm_start=None)`` on an ImpactProblem, with the accuracy
+        table's options for ``eps`` at the problem's scale and the warm start in the
+        formulation's variables. Its claim is ProxQP's ``PROXQP_SOLVED``.
+    """
     backend = None if proxqp is None else (proxqp.dense if dense else proxqp.sparse)
 
     def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None

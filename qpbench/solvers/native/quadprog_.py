@@ -40,7 +40,23 @@ def _output(result: tuple, impulses: np.ndarray, scale: float) -> SolverOutput:
 
 def solve_dual(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
                ) -> SolverOutput:
-    """``min 1/2 l^T Q l + b^T l`` with ``I^T l >= 0``; a singular Q is refused by name."""
+    """``min 1/2 l^T Q l + b^T l`` with ``I^T l >= 0``; a singular Q is refused by name.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level; the options follow from it at the problem's scale.
+    warm_start : np.ndarray or None, optional
+        Ignored: quadprog takes no start.
+
+    Returns
+    -------
+    SolverOutput
+        l, claimed whenever quadprog returns; a singular Q reads ``unsupported: not
+        positive definite``, any other error ``error: ...``, both without impulses.
+    """
     scale = metrics.scale(problem)
     n = problem.n_contacts
     try:
@@ -54,7 +70,22 @@ def solve_dual(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None
 
 def solve_primal(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = None
                  ) -> SolverOutput:
-    """``min 1/2 v^T M v - (M v-)^T v`` with ``(G^T)^T v >= lower``, M given factored."""
+    """``min 1/2 v^T M v - (M v-)^T v`` with ``(G^T)^T v >= lower``, M given factored.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact to solve.
+    eps : float
+        qpbench's accuracy level; the options follow from it at the problem's scale.
+    warm_start : np.ndarray or None, optional
+        Ignored: quadprog takes no start.
+
+    Returns
+    -------
+    SolverOutput
+        l (quadprog's Lagrange multipliers), claimed whenever quadprog returns.
+    """
     scale = metrics.scale(problem)
     primal = primal_qp(problem)
     inverse_root = np.diag(1.0 / np.sqrt(primal.P.diagonal()))
