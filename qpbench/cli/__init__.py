@@ -66,6 +66,21 @@ class OneLineParser(argparse.ArgumentParser):
     too (argparse makes them of their parent's class)."""
 
     def error(self, message: str) -> NoReturn:
+        """Exit with one line on stderr naming the fault and pointing to ``-h``.
+
+        argparse calls this for a missing argument, a value of the wrong type, an unknown option or
+        command; the usage is not printed.
+
+        Parameters
+        ----------
+        message : str
+            argparse's description of the fault.
+
+        Returns
+        -------
+        NoReturn
+            Never returns: exits with status 2 (EXIT_INPUT_ERROR).
+        """
         self.exit(EXIT_INPUT_ERROR, f"{self.prog}: {message} (usage: {self.prog} -h)\n")
 
 
@@ -74,10 +89,24 @@ def _module_name(command: str) -> str:
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    """The argument parser. With ``only``, that subcommand's module is imported and registers
-    its arguments (the solver backends, pandas and matplotlib load only for the commands that
-    use them); without, every subcommand is listed by its line in COMMANDS and none is
-    imported, so that ``qpbench --help`` and a mistyped command answer at once."""
+    """Build the ``qpbench`` argument parser.
+
+    With ``only``, that subcommand's module is imported and registers its arguments (the solver
+    backends, pandas and matplotlib load only for the commands that use them); without, every
+    subcommand is listed by its line in COMMANDS and none is imported, so that ``qpbench --help``
+    and a mistyped command answer at once.
+
+    Parameters
+    ----------
+    only : str or None, optional
+        The module name (a key of COMMANDS, ``_`` not ``-``) of the one subcommand to register
+        in full; None (default) lists every subcommand by name and help line only.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        A OneLineParser whose subcommands are required.
+    """
     parser = OneLineParser(
         prog="qpbench",
         description="Formulations and solvers for the impulses of simultaneous 2D ball impacts.",
@@ -102,10 +131,24 @@ def _chosen_command(argv: Sequence[str]) -> str | None:
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """OutputError, before the command does any work, when a path it is to write
-    (OUTPUT_ARGUMENTS) is a device, a FIFO, a socket, or a symbolic link to anything but a
-    folder that is not followed: never a file or a folder to write. Whether the command needs
-    a file or a folder there is the command's own check."""
+    """Refuse, before the command does any work, a path to write that cannot be a file or folder.
+
+    OutputError when a path the command is to write (OUTPUT_ARGUMENTS) is a device, a FIFO, a
+    socket, or a symbolic link to anything but a folder that is not followed: never a file or a
+    folder to write. Whether the command needs a file or a folder there is the command's own
+    check.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments; those named in OUTPUT_ARGUMENTS that hold a path are checked.
+
+    Raises
+    ------
+    OutputError
+        When one of those paths is not a regular file or folder to write
+        (:func:`qpbench.atomic.checked_target`).
+    """
     for name in OUTPUT_ARGUMENTS:
         value = getattr(args, name, None)
         if isinstance(value, str | os.PathLike):
@@ -113,9 +156,22 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 
 def os_error_line(error: OSError) -> str | None:
-    """An OSError that names its file, or that only a write gives (a read-only or full disk),
-    as one line: ``PATH: cannot write: REASON`` (``PATH: REASON`` for other errors, such as a
-    permission refused); None for any other OSError, an internal fault."""
+    """Describe an OSError that names its file, or that only a write gives, in one line.
+
+    A read-only or full disk gives ``PATH: cannot write: REASON``; other errors that name a
+    file, such as a permission refused, give ``PATH: REASON``.
+
+    Parameters
+    ----------
+    error : OSError
+        The error a command raised.
+
+    Returns
+    -------
+    str or None
+        The line, without the ``qpbench COMMAND:`` prefix; None for any other OSError, which
+        is an internal fault.
+    """
     filename = error.filename
     where = f"{os.fsdecode(filename)}: " if isinstance(filename, str | bytes | os.PathLike) else ""
     if not where and error.errno not in WRITE_ERRNOS:
@@ -125,9 +181,21 @@ def os_error_line(error: OSError) -> str | None:
 
 
 def interrupted_by(error: BaseException) -> bool:
-    """Whether ``error`` was raised while a KeyboardInterrupt was being handled (a library's
-    clean-up that fails once Ctrl-C cut its work short): then the interrupt is what
-    happened."""
+    """Whether ``error`` was raised while a KeyboardInterrupt was being handled.
+
+    Such an error is a library's clean-up that fails once Ctrl-C cut its work short: then the
+    interrupt is what happened. The chain of ``__context__`` is followed, each exception once.
+
+    Parameters
+    ----------
+    error : BaseException
+        The error a command raised.
+
+    Returns
+    -------
+    bool
+        True when a KeyboardInterrupt is in the chain of contexts of ``error``.
+    """
     seen: set[int] = set()
     cause: BaseException | None = error
     while cause is not None and id(cause) not in seen:
@@ -152,6 +220,23 @@ def _internal_error(command: str, error: Exception) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one ``qpbench`` command and return its exit status.
+
+    The subcommand named first in ``argv`` is imported alone (:func:`build_parser`), the paths
+    it writes are checked (:func:`check_outputs`) and its handler run. Faults become one line on
+    stderr: a QpbenchError or an OSError naming its file exits 2, Ctrl-C 130, a closed stdout
+    pipe 141, any other exception 3 (or its traceback when QPBENCH_DEBUG is set).
+
+    Parameters
+    ----------
+    argv : Sequence of str or None, optional
+        The arguments after ``qpbench``; None (default) reads ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit status: the handler's (0 when it returns None), or that of the fault above.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(only=_chosen_command(argv))
     args = parser.parse_args(argv)

@@ -17,6 +17,13 @@ JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench breakdown`` and its options (``--repeats``, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("breakdown", help="where pi-robust's time goes",
                                    epilog=JSON_FIELDS)
     parser.add_argument("--repeats", type=int, default=BREAKDOWN_REPEATS,
@@ -26,6 +33,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Measure where pi-robust's time goes, write the JSON and print its Markdown.
+
+    Reruns the command in a child process with single-threaded BLAS unless this one already
+    has it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``repeats`` and ``output``.
+
+    Returns
+    -------
+    int
+        The exit status: 0, or the child's.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--repeats`` is below 1, or the output path cannot be written.
+    """
     if args.repeats < 1:
         raise QpbenchError("--repeats must be at least 1")
     output = writable_output(args.output)

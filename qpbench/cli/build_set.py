@@ -17,6 +17,13 @@ from qpbench.problem import files
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench build-set`` and its options (set file, ``-o``, memory and progress).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "build-set", help="write the problems of a set file (families, dumps, captured scenes)"
     )
@@ -28,6 +35,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Write the problems of a set file to the output folder and print how many.
+
+    The build runs under :func:`qpbench.cli.guards.guarded` (memory cap, Ctrl-C) with a
+    progress bar counting the problems written.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``set_file``, ``output``, ``memory_limit`` and
+        ``progress``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     with (guarded(args, "build-set", f"building {args.set_file}", [args.output]),
           Progress("build-set", progress_wanted(args), None, "problems") as progress):
         written = problem_sets.build(args.set_file, args.output,

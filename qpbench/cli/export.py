@@ -10,6 +10,13 @@ from qpbench.bench.export import FORMATS, FORMULATIONS, export
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench export`` and its options (problems, format, formulation, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "export", help="write problems for other QP benchmarks (qpbenchmark Parquet, .mat)")
     parser.add_argument("problems", nargs="+", help="problem files (.npz) or folders of them")
@@ -26,6 +33,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Write the problems in the format asked (:func:`qpbench.bench.export.export`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``problems``, ``format``, ``formulation`` and
+        ``output``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     count = export(args.problems, args.output, args.format, args.formulation)
     print(f"qpbench export: {count} problems -> {args.output}", file=sys.stderr)
     return 0

@@ -20,6 +20,13 @@ from qpbench.errors import QpbenchError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench fuzz`` and its options (case counts, seed, steps, limits, corpus, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "fuzz", help="run mutated scenes and problem files through qpbench, judge the errors")
     parser.add_argument("--scenes", type=int, default=200, help="scene cases (200)")
@@ -38,6 +45,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the fuzz cases, write the report and print the counts and failures.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when every case passed, 1 when any failed.
+
+    Raises
+    ------
+    QpbenchError
+        When a count, the seed, the steps or the memory limit is below its least value, the
+        time limit is not a positive number, or the output path cannot be written.
+    """
     check_at_least(args.scenes, 0, "--scenes")
     check_at_least(args.problems, 0, "--problems")
     check_at_least(args.seed, 0, "--seed")

@@ -95,8 +95,15 @@ class Corpus:
     problems: list[tuple[str, bytes]]
 
     def digest(self) -> str:
-        """SHA-256 over every name and content: a case is reproducible from the seed and
-        its number with a corpus of the same digest."""
+        """SHA-256 over every name and content of the corpus.
+
+        A case is reproducible from the seed and its number with a corpus of the same digest.
+
+        Returns
+        -------
+        str
+            The digest in hexadecimal.
+        """
         hasher = hashlib.sha256()
         for name, data in [*self.scenes, *self.problems]:
             hasher.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
@@ -105,8 +112,27 @@ class Corpus:
 
 # --- the corpus ----------------------------------------------------------------------------
 def scene_corpus(folders: list[Path]) -> list[tuple[str, bytes]]:
-    """Scene files under ``folders`` (at most MAX_SCENES_PER_FOLDER per folder, each at most
-    MAX_CORPUS_SCENE_BYTES, identical contents once) whose XML reads with a SCISim 2D root."""
+    """The scene files under ``folders`` whose XML reads with a SCISim 2D root.
+
+    At most MAX_SCENES_PER_FOLDER per folder, each at most MAX_CORPUS_SCENE_BYTES, identical
+    contents once.
+
+    Parameters
+    ----------
+    folders : list of Path
+        The folders searched, recursively, for ``*.xml``.
+
+    Returns
+    -------
+    list of (str, bytes)
+        Each scene's name (relative to the repository's parent folder where it lies inside it)
+        and its bytes.
+
+    Raises
+    ------
+    InputError
+        When a folder does not exist, or no scene qualifies.
+    """
     found: list[tuple[str, bytes]] = []
     seen: set[bytes] = set()
     for folder in folders:
@@ -147,9 +173,27 @@ def _display(path: Path) -> str:
 
 
 def problem_corpus(work: Path) -> list[tuple[str, bytes]]:
-    """Problem files written by ``qpbench generate`` (the GENERATED families) and by
-    ``qpbench simulate --capture`` (the CAPTURED scenes, and a pile that carries a warm
-    start), run here through the command line."""
+    """The problem files to mutate, written through the command line.
+
+    Problem files written by ``qpbench generate`` (the GENERATED families) and by ``qpbench
+    simulate --capture`` (the CAPTURED scenes, and a pile that carries a warm start), run here
+    through the command line.
+
+    Parameters
+    ----------
+    work : Path
+        The run's temporary folder; the files go to its ``corpus`` folder.
+
+    Returns
+    -------
+    list of (str, bytes)
+        Each file's name and its bytes.
+
+    Raises
+    ------
+    QpbenchError
+        When no problem file could be written.
+    """
     folder = work / "corpus"
     for arguments in GENERATED:
         _quiet_main(["generate", *arguments, "-o", str(folder)])
@@ -178,7 +222,24 @@ def _quiet_main(argv: list[str]) -> None:
 
 # --- one case ------------------------------------------------------------------------------
 def make_case(kind: str, case: int, settings: Settings, corpus: Corpus) -> Mutated:
-    """The input of case ``case`` of ``kind`` (the same bytes for the same seed and corpus)."""
+    """The input of case ``case`` of ``kind`` (the same bytes for the same seed and corpus).
+
+    Parameters
+    ----------
+    kind : str
+        ``scene`` or ``problem``.
+    case : int
+        The case's number within its kind.
+    settings : Settings
+        The run's settings (its seed, and the memory cap for problem cases).
+    corpus : Corpus
+        The inputs mutated.
+
+    Returns
+    -------
+    Mutated
+        The mutated input.
+    """
     rng = case_rng(kind, settings.seed, case)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # zipfile's duplicate-name warning and the like
@@ -188,11 +249,48 @@ def make_case(kind: str, case: int, settings: Settings, corpus: Corpus) -> Mutat
 
 
 def case_file(kind: str, case: int) -> str:
+    """The file name of a case's input: ``KIND-NNNNNN.xml`` or ``.npz``.
+
+    Parameters
+    ----------
+    kind : str
+        ``scene`` or ``problem``.
+    case : int
+        The case's number within its kind.
+
+    Returns
+    -------
+    str
+        The name, with ``.xml`` for a scene and ``.npz`` for a problem.
+    """
     return f"{kind}-{case:06d}" + (".xml" if kind == "scene" else ".npz")
 
 
 def command_for(kind: str, case: int, path: str, capture: str, settings: Settings) -> list[str]:
-    """The qpbench arguments that run case ``case`` on ``path``."""
+    """The qpbench arguments that run case ``case`` on ``path``.
+
+    A scene is simulated (``simulate PATH --steps K --accuracy ACCURACY --capture DIR
+    --json``), a problem solved by SOLVERS in turn (``solve PATH --solver NAME --accuracy
+    ACCURACY --json``).
+
+    Parameters
+    ----------
+    kind : str
+        ``scene`` or ``problem``.
+    case : int
+        The case's number within its kind; it picks a problem case's solver.
+    path : str
+        The case's input file.
+    capture : str
+        The folder a scene case's impacts are captured to.
+    settings : Settings
+        The run's settings (the steps of a scene case).
+
+    Returns
+    -------
+    list of str
+        The arguments after ``qpbench``.
+    """
     if kind == "scene":
         return ["simulate", path, "--steps", str(settings.steps), "--accuracy", ACCURACY,
                 "--capture", capture, "--json"]
@@ -201,8 +299,21 @@ def command_for(kind: str, case: int, path: str, capture: str, settings: Setting
 
 
 def run_command(argv: list[str]) -> tuple[int, str]:
-    """(exit status, stderr) of ``qpbench ARGV`` run in this process; Python warnings
-    raised meanwhile are stderr lines as Python would print them."""
+    """Run ``qpbench ARGV`` in this process and collect its exit status and stderr.
+
+    Python warnings raised meanwhile are stderr lines as Python would print them; an exception
+    that escapes is a traceback on stderr and exit 3.
+
+    Parameters
+    ----------
+    argv : list of str
+        The arguments after ``qpbench``.
+
+    Returns
+    -------
+    tuple of (int, str)
+        The exit status and everything written to stderr.
+    """
     stderr = io.StringIO()
     with warnings.catch_warnings(record=True) as caught, \
             contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(stderr):
@@ -222,7 +333,23 @@ def run_command(argv: list[str]) -> tuple[int, str]:
 
 
 def judge(exit_code: int, stderr: str, must_refuse: bool = False) -> str:
-    """The outcome of a case (module docstring): one of PASSING, or a failure."""
+    """The outcome of a case (module docstring): one of PASSING, or a failure.
+
+    Parameters
+    ----------
+    exit_code : int
+        The command's exit status.
+    stderr : str
+        What it wrote on stderr.
+    must_refuse : bool, optional
+        Whether the input must be refused (a scene declaring an entity); False by default.
+
+    Returns
+    -------
+    str
+        The outcome's name: ``ok``, ``solve-failed``, ``input-error`` or a failure such as
+        ``traceback`` or ``several-lines``.
+    """
     lines = [line for line in stderr.splitlines() if line.strip()]
     if "Traceback (most recent call last)" in stderr:
         return "traceback"
@@ -339,9 +466,33 @@ def _run_batch(cases: list[tuple[str, int]], settings: Settings, corpus: Corpus,
 # --- the run -------------------------------------------------------------------------------
 def fuzz(settings: Settings, scene_folders: list[Path] | None = None,
          cases_folder: Path | None = None) -> dict[str, Any]:
-    """Runs ``settings.scenes`` scene cases and ``settings.problems`` problem cases; returns
-    the report (counts per outcome and mutation, attribute coverage, the failures). The
-    inputs of failing cases are written to ``cases_folder`` when given."""
+    """Run the scene and problem cases and report them.
+
+    Runs ``settings.scenes`` scene cases and ``settings.problems`` problem cases in forked
+    children, in batches of BATCH, after a warm-up here. The inputs of failing cases are written
+    to ``cases_folder`` when given.
+
+    Parameters
+    ----------
+    settings : Settings
+        Cases per kind, the seed, steps and the limits of every case.
+    scene_folders : list of Path or None, optional
+        The folders of scenes to mutate; None (default) uses those of DEFAULT_SCENE_FOLDERS that
+        exist.
+    cases_folder : Path or None, optional
+        The folder for the failing cases' inputs; None (default) writes none.
+
+    Returns
+    -------
+    dict
+        The report of :func:`summarize` (counts per outcome and mutation, attribute coverage,
+        the failures), with ``wall_s``, the run's wall-clock seconds.
+
+    Raises
+    ------
+    QpbenchError
+        When the corpus cannot be gathered.
+    """
     started = time.perf_counter()
     folders = scene_folders or [folder for folder in DEFAULT_SCENE_FOLDERS if folder.is_dir()]
     for command in FUZZED_COMMANDS:  # imported once, before the children fork
@@ -381,7 +532,27 @@ def _warm_up(settings: Settings, corpus: Corpus, work: Path) -> None:
 
 def summarize(results: list[dict[str, Any]], settings: Settings, corpus: Corpus,
               folders: list[Path]) -> dict[str, Any]:
-    """The report of a run from its case results."""
+    """The report of a run from its case results.
+
+    Parameters
+    ----------
+    results : list of dict
+        One record per case (kind, case, exit status, outcome, stderr, seconds, operations,
+        attributes touched, peak RSS).
+    settings : Settings
+        The run's settings.
+    corpus : Corpus
+        The inputs mutated.
+    folders : list of Path
+        The scene folders of the corpus.
+
+    Returns
+    -------
+    dict
+        The settings, whether every case passed, counts per kind (outcomes, operations, the
+        slowest case, the peak RSS in MiB), the attribute coverage, the corpus with its digest,
+        and the failing cases.
+    """
     kinds: dict[str, Any] = {}
     for kind in KINDS:
         mine = [result for result in results if result["kind"] == kind]
@@ -422,8 +593,21 @@ def summarize(results: list[dict[str, Any]], settings: Settings, corpus: Corpus,
 
 
 def coverage(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per dialect, the attributes qpbench reads that some case set to a bad value or
-    deleted, and those no case touched."""
+    """Per dialect, the attributes qpbench reads that some case touched, and those none did.
+
+    An attribute is touched when some case set it to a bad value or deleted it.
+
+    Parameters
+    ----------
+    results : list of dict
+        The case records, each with ``touched``: (dialect, element, attribute) triples.
+
+    Returns
+    -------
+    dict
+        Per dialect: ``touched`` and ``known`` counts, and the ``untouched`` attributes as
+        ``<element> 'attribute'``.
+    """
     touched: dict[str, set[tuple[str, str]]] = {dialect: set() for dialect in KNOWN_ATTRIBUTES}
     for result in results:
         for dialect, element, attribute in result["touched"]:

@@ -72,15 +72,44 @@ class Mutated:
 
 
 def case_rng(kind: str, seed: int, case: int) -> random.Random:
-    """The generator of case ``case`` of ``kind`` in a run seeded ``seed`` (a string seed is
-    hashed with SHA-512 by :class:`random.Random`, the same in every process)."""
+    """The generator of case ``case`` of ``kind`` in a run seeded ``seed``.
+
+    A string seed is hashed with SHA-512 by :class:`random.Random`, the same in every process.
+
+    Parameters
+    ----------
+    kind : str
+        ``scene`` or ``problem``.
+    seed : int
+        The run's seed.
+    case : int
+        The case's number within its kind.
+
+    Returns
+    -------
+    random.Random
+        The case's generator, seeded from ``qpbench-fuzz:KIND:SEED:CASE``.
+    """
     return random.Random(f"qpbench-fuzz:{kind}:{seed}:{case}")
 
 
 # --- scenes --------------------------------------------------------------------------------
 def features(dialect: str, planes: int, geometries: int) -> dict[str, str]:
-    """XML of every element a ``dialect`` scene may hold, valid as written; ``planes`` and
-    ``geometries`` are how many the scene has already (portals and bodies index them)."""
+    """XML of every element a ``dialect`` scene may hold, valid as written.
+
+    Parameters
+    ----------
+    dialect : str
+        ``ball2d`` or ``rigidbody2d``.
+    planes, geometries : int
+        How many static planes and geometries the scene has already (portals and bodies
+        index them).
+
+    Returns
+    -------
+    dict of str to str
+        Per feature name, the XML fragment that inserts it.
+    """
     staggering = "symplectic_euler" if dialect == "ball2d" else "stabilized"
     common = {
         "static_plane": '<static_plane x="0 -3" n="0 1"/>',
@@ -337,8 +366,22 @@ def _byte_operation(rng: random.Random, data: bytes, root_tag: str, out: Mutated
 
 
 def mutate_scene(corpus: list[tuple[str, bytes]], rng: random.Random) -> Mutated:
-    """One scene case: a corpus scene with one to three mutations (see the module
-    docstring); tree mutations first, then at most one of the bytes."""
+    """One scene case: a corpus scene with one to three mutations (see the module docstring).
+
+    Tree mutations come first, then at most one of the bytes.
+
+    Parameters
+    ----------
+    corpus : list of (str, bytes)
+        The scenes to mutate, each a name and its XML.
+    rng : random.Random
+        The case's generator (:func:`case_rng`).
+
+    Returns
+    -------
+    Mutated
+        The case's bytes, its base scene, the operations done and the attributes touched.
+    """
     base, text = rng.choice(corpus)
     out = Mutated(data=b"", base=base)
     root = SafeET.fromstring(text)
@@ -481,8 +524,22 @@ def _header_mutation(rng: random.Random, header: dict[str, Any]) -> tuple[bytes,
 
 def mutate_problem(corpus: list[tuple[str, bytes]], rng: random.Random,
                    memory_limit_mb: int) -> Mutated:
-    """One problem case: a corpus problem file with one or two mutations (see the module
-    docstring). ``memory_limit_mb`` sizes the NPY members declared just beyond the cap."""
+    """One problem case: a corpus problem file with one or two mutations (see the module docstring).
+
+    Parameters
+    ----------
+    corpus : list of (str, bytes)
+        The problem files to mutate, each a name and its bytes.
+    rng : random.Random
+        The case's generator (:func:`case_rng`).
+    memory_limit_mb : int
+        The case's address-space cap in MiB: it sizes the NPY members declared just beyond it.
+
+    Returns
+    -------
+    Mutated
+        The case's bytes, its base file and the operations done.
+    """
     base, data = rng.choice(corpus)
     out = Mutated(data=data, base=base)
     with np.load(io.BytesIO(data), allow_pickle=False) as archive:

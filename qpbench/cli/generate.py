@@ -25,6 +25,13 @@ ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench generate`` and its options (family, size, seeds, coefficients, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "generate", help="write seeded problems of a hard-case family",
         description=f"families: {', '.join(FAMILIES)}; frictional: "
@@ -49,6 +56,23 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Check the seeds and write the family's problems (or box scenes) under the guards.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--count`` is below 1, ``--seed`` below 0, or an option does not fit the family.
+    """
     check_at_least(args.count, 1, "--count")
     check_at_least(args.seed, 0, "--seed")
     with guarded(args, "generate", f"generating '{args.family}' problems", [args.output]):
@@ -56,12 +80,43 @@ def run(args: argparse.Namespace) -> int:
 
 
 def seeds(args: argparse.Namespace) -> range:
-    """The seeds of the problems asked: ``--seed`` .. ``--seed + --count - 1``."""
+    """The seeds of the problems asked: ``--seed`` .. ``--seed + --count - 1``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``seed`` and ``count``.
+
+    Returns
+    -------
+    range
+        The seeds, one per problem.
+    """
     return range(args.seed, args.seed + args.count)
 
 
 def write_family(args: argparse.Namespace) -> int:
-    """The problems (or box scenes) asked, each written before the next is made."""
+    """Write the problems (or box scenes) asked, each written before the next is made.
+
+    Frictionless problems get their reference unless ``--no-reference`` (a reference whose
+    solvers disagree is said on stderr); each path written is printed.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--mu`` is given for a frictionless family, or ``--scene`` for another family than
+        ``box``.
+    """
     if args.scene:
         return write_box_scenes(args)
     if args.family in FRICTION_FAMILIES:
@@ -83,7 +138,23 @@ def write_family(args: argparse.Namespace) -> int:
 
 
 def run_frictional(args: argparse.Namespace) -> int:
-    """A frictional family: its problems with their references (friction_reference)."""
+    """Write a frictional family's problems with their references (friction_reference).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`; ``family`` is one of FRICTION_FAMILIES.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When the size does not suit the family.
+    """
     _, size = family_entry(FRICTION_FAMILIES, args.family, args.size, "frictional family")
     check_family_size(args.family, size)
     for seed in seeds(args):
@@ -99,7 +170,24 @@ def run_frictional(args: argparse.Namespace) -> int:
 
 
 def write_box_scenes(args: argparse.Namespace) -> int:
-    """``--scene``: box scenes of ``--size`` balls (seeds seed..seed+count-1) as scene XML."""
+    """Write ``--scene`` box scenes of ``--size`` balls (seeds seed..seed+count-1) as scene XML.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`; ``size`` None means 1000 balls, ``restitution``
+        None means 1.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When the family is not ``box`` or the size is below 1 or too large.
+    """
     if args.family != "box":
         raise QpbenchError(f"--scene is for the box family only, not '{args.family}'")
     size = 1000 if args.size is None else args.size

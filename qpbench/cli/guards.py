@@ -24,8 +24,15 @@ from qpbench.memory import (
 
 
 def add_memory_option(parser: argparse.ArgumentParser) -> None:
-    """``--memory-limit MB``: the address-space cap (default: a fraction of the memory
-    available; 0: none)."""
+    """Add ``--memory-limit MB``: the address-space cap.
+
+    The default is a fraction of the memory available; 0 means no cap.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser; the value is stored as ``memory_limit`` (None: the default).
+    """
     parser.add_argument(
         LIMIT_OPTION, type=int, default=None, metavar="MB", dest="memory_limit",
         help=f"cap on the address space in MiB (default: {DEFAULT_FRACTION:.0%}% of the "
@@ -34,15 +41,32 @@ def add_memory_option(parser: argparse.ArgumentParser) -> None:
 
 
 def add_progress_option(parser: argparse.ArgumentParser) -> None:
-    """``--progress/--no-progress``: a progress bar and a closing summary on stderr
-    (default: when stderr is a terminal)."""
+    """Add ``--progress/--no-progress``: a progress bar and a closing summary on stderr.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser; the value is stored as ``progress`` (None: when stderr is a
+        terminal).
+    """
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                         help="progress and a closing summary on stderr (default: when "
                              "stderr is a terminal)")
 
 
 def progress_wanted(args: argparse.Namespace) -> bool:
-    """``--progress``/``--no-progress`` when given, else whether stderr is a terminal."""
+    """Whether to show progress: ``--progress``/``--no-progress`` when given, else a terminal.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options holding ``progress`` (see :func:`add_progress_option`).
+
+    Returns
+    -------
+    bool
+        The option's value when given, else whether stderr is a terminal.
+    """
     if args.progress is not None:
         return bool(args.progress)
     return sys.stderr.isatty()
@@ -51,11 +75,35 @@ def progress_wanted(args: argparse.Namespace) -> bool:
 @contextmanager
 def guarded(args: argparse.Namespace, command: str, what: str,
             outputs: Iterable[str | os.PathLike[str]] = ()) -> Iterator[Watchdog]:
-    """Runs the block of ``command`` under the cap of ``args.memory_limit`` (restored after),
-    with a MemoryError becoming one line (``out of memory while WHAT``, exit 2 through
-    :class:`~qpbench.errors.QpbenchError`) and SIGINT watched
-    (:func:`~qpbench.interrupts.interrupt_watchdog`: the ``.tmp-*`` files of the folders
-    ``outputs`` are removed on a forced exit); yields the watchdog."""
+    """Run the block of ``command`` under the memory cap, with Ctrl-C watched.
+
+    The cap of ``args.memory_limit`` is restored after; a MemoryError becomes one line
+    (``out of memory while WHAT``, exit 2 through :class:`~qpbench.errors.QpbenchError`) and
+    SIGINT is watched (:func:`~qpbench.interrupts.interrupt_watchdog`: the ``.tmp-*`` files of
+    the folders ``outputs`` are removed on a forced exit).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options holding ``memory_limit`` in MiB (None: the default fraction of the
+        memory available; 0: no cap).
+    command : str
+        The command's name, for the interrupt line.
+    what : str
+        What the block does, for the out-of-memory line (``generating 'box' problems``).
+    outputs : iterable of str or os.PathLike, optional
+        Folders the block writes, swept of temporary files on a forced exit; none by default.
+
+    Yields
+    ------
+    Watchdog
+        The interrupt watchdog of the block.
+
+    Raises
+    ------
+    QpbenchError
+        When the memory limit is negative, or the block runs out of memory.
+    """
     limit_mb = default_limit_mb() if args.memory_limit is None else args.memory_limit
     check_at_least(limit_mb, 0, LIMIT_OPTION)
     previous = resource.getrlimit(resource.RLIMIT_AS)

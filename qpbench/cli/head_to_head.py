@@ -27,6 +27,13 @@ JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench head-to-head`` and its options (folder, results, repeats, passes, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "head-to-head", help="pi-robust against the fastest external pairs, per set, cold",
         epilog=JSON_FIELDS)
@@ -56,6 +63,27 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Time pi-robust against the fastest external pairs per set; write and print the report.
+
+    Reruns the command in a child process with single-threaded BLAS unless this one already
+    has it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0, or the child's.
+
+    Raises
+    ------
+    QpbenchError
+        When an option is out of range, the folder does not exist or holds no problem of a
+        head-to-head set, or the results are empty or not the main benchmark's table.
+    """
     if args.repeats < 1 or args.passes < 1 or args.candidates < 1:
         raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
     if args.cold_repeats < 0:

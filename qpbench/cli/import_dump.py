@@ -11,6 +11,13 @@ from qpbench.problem.reference import attach_reference
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench import-dump`` and its options (dumps, ``--restitution``, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("import-dump", help="import SCISim LCP dumps as problems")
     parser.add_argument("dumps", nargs="+", metavar="FILE", help="dump files (.json or .out)")
     parser.add_argument("--restitution", type=float, default=None,
@@ -21,6 +28,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Read every dump, then write each as a problem file with its reference and print its path.
+
+    A reference whose solvers disagree is said on stderr.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``dumps``, ``restitution``, ``no_reference`` and
+        ``output``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     # read and check every dump before writing anything
     problems = [import_dump(path, args.restitution) for path in args.dumps]
     for problem in problems:

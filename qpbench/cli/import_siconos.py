@@ -13,6 +13,13 @@ from qpbench.problem.siconos_import import import_siconos
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench import-siconos`` and its options (files, ``--kind``, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "import-siconos", help="import Siconos' fc2d, gfc2d and LCP text files as problems")
     parser.add_argument("files", nargs="+", metavar="FILE", help="Siconos .dat files")
@@ -24,6 +31,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Read every Siconos file, then write each as a problem file (:func:`save_imported`).
+
+    A file qpbench does not support (a general LCP) is skipped with one line on stderr.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``files``, ``kind``, ``no_reference`` and
+        ``output``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     # read and check every file before writing anything; a general LCP is skipped, one line
     problems = []
     for path in args.files:

@@ -29,14 +29,30 @@ class Progress:
                         dynamic_ncols=True)
 
     def advance(self, count: int = 1, note: str | None = None) -> None:
-        """Counts ``count`` more units; ``note`` (e.g. the item just done) beside the bar."""
+        """Count ``count`` more units, with ``note`` (e.g. the item just done) beside the bar.
+
+        Parameters
+        ----------
+        count : int, optional
+            The units done; 1 by default.
+        note : str or None, optional
+            The text shown beside the bar; None (default) leaves it as it is.
+        """
         self.bar.update(count)
         if note is not None:
             self.bar.set_postfix_str(note, refresh=False)
 
     def close(self, summary: str | None) -> None:
-        """Removes the bar; prints ``qpbench COMMAND: SUMMARY in T s`` on stderr when enabled,
-        a summary is given and the work took more than :data:`SUMMARY_AFTER_S`."""
+        """Remove the bar and print the closing summary when it is due.
+
+        Prints ``qpbench COMMAND: SUMMARY in T s`` on stderr when enabled, a summary is given and
+        the work took more than :data:`SUMMARY_AFTER_S`.
+
+        Parameters
+        ----------
+        summary : str or None
+            The closing line's text; None prints nothing.
+        """
         self.bar.close()
         elapsed = time.perf_counter() - self.started
         if self.enabled and summary is not None and elapsed > SUMMARY_AFTER_S:

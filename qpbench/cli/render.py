@@ -19,6 +19,13 @@ from qpbench.simulation.stepper import SimulationResult
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench render`` and its options (scene, ``-o``, span, solver, frames, guards).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("render")
     parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
     parser.add_argument("-o", "--output", required=True, help="FILE.png or FILE.gif")
@@ -33,6 +40,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Check the options and the output path, then draw the scene under the guards.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status of :func:`draw`: 0, or 1 when an inner solve failed.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--steps``, ``--end-time`` or ``--frames`` is out of range or the output path
+        cannot be written.
+    """
     check_span(args)
     check_at_least(args.frames, 1, "--frames")
     writable_output(args.output)
@@ -42,7 +67,29 @@ def run(args: argparse.Namespace) -> int:
 
 
 def draw(args: argparse.Namespace, render: Callable[..., SimulationResult]) -> int:
-    """Simulates the scene and draws it with ``render``; exit 1 when an inner solve failed."""
+    """Simulate the scene and draw it with ``render``; exit 1 when an inner solve failed.
+
+    Without an end time in the scene or the options, :data:`DEFAULT_STEPS` steps are drawn and
+    a note says so; the scene's warnings and the run's notes go to stderr.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+    render : callable
+        The renderer, :func:`qpbench.simulation.render.render` or a stand-in with its
+        signature, returning the simulation's result.
+
+    Returns
+    -------
+    int
+        The exit status: 0, or 1 when an inner solve failed (drawn up to there).
+
+    Raises
+    ------
+    QpbenchError
+        When the scene does not read, or an inner solve ran out of memory.
+    """
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench render: warning: {warning}", file=sys.stderr)

@@ -23,6 +23,13 @@ SUMMARY_COLUMNS = ("problem", "family", "kind", "mode", "solver", "formulation",
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench report`` and its options (results, ``-o``, ``--budget``, progress).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "report", help="write REPORT.md, plots and index.html from a results file",
         epilog="Progress (each figure and index.html as it is written) goes to stderr; the "
@@ -40,6 +47,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Write REPORT.md, its figures and index.html, then print where they are and the fastest pairs.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``results``, ``output``, ``budget`` and
+        ``progress``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     written: list[Path] = []
     with Progress("report", progress_wanted(args), None, "files") as progress:
         def starting(path: Path) -> None:
@@ -60,10 +80,24 @@ def run(args: argparse.Namespace) -> int:
 
 
 def fastest_pairs(frame: pd.DataFrame) -> list[str]:
-    """Lines naming, per accuracy level (loosest first), the pair with the lowest shifted
+    """List the fastest pair per accuracy level, for the closing summary.
+
+    Lines naming, per accuracy level (loosest first), the pair with the lowest shifted
     geometric mean time among those that solve at least 95% of the frictionless problems
     (cold starts where there are), as the "all problems" row of the report's frontier, and
-    the fastest external pair (a backend not written here) by the same rule."""
+    the fastest external pair (a backend not written here) by the same rule.
+
+    Parameters
+    ----------
+    frame : pd.DataFrame
+        Result rows with at least SUMMARY_COLUMNS.
+
+    Returns
+    -------
+    list of str
+        A heading line, then one line per level; one line saying so when there is no
+        frictionless problem.
+    """
     main, _ = split_kinds(frame)
     cold = main[main["mode"].astype(str) == "cold"]
     main = cold if not cold.empty else main

@@ -38,6 +38,13 @@ DEFAULT_PROBLEMS = ("problems",)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench run`` and its options (problems, solvers, levels, limits, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "run", help="solve problems x solvers x accuracy levels into one Parquet table",
         description="Every cell runs in an isolated worker process: a crash, hang or memory "
@@ -83,6 +90,28 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Solve every cell of problems x solvers x levels x modes into the results file.
+
+    Cells already stored are skipped (but those in RETRIED_ON_RESUME and ``--retry``); the
+    fork server starts before the solver backends are imported. A line of counts goes to
+    stderr at the end.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When an option does not parse or is out of range, a solver is unknown, or the output
+        path cannot be written.
+    """
     check_at_least(args.workers, 1, "--workers")
     check_at_least(args.batch, 1, "--batch")
     retry = parse_statuses(args.retry)

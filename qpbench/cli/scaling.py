@@ -39,6 +39,13 @@ def _sizes(text: str) -> tuple[int, ...]:
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench scaling`` and its options (sizes, steps, solver, piles, progress, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("scaling", help="cost per ball per step of the simulator",
                                    epilog=JSON_FIELDS)
     parser.add_argument("--sizes", type=_sizes, default=DEFAULT_SIZES,
@@ -64,6 +71,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Measure the simulator's cost per ball per step, write the JSON and print its Markdown.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+
+    Raises
+    ------
+    QpbenchError
+        When the steps or the seed are out of range, the pile solve budget is not positive, or
+        the solver is unknown.
+    """
     check_at_least(args.steps, 1, "--steps")
     check_at_least(args.pile_steps, 1, "--pile-steps")
     check_at_least(args.seed, 0, "--seed")
@@ -83,9 +108,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 def closing_line(report: dict[str, Any]) -> str:
-    """The verdicts of a scaling report in one line: the growth of the cost per ball per step
-    of the box scenes and, per kind of pile, of the simulator's own cost per body per step,
-    each against the target."""
+    """Say the verdicts of a scaling report in one line.
+
+    The growth of the cost per ball per step of the box scenes and, per kind of pile, of the
+    simulator's own cost per body per step, each against the target.
+
+    Parameters
+    ----------
+    report : dict
+        The report of :func:`qpbench.simulation.scaling.scaling`.
+
+    Returns
+    -------
+    str
+        The line, without the ``qpbench scaling:`` prefix.
+    """
     rows = report["rows"]
     parts = [f"cost per ball per step {rows[-1]['balls']} vs {rows[0]['balls']} balls "
              f"{report['ratio']:.2f}x ({_verdict(report['meets_target'])})"]

@@ -22,6 +22,13 @@ JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench sequence`` and its options (scenes, solvers, steps, accuracy, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "sequence", help="replay captured scenes, each solver warm from its own answers",
         epilog=JSON_FIELDS)
@@ -48,6 +55,28 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Replay the scenes with every solver cold and warm, write the JSON and print its Markdown.
+
+    Reruns the command in a child process with single-threaded BLAS unless this one already
+    has it. Without ``--solvers``, the solvers are pi-robust, the warm-startable external pairs
+    and, with ``--results``, the fastest cold pairs of the main benchmark.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0, or the child's.
+
+    Raises
+    ------
+    QpbenchError
+        When an option is out of range, a scene does not exist, a solver named is unknown or
+        not usable here, or the results are empty.
+    """
     if args.steps < 1 or args.repeats < 1 or args.passes < 1:
         raise QpbenchError("--steps, --repeats and --passes must be at least 1")
     check_accuracy(args.accuracy)

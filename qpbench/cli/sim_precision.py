@@ -30,6 +30,13 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench sim-precision`` and its options (scenes, solvers, levels, steps, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "sim-precision", help="what each level of inner accuracy costs in whole simulations",
         epilog=JSON_FIELDS)
@@ -53,6 +60,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Simulate every scene with each solver at each level, write the JSON, print its Markdown.
+
+    The runs go under the guards (memory cap, Ctrl-C) with a bar counting them.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0 (a pair's failed run is a row, not an error).
+
+    Raises
+    ------
+    QpbenchError
+        When ``--steps`` is below 1, a level or solver does not parse, a scene file does not
+        exist, or the output path cannot be written.
+    """
     check_at_least(args.steps, 1, "--steps")
     levels = parse_accuracies(args.accuracy)
     names = parse_solver_names(args.solvers)

@@ -29,6 +29,13 @@ DEFAULT_STEPS = 1000
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench simulate`` and its options (scene, span, solver, accuracy, capture, JSON).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "simulate", epilog="Every JSON field, its unit and when it is null: docs/json-output.md")
     parser.add_argument("scene", help="a <ball2d_scene> or <rigidbody2d_scene> file")
@@ -49,7 +56,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def check_span(args: argparse.Namespace) -> None:
-    """QpbenchError unless ``--steps`` and ``--end-time``, where given, are at least 0."""
+    """Check that ``--steps`` and ``--end-time``, where given, are at least 0.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options holding ``steps`` and ``end_time`` (None: not given).
+
+    Raises
+    ------
+    QpbenchError
+        When either is negative.
+    """
     if args.steps is not None:
         check_at_least(args.steps, 0, "--steps")
     if args.end_time is not None:
@@ -57,8 +75,21 @@ def check_span(args: argparse.Namespace) -> None:
 
 
 def check_memory_failure(result: SimulationResult) -> None:
-    """OutOfMemory (one line, exit 2) when the run stopped because an inner solve ran out of
-    memory, rather than reporting it as a failed solve."""
+    """Raise a run that an inner solve's lack of memory stopped as an out-of-memory error.
+
+    OutOfMemory (one line, exit 2) when the run stopped because an inner solve ran out of
+    memory, rather than reporting it as a failed solve.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The result of the run.
+
+    Raises
+    ------
+    OutOfMemory
+        A QpbenchError naming the step, the solver and the contacts.
+    """
     failure = result.failure
     if failure is not None and "MemoryError" in str(failure.get("solver_status", "")):
         raise out_of_memory(f"simulating {result.scene}",
@@ -67,6 +98,23 @@ def check_memory_failure(result: SimulationResult) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Check the span and the accuracy, then simulate the scene under the guards.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status of :func:`simulate`: 0, or 1 when an inner solve failed.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--steps``, ``--end-time`` or ``--accuracy`` is out of range.
+    """
     check_span(args)
     if args.accuracy is not None:
         check_accuracy(args.accuracy)
@@ -76,6 +124,27 @@ def run(args: argparse.Namespace) -> int:
 
 
 def simulate(args: argparse.Namespace) -> int:
+    """Simulate the scene and print the summary, as text or one JSON object.
+
+    Without an end time in the scene or the options, :data:`DEFAULT_STEPS` steps are simulated
+    and a note says so; the scene's warnings and the run's notes go to stderr, and with
+    ``--capture`` every impact problem is written to that folder.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the run ends, 1 when an inner solve failed.
+
+    Raises
+    ------
+    QpbenchError
+        When the scene does not read, ``--capture`` is a file, or the run runs out of memory.
+    """
     scene = load_scene(args.scene)
     for warning in scene.warnings:
         print(f"qpbench simulate: warning: {warning}", file=sys.stderr)

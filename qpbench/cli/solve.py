@@ -32,6 +32,13 @@ MISSING = {
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench solve`` and its options (problem, ``--solver``, ``--accuracy``, JSON).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("solve", help="solve one problem file and judge the answer",
                                    epilog=JSON_FIELDS)
     parser.add_argument("problem", help="a problem file (.npz)")
@@ -42,6 +49,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Solve one problem file, judge the answer and print it, as text or one JSON object.
+
+    The answer is judged by qpbench's own residual (:func:`qpbench.solvers.run.solve_and_judge`),
+    its velocity error against a verified reference, and for a frictional problem its Coulomb
+    model metrics.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``problem``, ``solver``, ``accuracy`` and ``json``.
+
+    Returns
+    -------
+    int
+        The exit status: 0 when the answer meets the accuracy, 1 (with one line on stderr) when
+        not.
+
+    Raises
+    ------
+    QpbenchError
+        When the accuracy is out of range, the problem file does not read, or the solver is
+        unknown or does not fit the problem's kind.
+    """
     check_accuracy(args.accuracy)
     problem = files.load(args.problem)
     spec = get(args.solver, kind_of(problem))

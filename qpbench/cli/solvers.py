@@ -14,6 +14,13 @@ KIND_NAMES = {"impact": "frictionless", "frictional": "frictional"}
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench solvers`` and its ``--json`` option.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser("solvers", help="list solvers, formulations and availability",
                                    epilog=JSON_FIELDS)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -21,6 +28,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Print every solver and formulation with its backend, version and usability.
+
+    As a table with a closing count per formulation, or one JSON object with ``--json``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``json``.
+
+    Returns
+    -------
+    int
+        The exit status: 0.
+    """
     rows = [
         {"name": s.name, "formulation": s.formulation, "backend": s.backend,
          "version": s.version, "usable": s.usable, "reason": s.reason,

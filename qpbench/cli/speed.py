@@ -26,6 +26,13 @@ def _sizes(text: str) -> tuple[int, ...]:
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``qpbench speed`` and its options (``--sizes``, ``--seed``, ``--repeats``, ``-o``).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``qpbench`` parser's subcommands, to which this one is added.
+    """
     parser = subparsers.add_parser(
         "speed", help="pi-robust against one sparse factorization on box packings",
         epilog=JSON_FIELDS)
@@ -40,6 +47,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Time pi-robust against one sparse factorization, write the JSON and print its Markdown.
+
+    Reruns the command in a child process with single-threaded BLAS unless this one already
+    has it.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The options of :func:`add_parser`: ``sizes``, ``seed``, ``repeats`` and ``output``.
+
+    Returns
+    -------
+    int
+        The exit status: 0, or the child's.
+
+    Raises
+    ------
+    QpbenchError
+        When ``--repeats`` is below 1, ``--seed`` below 0, or the output path cannot be written.
+    """
     check_at_least(args.repeats, 1, "--repeats")
     check_at_least(args.seed, 0, "--seed")
     output = writable_output(args.output)

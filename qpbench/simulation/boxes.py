@@ -56,9 +56,29 @@ _REFUSALS = {KINEMATIC_BOX_BOX: "kinematic box-box", KINEMATIC_CIRCLE_BOX: "kine
 @njit(cache=True, error_model="numpy")
 def circle_box(xc: float, yc: float, radius: float, xb: float, yb: float, theta: float,
                hx: float, hy: float) -> tuple[bool, float, float, float, float]:
-    """(hit, n, p) of a circle against a box: n (unit, from the box towards the circle) and
-    the contact point p at the middle of the overlap, in world coordinates; ``hit`` False
-    when apart (module docstring)."""
+    """Contact of a circle against a box: whether they touch, the normal and the contact point.
+
+    n is unit, from the box towards the circle; p is at the middle of the overlap, in world
+    coordinates (module docstring).
+
+    Parameters
+    ----------
+    xc, yc : float
+        The circle's centre.
+    radius : float
+        The circle's radius.
+    xb, yb : float
+        The box's centre.
+    theta : float
+        The box's angle in radians.
+    hx, hy : float
+        The box's half-widths along its own axes.
+
+    Returns
+    -------
+    tuple of (bool, float, float, float, float)
+        (hit, n_x, n_y, p_x, p_y); ``hit`` False and zeros when apart.
+    """
     c, s = math.cos(theta), math.sin(theta)
     dx, dy = xc - xb, yc - yb
     lx, ly = c * dx + s * dy, -s * dx + c * dy  # R^T (x_circle - x_box)
@@ -103,9 +123,25 @@ def circle_box(xc: float, yc: float, radius: float, xb: float, yb: float, theta:
 def box_box(x0: float, y0: float, theta0: float, hx0: float, hy0: float, x1: float,
             y1: float, theta1: float, hx1: float, hy1: float, points: np.ndarray
             ) -> tuple[int, float, float]:
-    """(count, n) of box 0 against box 1: n (unit, from box 1 towards box 0) and the first
-    ``count`` rows of ``points`` (2, 2) set to the contact points; count 0 when apart
-    (module docstring)."""
+    """Contact points of box 0 against box 1 by separating axes and clipping.
+
+    n is unit, from box 1 towards box 0; the first ``count`` rows of ``points`` are set to the
+    contact points (module docstring).
+
+    Parameters
+    ----------
+    x0, y0, theta0, hx0, hy0 : float
+        Box 0's centre, angle in radians and half-widths.
+    x1, y1, theta1, hx1, hy1 : float
+        Box 1's, likewise.
+    points : np.ndarray
+        (2, 2) float array, written in place: one contact point per row.
+
+    Returns
+    -------
+    tuple of (int, float, float)
+        (count, n_x, n_y); count 0 (and a zero normal) when apart.
+    """
     c0, s0 = math.cos(theta0), math.sin(theta0)
     c1, s1 = math.cos(theta1), math.sin(theta1)
     # Q = |R0^T R1|
@@ -275,6 +311,22 @@ def _collision_boxes(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, theta1: 
 
 
 def refuse_kinematic(where: str, what: str, a: int, b: int) -> UnsupportedError:
+    """The error for a kinematic pair SCISim cannot handle either.
+
+    Parameters
+    ----------
+    where : str
+        A prefix naming the scene (``PATH: ``), or empty.
+    what : str
+        The pair's kind: ``kinematic box-box`` or ``kinematic circle-box``.
+    a, b : int
+        The two bodies' indices.
+
+    Returns
+    -------
+    UnsupportedError
+        The error to raise, naming both bodies.
+    """
     return UnsupportedError(f"{where}bodies #{a} and #{b}: {what} contacts are not supported "
                             "(SCISim stops there too)")
 
@@ -283,8 +335,40 @@ def box_contacts(x0: np.ndarray, x1: np.ndarray, theta0: np.ndarray, theta1: np.
                  radii: np.ndarray, half_widths: np.ndarray, fixed: np.ndarray,
                  plane_points: np.ndarray, plane_normals: np.ndarray, where: str = ""
                  ) -> tuple[Contacts, Contacts]:
-    """(body-body, box-plane) contacts of every box (module docstring); circle-circle and
-    circle-plane contacts are found elsewhere."""
+    """(body-body, box-plane) contacts of every box (module docstring).
+
+    Circle-circle and circle-plane contacts are found elsewhere
+    (:mod:`qpbench.simulation.contacts`).
+
+    Parameters
+    ----------
+    x0, x1 : np.ndarray
+        (bodies, 2) centres at the start of the step and predicted at its end.
+    theta0, theta1 : np.ndarray
+        (bodies,) angles in radians, likewise.
+    radii : np.ndarray
+        (bodies,) radii of the circles (read for circles only).
+    half_widths : np.ndarray
+        (bodies, 2) half-widths of the boxes; NaN rows for circles.
+    fixed : np.ndarray
+        (bodies,) bool: kinematic bodies.
+    plane_points, plane_normals : np.ndarray
+        (planes, 2) a point and the unit normal of each static plane.
+    where : str, optional
+        A prefix naming the scene (``PATH: ``) in an error; empty by default.
+
+    Returns
+    -------
+    tuple of (Contacts, Contacts)
+        The box-box and circle-box contacts, in the order of the candidate pairs, and the
+        box-plane contacts, planes in scene order, then boxes by index, then vertices.
+
+    Raises
+    ------
+    UnsupportedError
+        For the first candidate pair of a kinematic box against a box, or a kinematic circle
+        against a box.
+    """
     x0, x1 = (np.ascontiguousarray(x, dtype=float) for x in (x0, x1))
     theta0, theta1, radii = (np.ascontiguousarray(v, dtype=float)
                              for v in (theta0, theta1, radii))

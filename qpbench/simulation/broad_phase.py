@@ -25,13 +25,44 @@ CANDIDATE_BYTES = 48
 
 def swept_boxes(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper corners (balls, 2) of the boxes swept by balls moving from x0 to x1."""
+    """Lower and upper corners of the boxes swept by balls moving from x0 to x1.
+
+    Parameters
+    ----------
+    x0, x1 : np.ndarray
+        (balls, 2) centres at the start and at the end of the step.
+    radii : np.ndarray
+        (balls,) radii.
+
+    Returns
+    -------
+    tuple of (np.ndarray, np.ndarray)
+        The (balls, 2) lower corners ``min(x0, x1) - r`` and upper corners
+        ``max(x0, x1) + r``.
+    """
     reach = radii[:, None]
     return np.minimum(x0, x1) - reach, np.maximum(x0, x1) + reach
 
 
 def candidate_pairs(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Pairs (i, j), i < j, whose boxes overlap, as an (pairs, 2) int array (sorted rows)."""
+    """Pairs (i, j), i < j, whose boxes overlap, found through the uniform grid of the module.
+
+    Parameters
+    ----------
+    lower, upper : np.ndarray
+        (boxes, 2) lower and upper corners of the axis-aligned boxes.
+
+    Returns
+    -------
+    np.ndarray
+        (pairs, 2) int64 array, each row (i, j) with i < j, rows sorted.
+
+    Raises
+    ------
+    OutOfMemory
+        When the candidate pairs would need more memory than the cap allows
+        (:func:`qpbench.memory.require`).
+    """
     count = lower.shape[0]
     if count < 2:
         return np.zeros((0, 2), dtype=np.int64)

@@ -17,7 +17,26 @@ from qpbench.problem.metrics import TINY
 
 def energy(masses: np.ndarray, inertia: np.ndarray, free: np.ndarray, positions: np.ndarray,
            velocities: np.ndarray, omega: np.ndarray | None, gravity: np.ndarray | None) -> float:
-    """Kinetic plus gravitational potential energy of the free bodies (formula above)."""
+    """Kinetic plus gravitational potential energy of the free bodies (formula above).
+
+    Parameters
+    ----------
+    masses, inertia : np.ndarray
+        (bodies,) masses and moments of inertia.
+    free : np.ndarray
+        (bodies,) bool: the free (non-kinematic) bodies.
+    positions, velocities : np.ndarray
+        (bodies, 2) centres and linear velocities.
+    omega : np.ndarray or None
+        (bodies,) angular velocities; None for balls, which carry no rotation.
+    gravity : np.ndarray or None
+        (2,) gravitational acceleration; None when the scene has no gravity.
+
+    Returns
+    -------
+    float
+        The energy.
+    """
     m = masses[free]
     total = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", velocities[free], velocities[free])))
     if omega is not None:
@@ -28,13 +47,47 @@ def energy(masses: np.ndarray, inertia: np.ndarray, free: np.ndarray, positions:
 
 
 def momentum(masses: np.ndarray, free: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-    """Linear momentum sum m v of the free bodies."""
+    """Linear momentum sum m v of the free bodies.
+
+    Parameters
+    ----------
+    masses : np.ndarray
+        (bodies,) masses.
+    free : np.ndarray
+        (bodies,) bool: the free (non-kinematic) bodies.
+    velocities : np.ndarray
+        (bodies, 2) linear velocities.
+
+    Returns
+    -------
+    np.ndarray
+        (2,) momentum.
+    """
     return masses[free] @ velocities[free]
 
 
 def momentum_drift(masses: np.ndarray, free: np.ndarray, v_start: np.ndarray, v_end: np.ndarray,
                    gravity: np.ndarray | None, elapsed: float) -> float:
-    """Relative momentum drift over ``elapsed`` seconds (formula above)."""
+    """Relative momentum drift over ``elapsed`` seconds (formula above).
+
+    Parameters
+    ----------
+    masses : np.ndarray
+        (bodies,) masses.
+    free : np.ndarray
+        (bodies,) bool: the free (non-kinematic) bodies.
+    v_start, v_end : np.ndarray
+        (bodies, 2) linear velocities at the start and at the end.
+    gravity : np.ndarray or None
+        (2,) gravitational acceleration; None when the scene has no gravity.
+    elapsed : float
+        Simulated seconds between the two velocities.
+
+    Returns
+    -------
+    float
+        The drift, relative to the larger momentum magnitude sum m |v|.
+    """
     expected = momentum(masses, free, v_start)
     if gravity is not None:
         expected = expected + float(np.sum(masses[free])) * gravity * elapsed

@@ -59,6 +59,13 @@ class Contacts:
 
     @classmethod
     def empty(cls) -> Contacts:
+        """No contacts.
+
+        Returns
+        -------
+        Contacts
+            Zero contacts, with arrays of the right dtypes and shapes.
+        """
         none = np.zeros(0, dtype=np.int64)
         return cls(none, none.copy(), none.copy(), none.copy(), np.zeros((0, 2)))
 
@@ -73,7 +80,16 @@ class Contacts:
         return int(self.body_a.shape[0])
 
     def keys(self) -> np.ndarray:
-        """An integer identity per contact (kind, a, b or boundary), stable across steps."""
+        """An integer identity per contact (kind, a, b or boundary), stable across steps.
+
+        Box contacts also carry their point number, so each vertex or clipped point is its own.
+
+        Returns
+        -------
+        np.ndarray
+            (n,) int64 keys: kind in bits 60 and up, body a in bits 30 to 59, then b or the
+            boundary (shifted by two bits for box contacts, with the point number below).
+        """
         other = np.where((self.kind == BALL) | (self.kind == BODY_BODY), self.body_b,
                          self.boundary)
         boxed = (self.kind == BOX_PLANE) | (self.kind == BODY_BODY)
@@ -82,9 +98,24 @@ class Contacts:
         return (self.kind.astype(np.int64) << 60) | (self.body_a.astype(np.int64) << 30) | other
 
     def jacobian(self, bodies: int, dofs_per_body: int) -> sp.csc_matrix:
-        """G (bodies * dofs_per_body x n): column k is the gradient of the gap of contact k;
-        box contacts add ``r_a x n`` (and ``-(r_b x n)``) on the rotation rows, as
-        SCISim's ``BodyBodyConstraint``/``StaticPlaneBodyConstraint::evalH``."""
+        """G, the gradients of the contacts' gaps, as SCISim builds them.
+
+        Column k is the gradient of the gap of contact k; box contacts add ``r_a x n`` (and
+        ``-(r_b x n)``) on the rotation rows, as SCISim's
+        ``BodyBodyConstraint``/``StaticPlaneBodyConstraint::evalH``.
+
+        Parameters
+        ----------
+        bodies : int
+            Number of bodies.
+        dofs_per_body : int
+            2 for balls (x, y), 3 for rigid bodies (x, y, theta).
+
+        Returns
+        -------
+        sp.csc_matrix
+            G, (bodies * dofs_per_body, n).
+        """
         G = contact_jacobian(self.body_a, self.body_b, self.normals, bodies, dofs_per_body)
         boxed = self.boxed
         if dofs_per_body != 3 or not np.any(boxed):
@@ -106,7 +137,22 @@ class Contacts:
 
     def contact_points(self, x0: np.ndarray, radii: np.ndarray, fixed: np.ndarray
                        ) -> np.ndarray:
-        """p per contact at the start positions x0 (module docstring)."""
+        """p per contact at the start positions x0 (module docstring).
+
+        Parameters
+        ----------
+        x0 : np.ndarray
+            (bodies, 2) centres at the start of the step.
+        radii : np.ndarray
+            (bodies,) radii.
+        fixed : np.ndarray
+            (bodies,) bool: kinematic bodies.
+
+        Returns
+        -------
+        np.ndarray
+            (n, 2) contact points.
+        """
         a, b = self.body_a, self.body_b
         points = x0[a] - radii[a][:, None] * self.normals
         pair = self.kind == BALL
@@ -124,7 +170,29 @@ class Contacts:
 
     def tangent_jacobian(self, x0: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
                          bodies: int, dofs_per_body: int) -> sp.csc_matrix:
-        """T (bodies * dofs_per_body x n): tangents, with the arms on rotation rows."""
+        """T (bodies * dofs_per_body x n): tangents, with the arms on rotation rows.
+
+        Circle contacts take the arm ``(p - x) x t`` from :meth:`contact_points`; box contacts
+        their stored arms.
+
+        Parameters
+        ----------
+        x0 : np.ndarray
+            (bodies, 2) centres at the start of the step.
+        radii : np.ndarray
+            (bodies,) radii.
+        fixed : np.ndarray
+            (bodies,) bool: kinematic bodies.
+        bodies : int
+            Number of bodies.
+        dofs_per_body : int
+            2 for balls, 3 for rigid bodies (arms on the rotation rows).
+
+        Returns
+        -------
+        sp.csc_matrix
+            T, (bodies * dofs_per_body, n).
+        """
         if dofs_per_body != 3:
             return tangent_jacobian(self.body_a, self.body_b, self.normals, bodies,
                                     dofs_per_body)
@@ -146,8 +214,29 @@ class Contacts:
     def gaps(self, x0: np.ndarray, radii: np.ndarray, plane_points: np.ndarray,
              plane_normals: np.ndarray, drum_centers: np.ndarray, drum_radii: np.ndarray
              ) -> np.ndarray:
-        """The gap of each contact at x0: ``|x_a - x_b| - r_a - r_b``, ``n . (x - p) - r`` for a
-        plane, ``R - r - |x - c|`` for a drum (negative when overlapping)."""
+        """The gap of each contact at x0 (negative when overlapping).
+
+        ``|x_a - x_b| - r_a - r_b`` between balls, ``n . (x - p) - r`` for a plane,
+        ``R - r - |x - c|`` for a drum; zero for box contacts.
+
+        Parameters
+        ----------
+        x0 : np.ndarray
+            (bodies, 2) centres at the start of the step.
+        radii : np.ndarray
+            (bodies,) radii.
+        plane_points, plane_normals : np.ndarray
+            (planes, 2) a point and the unit normal of each static plane.
+        drum_centers : np.ndarray
+            (drums, 2) the drums' centres.
+        drum_radii : np.ndarray
+            (drums,) the drums' radii.
+
+        Returns
+        -------
+        np.ndarray
+            (n,) gaps.
+        """
         a, b, k = self.body_a, self.body_b, self.boundary
         gaps = np.zeros(self.count)
         pair = self.kind == BALL
@@ -163,6 +252,18 @@ class Contacts:
 
     @staticmethod
     def concatenate(parts: list[Contacts]) -> Contacts:
+        """The contacts of ``parts``, one after another.
+
+        Parameters
+        ----------
+        parts : list of Contacts
+            The contact sets, at least one.
+
+        Returns
+        -------
+        Contacts
+            Every contact of every part, in order.
+        """
         return Contacts(*(np.concatenate([getattr(part, name) for part in parts])
                           for name in ("body_a", "body_b", "kind", "boundary", "normals",
                                        "arms", "point")))
@@ -181,6 +282,22 @@ def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarr
     smallest at ``t* = clip(-d0.(d1 - d0) / |d1 - d0|^2, 0, 1)``; the pair is active when
     ``|d(t*)| <= r_a + r_b``. A pair with the same centre has no normal: SCISim's is zero,
     an inert constraint; it is left out and appended to ``coincident`` when given.
+
+    Parameters
+    ----------
+    x0, x1 : np.ndarray
+        (balls, 2) centres at the start and predicted at the end of the step.
+    radii : np.ndarray
+        (balls,) radii.
+    fixed : np.ndarray
+        (balls,) bool: kinematic balls (a pair of two is left out).
+    coincident : list of (int, int) or None, optional
+        Receives the pairs left out for sharing a centre; None (default) drops them silently.
+
+    Returns
+    -------
+    Contacts
+        The active pairs (a < b), normals from b to a at x0.
     """
     lower, upper = swept_boxes(x0, x1, radii)
     pairs = candidate_pairs(lower, upper)
@@ -214,7 +331,24 @@ def ball_ball(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarr
 
 def ball_plane(x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray, points: np.ndarray,
                normals: np.ndarray) -> Contacts:
-    """Ball-plane contacts at the predicted positions: ``n . (x1 - p) <= r``."""
+    """Ball-plane contacts at the predicted positions: ``n . (x1 - p) <= r``.
+
+    Parameters
+    ----------
+    x1 : np.ndarray
+        (balls, 2) predicted centres.
+    radii : np.ndarray
+        (balls,) radii.
+    fixed : np.ndarray
+        (balls,) bool: kinematic balls, left out.
+    points, normals : np.ndarray
+        (planes, 2) a point and the unit normal of each plane.
+
+    Returns
+    -------
+    Contacts
+        Plane by plane, the balls touching it, with the plane's normal.
+    """
     parts = []
     for index, (point, normal) in enumerate(zip(points, normals, strict=True)):
         balls = np.flatnonzero(((x1 - point) @ normal <= radii) & ~fixed)
@@ -225,8 +359,35 @@ def ball_plane(x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray, points: np.
 
 def ball_drum(x0: np.ndarray, x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray,
               centers: np.ndarray, drum_radii: np.ndarray, where: str = "") -> Contacts:
-    """Ball-drum contacts at the predicted positions: ``|x1 - c| >= R - r``; normal
-    ``(c - x0) / |c - x0|`` (from x1 when x0 is at the centre)."""
+    """Ball-drum contacts at the predicted positions: ``|x1 - c| >= R - r``.
+
+    The normal is ``(c - x0) / |c - x0|`` (from x1 when x0 is at the centre).
+
+    Parameters
+    ----------
+    x0, x1 : np.ndarray
+        (balls, 2) centres at the start and predicted at the end of the step.
+    radii : np.ndarray
+        (balls,) radii.
+    fixed : np.ndarray
+        (balls,) bool: kinematic balls, left out.
+    centers : np.ndarray
+        (drums, 2) the drums' centres.
+    drum_radii : np.ndarray
+        (drums,) the drums' radii.
+    where : str, optional
+        A prefix naming the scene (``PATH: ``) in an error; empty by default.
+
+    Returns
+    -------
+    Contacts
+        Drum by drum, the balls touching it, with the inward normal.
+
+    Raises
+    ------
+    UnsupportedError
+        When a ball sits at a drum's centre at both x0 and x1 (no normal).
+    """
     parts = []
     for index, (center, drum_radius) in enumerate(zip(centers, drum_radii, strict=True)):
         balls = np.flatnonzero((np.hypot(*(x1 - center).T) >= drum_radius - radii) & ~fixed)

@@ -17,7 +17,30 @@ import numpy as np
 
 def flow(integrator: str, x0: np.ndarray, v0: np.ndarray, dt: float,
          acceleration: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """(x1, v1) after one step; ``acceleration`` (bodies, 2) or None when there is no force."""
+    """(x1, v1) after one step of the unconstrained flow (module docstring).
+
+    Parameters
+    ----------
+    integrator : str
+        ``symplectic_euler`` or ``verlet``.
+    x0, v0 : np.ndarray
+        (bodies, 2) positions and velocities at the start of the step.
+    dt : float
+        The step, in seconds.
+    acceleration : np.ndarray or None
+        (bodies, 2) constant acceleration; None when there is no force (then
+        ``x1 = x0 + dt v0`` whatever the integrator).
+
+    Returns
+    -------
+    tuple of (np.ndarray, np.ndarray)
+        The positions and velocities at the end of the step.
+
+    Raises
+    ------
+    ValueError
+        For an unknown integrator when there is a force.
+    """
     if acceleration is None:
         return x0 + dt * v0, v0.copy()
     v1 = v0 + dt * acceleration

@@ -94,6 +94,14 @@ class SolveLog:
     solvers: set[str] = field(default_factory=set)
 
     def as_dict(self) -> dict[str, Any]:
+        """The counts under the names a simulation's summary gives them.
+
+        Returns
+        -------
+        dict
+            ``solves``, ``trivial_solves``, ``inaccurate_solves``, ``max_residual``,
+            ``solve_time_s``, ``gr_max_rounds``, ``unconverged_events`` and the sorted ``solvers``.
+        """
         return {
             "solves": self.solves, "trivial_solves": self.trivial,
             "inaccurate_solves": self.inaccurate, "max_residual": self.max_residual,
@@ -112,8 +120,29 @@ class InnerSolver:
 
     def solve(self, problem: ImpactProblem | FrictionalProblem,
               warm_start: np.ndarray | None = None) -> np.ndarray:
-        """Impulses of the LCP of ``problem`` (``r = (l_N, l_T)`` of a frictional one); raises
-        InnerSolveFailed on an unusable answer."""
+        """Impulses of the LCP of ``problem`` (``r = (l_N, l_T)`` of a frictional one).
+
+        A problem where nothing approaches (b >= 0) gives l = 0 without a solve. Otherwise the
+        velocities are scaled by :func:`unit_scale`, the chosen solve runs at ``accuracy``, and the
+        answer is judged by qpbench's residual and logged.
+
+        Parameters
+        ----------
+        problem : ImpactProblem or FrictionalProblem
+            The impact to solve.
+        warm_start : np.ndarray or None, optional
+            A guess of the impulses, in the problem's units; None (default) for a cold start.
+
+        Returns
+        -------
+        np.ndarray
+            The impulses, (n_contacts,) or (2 n_contacts,) for a frictional problem.
+
+        Raises
+        ------
+        InnerSolveFailed
+            When the answer is not finite or its residual is above REJECT_RESIDUAL.
+        """
         frictional = isinstance(problem, FrictionalProblem)
         size = 2 * problem.n_contacts if frictional else problem.n_contacts
         if problem.n_contacts == 0:
@@ -151,19 +180,47 @@ class InnerSolver:
 
 
 def unit_scale(velocity_unit: float, largest_velocity: float) -> float:
-    """The factor f = 2^-e, ``velocity_unit`` = m 2^e with m in [1/2, 1), that brings the
+    """The power of two that brings an inner solve's velocities to unit scale.
+
+    The factor f = 2^-e, ``velocity_unit`` = m 2^e with m in [1/2, 1), that brings the
     velocities of an inner solve (and so b and the impulses) to unit scale: the scaled problem's
     unit (max |b|, the scale of qpbench's residual) lies in [1/2, 1). A power of two, so that
     scaling and unscaling are exact. Solvers with absolute tolerances (the interior points)
     otherwise fail on slow contacts: at approach speeds of 1e-9 their answers miss qpbench's
     relative residual by orders of magnitude. f = 1 when the scaled velocities would leave
-    floating-point range (a unit tiny by cancellation beside large velocities)."""
+    floating-point range (a unit tiny by cancellation beside large velocities).
+
+    Parameters
+    ----------
+    velocity_unit : float
+        The problem's velocity unit (its residual's scale).
+    largest_velocity : float
+        The largest velocity magnitude of the problem.
+
+    Returns
+    -------
+    float
+        The factor f.
+    """
     factor = 2.0 ** -math.frexp(velocity_unit)[1]
     return factor if factor * largest_velocity <= 1e300 else 1.0
 
 
 def with_restitution(problem: ImpactProblem, restitution: float) -> ImpactProblem:
-    """The same contacts and velocities with one restitution c for every contact."""
+    """The same contacts and velocities with one restitution c for every contact.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact.
+    restitution : float
+        The coefficient c given to every contact.
+
+    Returns
+    -------
+    ImpactProblem
+        A new problem, built again with that restitution.
+    """
     return ImpactProblem.build(problem.name, problem.G, problem.m_inv, problem.v_minus,
                                restitution, problem.n_rel, dofs_per_body=problem.dofs_per_body)
 
@@ -174,6 +231,31 @@ def apply(operator: ImpactOperator, problem: ImpactProblem,
     """The impulses ``operator`` gives for ``problem`` (whose restitution is the operator's).
 
     ``inner`` maps ``id(operator)`` to the inner solver of each lcp/gr operator.
+
+    Parameters
+    ----------
+    operator : ImpactOperator
+        The scene's impact operator: ``lcp``, ``gr``, ``grr`` or ``gauss_seidel``.
+    problem : ImpactProblem
+        The impact.
+    inner : dict of int to InnerSolver
+        The inner solver of each lcp/gr operator, nested ones included, by ``id``.
+    log : SolveLog
+        The run's counts, updated.
+    warm_start : np.ndarray or None, optional
+        A guess of the impulses for an ``lcp`` operator; None (default) for a cold start.
+
+    Returns
+    -------
+    np.ndarray
+        (n_contacts,) impulses l.
+
+    Raises
+    ------
+    InnerSolveFailed
+        When an inner solve gives no usable answer.
+    ValueError
+        For an unknown operator type.
     """
     if problem.n_contacts == 0:
         return np.zeros(0)
@@ -194,7 +276,34 @@ def apply(operator: ImpactOperator, problem: ImpactProblem,
 
 def generalized_reflections(problem: ImpactProblem, v_tol: float, inner: InnerSolver,
                             log: SolveLog, max_rounds: int = MAX_GR_ROUNDS) -> np.ndarray:
-    """Accumulated impulses of repeated LCPs over the contacts still approaching (see above)."""
+    """Accumulated impulses of repeated LCPs over the contacts still approaching (see above).
+
+    Each round solves the LCP restricted to the contacts with ``G_k^T v + nrel_k < -v_tol`` at
+    the current velocity, adds its impulses, and recomputes the velocity from v- and the total.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact.
+    v_tol : float
+        The approach speed below which a contact counts as approaching.
+    inner : InnerSolver
+        The inner solver of each round's LCP.
+    log : SolveLog
+        The run's counts: the most rounds, and an unconverged event when the rounds run out.
+    max_rounds : int, optional
+        The rounds at most; MAX_GR_ROUNDS by default.
+
+    Returns
+    -------
+    np.ndarray
+        (n_contacts,) accumulated impulses.
+
+    Raises
+    ------
+    InnerSolveFailed
+        When an inner solve gives no usable answer.
+    """
     velocity = problem.v_minus.copy()
     total = np.zeros(problem.n_contacts)
     G = problem.G
@@ -218,7 +327,24 @@ def generalized_reflections(problem: ImpactProblem, v_tol: float, inner: InnerSo
 
 def gauss_seidel(problem: ImpactProblem, v_tol: float, log: SolveLog,
                  max_sweeps: int = MAX_GAUSS_SEIDEL_SWEEPS) -> np.ndarray:
-    """Pairwise sweeps over the contacts in order (see the module docstring)."""
+    """Pairwise sweeps over the contacts in order (see the module docstring).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The impact; its G is read column by column (CSC).
+    v_tol : float
+        The approach speed below which a contact counts as approaching.
+    log : SolveLog
+        The run's counts: an unconverged event when the sweeps run out.
+    max_sweeps : int, optional
+        The sweeps at most; MAX_GAUSS_SEIDEL_SWEEPS by default.
+
+    Returns
+    -------
+    np.ndarray
+        (n_contacts,) accumulated impulses.
+    """
     G = problem.G
     velocity = problem.v_minus.copy()
     impulses = np.zeros(problem.n_contacts)

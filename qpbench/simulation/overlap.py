@@ -27,14 +27,51 @@ def _rotation(theta: float) -> np.ndarray:
 
 def box_plane_depth(x: np.ndarray, theta: float, half_widths: np.ndarray,
                     plane_point: np.ndarray, plane_normal: np.ndarray) -> float:
-    """How deep the box (centre ``x``, angle ``theta``) reaches below the plane (0 if not)."""
+    """How deep the box (centre ``x``, angle ``theta``) reaches below the plane (0 if not).
+
+    Parameters
+    ----------
+    x : np.ndarray
+        (2,) the box's centre.
+    theta : float
+        The box's angle in radians.
+    half_widths : np.ndarray
+        (2,) the box's half-widths.
+    plane_point, plane_normal : np.ndarray
+        (2,) a point of the plane and its unit normal.
+
+    Returns
+    -------
+    float
+        The depth of the deepest vertex below the plane, 0 when none is.
+    """
     vertices = x + (_SIGNS * half_widths) @ _rotation(theta).T
     return max(0.0, -float(np.min((vertices - plane_point) @ plane_normal)))
 
 
 def circle_box_depth(centre: np.ndarray, radius: float, x: np.ndarray, theta: float,
                      half_widths: np.ndarray) -> float:
-    """How deep the circle and the box overlap (0 if not)."""
+    """How deep the circle and the box overlap (0 if not).
+
+    Parameters
+    ----------
+    centre : np.ndarray
+        (2,) the circle's centre.
+    radius : float
+        The circle's radius.
+    x : np.ndarray
+        (2,) the box's centre.
+    theta : float
+        The box's angle in radians.
+    half_widths : np.ndarray
+        (2,) the box's half-widths.
+
+    Returns
+    -------
+    float
+        The radius less the distance to the box (plus the depth inside when the centre is in
+        the box); 0 when apart.
+    """
     local = _rotation(theta).T @ (centre - x)
     if np.all(np.abs(local) <= half_widths):
         return radius + float(np.min(half_widths - np.abs(local)))
@@ -44,8 +81,25 @@ def circle_box_depth(centre: np.ndarray, radius: float, x: np.ndarray, theta: fl
 
 def box_box_depth(x_a: np.ndarray, theta_a: float, h_a: np.ndarray, x_b: np.ndarray,
                   theta_b: float, h_b: np.ndarray) -> float:
-    """How deep two boxes overlap: the least overlap of their extents over the four face
-    normals, 0 when one of them separates the boxes."""
+    """How deep two boxes overlap, by separating axes.
+
+    The least overlap of their extents over the four face normals, 0 when one of them separates
+    the boxes.
+
+    Parameters
+    ----------
+    x_a, x_b : np.ndarray
+        (2,) the boxes' centres.
+    theta_a, theta_b : float
+        The boxes' angles in radians.
+    h_a, h_b : np.ndarray
+        (2,) the boxes' half-widths.
+
+    Returns
+    -------
+    float
+        The depth.
+    """
     rotation_a, rotation_b = _rotation(theta_a), _rotation(theta_b)
     offset = x_b - x_a
     deepest = np.inf

@@ -31,7 +31,20 @@ from qpbench.simulation.contacts import BODY_BODY, Contacts
 
 
 def offsets(portals: list[Portal], t: float) -> list[float]:
-    """dx of each portal at time t."""
+    """dx of each portal at time t.
+
+    Parameters
+    ----------
+    portals : list of Portal
+        The scene's portals.
+    t : float
+        The time, in seconds.
+
+    Returns
+    -------
+    list of float
+        Each portal's offset: 0 for a plain portal, the wrapped slide of a Lees-Edwards one.
+    """
     out = []
     for portal in portals:
         if portal.v == 0.0:
@@ -48,7 +61,24 @@ def _tangent(n: np.ndarray) -> np.ndarray:
 
 
 def through(portal: Portal, dx: float, plane: int, x: np.ndarray) -> np.ndarray:
-    """Points x (m, 2) moved through plane 0 (A) or 1 (B) of the portal."""
+    """Points x (m, 2) moved through plane 0 (A) or 1 (B) of the portal.
+
+    Parameters
+    ----------
+    portal : Portal
+        The portal.
+    dx : float
+        Its offset (:func:`offsets`).
+    plane : int
+        0 to move from plane A to B, 1 from B to A.
+    x : np.ndarray
+        (m, 2) points behind that plane.
+
+    Returns
+    -------
+    np.ndarray
+        (m, 2) the points on the other side.
+    """
     src_p, src_n = (portal.point_a, portal.normal_a) if plane == 0 else (portal.point_b,
                                                                          portal.normal_b)
     dst_p, dst_n = (portal.point_b, portal.normal_b) if plane == 0 else (portal.point_a,
@@ -63,13 +93,37 @@ def through(portal: Portal, dx: float, plane: int, x: np.ndarray) -> np.ndarray:
 
 
 def kick(portal: Portal, plane: int) -> np.ndarray:
-    """The velocity a body gains through the plane: ``-v t``."""
+    """The velocity a body gains through the plane: ``-v t``.
+
+    Parameters
+    ----------
+    portal : Portal
+        The portal.
+    plane : int
+        0 for plane A, 1 for plane B.
+
+    Returns
+    -------
+    np.ndarray
+        (2,) the velocity gained; zero for a plain portal.
+    """
     n = portal.normal_a if plane == 0 else portal.normal_b
     return -portal.v * _tangent(n)
 
 
 def enforce(portals: list[Portal], dxs: list[float], x: np.ndarray, v: np.ndarray) -> None:
-    """Moves centres behind a portal plane through it (in place), as SCISim's end of step."""
+    """Move centres behind a portal plane through it (in place), as SCISim's end of step.
+
+    Parameters
+    ----------
+    portals : list of Portal
+        The scene's portals.
+    dxs : list of float
+        Their offsets (:func:`offsets`).
+    x, v : np.ndarray
+        (bodies, 2) centres and velocities, updated in place (velocities gain the kick of a
+        Lees-Edwards portal).
+    """
     for portal, dx in zip(portals, dxs, strict=True):
         behind_a = (x - portal.point_a) @ portal.normal_a < 0.0
         behind_b = ~behind_a & ((x - portal.point_b) @ portal.normal_b < 0.0)
@@ -82,7 +136,25 @@ def enforce(portals: list[Portal], dxs: list[float], x: np.ndarray, v: np.ndarra
 
 def touching(portal: Portal, x1: np.ndarray, radii: np.ndarray, aabb: bool
              ) -> tuple[np.ndarray, np.ndarray]:
-    """(bodies, plane) touching plane A (checked first) or B at x1."""
+    """(bodies, plane) touching plane A (checked first) or B at x1.
+
+    Parameters
+    ----------
+    portal : Portal
+        The portal.
+    x1 : np.ndarray
+        (bodies, 2) predicted centres.
+    radii : np.ndarray
+        (bodies,) radii.
+    aabb : bool
+        Whether a body reaches a plane with its axis-aligned box ``x1 +- r`` (rigidbody2d)
+        rather than its circle (ball2d).
+
+    Returns
+    -------
+    tuple of (np.ndarray, np.ndarray)
+        The touching bodies' indices and, for each, 0 (plane A) or 1 (plane B).
+    """
     def near(point: np.ndarray, normal: np.ndarray) -> np.ndarray:
         reach = radii * (abs(normal[0]) + abs(normal[1])) if aabb else radii
         return (x1 - point) @ normal <= reach
@@ -95,7 +167,29 @@ def touching(portal: Portal, x1: np.ndarray, radii: np.ndarray, aabb: bool
 def teleported_contacts(portals: list[Portal], dxs: list[float], x0: np.ndarray,
                         x1: np.ndarray, radii: np.ndarray, fixed: np.ndarray, aabb: bool
                         ) -> tuple[Contacts, np.ndarray]:
-    """The contacts across portals and their kinematic kicks (n, 2)."""
+    """The contacts across portals and their kinematic kicks (n, 2).
+
+    Parameters
+    ----------
+    portals : list of Portal
+        The scene's portals.
+    dxs : list of float
+        Their offsets (:func:`offsets`).
+    x0, x1 : np.ndarray
+        (bodies, 2) centres at the start and predicted at the end of the step.
+    radii : np.ndarray
+        (bodies,) radii.
+    fixed : np.ndarray
+        (bodies,) bool: kinematic bodies (a pair of two is left out).
+    aabb : bool
+        Whether bodies reach a plane with their axis-aligned box (see :func:`touching`).
+
+    Returns
+    -------
+    tuple of (Contacts, np.ndarray)
+        One BODY_BODY contact per pair of bodies meeting across a portal (normal and arms of the
+        copies at x0), and the (n, 2) kick of each.
+    """
     n_bodies = x1.shape[0]
     # copies: (body, portal, plane), in SCISim's order (portal by portal, body by body)
     copies: list[tuple[int, int, int]] = []

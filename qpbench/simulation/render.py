@@ -102,8 +102,37 @@ def simulate_and_record(scene: Scene, end_time: float | None, steps: int | None,
                         choose_solve: ChooseSolve | None, frames: int,
                         progress: Advance | None = None
                         ) -> tuple[SimulationResult, Recording]:
-    """Runs the scene, recording about ``frames`` frames; ``progress`` is told after every
-    step."""
+    """Run the scene, recording about ``frames`` frames; ``progress`` is told after every step.
+
+    Positions are kept every ``total // frames`` steps and after the last, with the latest
+    impact at each frame and the strongest impact of the run.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene to simulate.
+    end_time : float or None
+        Simulated seconds; None for the scene's ``<end_time>``.
+    steps : int or None
+        The steps at most; None for no cap.
+    choose_solve : ChooseSolve or None
+        The inner solve of each operator; None when the scene needs none.
+    frames : int
+        About how many frames to record.
+    progress : Advance or None, optional
+        Told ``(1, None)`` after every step; None (default) for no progress.
+
+    Returns
+    -------
+    tuple of (SimulationResult, Recording)
+        The run's summary and what it recorded.
+
+    Raises
+    ------
+    QpbenchError
+        When the scene has no end time and neither ``end_time`` nor ``steps`` is given, or the
+        run meets an unsupported contact or runs out of memory.
+    """
     simulator = Simulator(scene, choose_solve)
     total = simulator.step_count(end_time, steps)
     recording = Recording(stride=max(1, total // max(frames, 1)), radii=scene.bodies.radii,
@@ -167,8 +196,22 @@ PORTAL_COLOURS = ("tab:purple", "tab:green", "tab:brown")  # the two planes of a
 
 
 def box_corners(position: np.ndarray, theta: float, half: np.ndarray) -> np.ndarray:
-    """(4, 2) corners of a box of half-widths ``half`` at ``position`` rotated by ``theta``,
-    counter-clockwise."""
+    """(4, 2) corners of a box of half-widths ``half`` at ``position`` rotated by ``theta``.
+
+    Parameters
+    ----------
+    position : np.ndarray
+        (2,) the box's centre.
+    theta : float
+        Its angle in radians.
+    half : np.ndarray
+        (2,) its half-widths.
+
+    Returns
+    -------
+    np.ndarray
+        (4, 2) corners, counter-clockwise from ``(-hx, -hy)``.
+    """
     c, s = np.cos(theta), np.sin(theta)
     rotation = np.array([[c, -s], [s, c]])
     local = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]) * half
@@ -240,7 +283,22 @@ def _frame_axes(scene: Scene, recording: Recording, panels: int = 1
 
 
 def render_png(scene: Scene, recording: Recording, result: SimulationResult, path: Path) -> None:
-    """Left: the strongest impact at its step, normals coloured by impulse. Right: the run."""
+    """Left: the strongest impact at its step, normals coloured by impulse. Right: the run.
+
+    Without an impact, the run alone: each body's path (up to MAX_PATHS bodies), the start
+    positions dashed and the end positions filled.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene simulated.
+    recording : Recording
+        What :func:`simulate_and_record` recorded.
+    result : SimulationResult
+        The run's summary, for the title.
+    path : Path
+        The PNG file to write, atomically.
+    """
     strongest = recording.strongest
     figure, panels, norm = _frame_axes(scene, recording, 2 if strongest is not None else 1)
     run_axes = panels[-1]
@@ -270,8 +328,21 @@ def render_png(scene: Scene, recording: Recording, result: SimulationResult, pat
 
 def render_gif(scene: Scene, recording: Recording, result: SimulationResult, path: Path,
                progress: Advance | None = None) -> None:
-    """The run as an animated gif, one frame per recorded frame; ``progress`` is told after
-    every frame drawn."""
+    """The run as an animated gif, one frame per recorded frame.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene simulated.
+    recording : Recording
+        What :func:`simulate_and_record` recorded.
+    result : SimulationResult
+        The run's summary.
+    path : Path
+        The GIF file to write, atomically.
+    progress : Advance or None, optional
+        Told after every frame drawn; None (default) for no progress.
+    """
     figure, (axes,), norm = _frame_axes(scene, recording)
     balls = _draw_balls(axes, scene, recording.frames[0], recording.frame_thetas[0],
                         facecolor="tab:blue", alpha=0.6, edgecolor="tab:blue")
@@ -315,8 +386,37 @@ def render(scene: Scene, output: str | os.PathLike[str], end_time: float | None 
            steps: int | None = None, choose_solve: ChooseSolve | None = None,
            frames: int = MAX_GIF_FRAMES, progress: Advance | None = None
            ) -> SimulationResult:
-    """Simulates ``scene`` and draws it to ``output`` (``.png`` or ``.gif``); ``progress`` is
-    told after every step and every frame drawn (:data:`Advance`)."""
+    """Simulate ``scene`` and draw it to ``output`` (``.png`` or ``.gif``).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene to simulate.
+    output : str or os.PathLike
+        The picture to write; its suffix picks the format.
+    end_time : float or None, optional
+        Simulated seconds; None (default) for the scene's ``<end_time>``.
+    steps : int or None, optional
+        The steps at most; None (default) for no cap.
+    choose_solve : ChooseSolve or None, optional
+        The inner solve of each operator; None (default) when the scene needs none.
+    frames : int, optional
+        Frames of a GIF; MAX_GIF_FRAMES by default (a PNG records 400 for its paths).
+    progress : Advance or None, optional
+        Told after every step and every frame drawn (:data:`Advance`); None (default) for no
+        progress.
+
+    Returns
+    -------
+    SimulationResult
+        The run's summary.
+
+    Raises
+    ------
+    QpbenchError
+        When ``output`` ends in neither ``.png`` nor ``.gif``, or the run cannot go on (see
+        :func:`simulate_and_record`).
+    """
     path = Path(output)
     if path.suffix.lower() not in SUFFIXES:
         raise QpbenchError(f"{path}: the output must end in .png or .gif")

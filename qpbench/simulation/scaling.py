@@ -47,8 +47,28 @@ DEFAULT_PILE_SOLVE_BUDGET_S = 60.0
 
 def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
             ) -> tuple[dict[str, Any], str | None]:
-    """One size: wall time of ``steps`` steps of ``box_scene(balls)`` and what they did, and
-    the names of the inner solvers."""
+    """One size: wall time of ``steps`` steps of ``box_scene(balls)`` and what they did.
+
+    One untimed warm-up step comes first.
+
+    Parameters
+    ----------
+    balls : int
+        The box scene's ball count.
+    steps : int
+        The timed steps.
+    choose_solve : ChooseSolve
+        The inner solve of the scene's operator.
+    seed : int, optional
+        The box scene's seed; 0 by default.
+
+    Returns
+    -------
+    tuple of (dict, str or None)
+        The row (wall and inner-solve seconds, cost per ball per step with and without the
+        solves in microseconds, impacts, contacts, solve counts, success), and the names of
+        the inner solvers.
+    """
     simulator = Simulator(box_scene(balls, seed=seed), choose_solve)
     simulator.step()  # warm-up: first calls into numpy, scipy and the solver
     solve_before = simulator.log.solve_time_s
@@ -80,8 +100,22 @@ def _silent(count: int, note: str | None) -> None:
 
 def measurement_count(sizes: tuple[int, ...],
                       pile_sizes: dict[str, tuple[int, ...]] | None = None) -> int:
-    """The measurements :func:`scaling` makes: one per box-scene size, and per kind of pile
-    one warm-up and one per size."""
+    """The measurements :func:`scaling` makes.
+
+    One per box-scene size, and per kind of pile one warm-up and one per size.
+
+    Parameters
+    ----------
+    sizes : tuple of int
+        The box scenes' ball counts.
+    pile_sizes : dict of str to tuple of int, or None, optional
+        Per kind of pile, its body counts; None (default) for no piles.
+
+    Returns
+    -------
+    int
+        The count, for a progress bar's total.
+    """
     return len(sizes) + sum(1 + len(kind_sizes) for kind_sizes in (pile_sizes or {}).values())
 
 
@@ -91,9 +125,38 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
             pile_steps: int = DEFAULT_PILE_STEPS,
             pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
             progress: Advance | None = None) -> dict[str, Any]:
-    """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table;
-    with ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``. ``progress``
-    is told after each of the :func:`measurement_count` measurements (:data:`Advance`)."""
+    """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table.
+
+    With ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``. ``progress``
+    is told after each of the :func:`measurement_count` measurements (:data:`Advance`).
+
+    Parameters
+    ----------
+    choose_solve : ChooseSolve
+        The inner solve of every scene's operator.
+    sizes : tuple of int, optional
+        The box scenes' ball counts, smallest first; DEFAULT_SIZES by default.
+    steps : int, optional
+        Timed steps per box scene; DEFAULT_STEPS by default.
+    seed : int, optional
+        The box scenes' seed; 0 by default.
+    pile_sizes : dict of str to tuple of int, or None, optional
+        Per kind of pile (keys of PILES), its body counts; None (default) for no piles.
+    pile_steps : int, optional
+        Timed steps per pile at most; DEFAULT_PILE_STEPS by default.
+    pile_solve_budget_s : float, optional
+        Seconds of inner solves after which a pile stops timing steps;
+        DEFAULT_PILE_SOLVE_BUDGET_S by default.
+    progress : Advance or None, optional
+        The progress hook; None (default) for none.
+
+    Returns
+    -------
+    dict
+        The solver, steps, seed, the rows of :func:`measure`, ``ratio`` (with and without the
+        solves), the target and whether it is met, ``piles`` when asked (:func:`pile_scaling`),
+        and ``markdown``.
+    """
     told = progress or _silent
     measured = []
     for balls in sizes:
@@ -117,7 +180,18 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
 
 
 def markdown(report: dict[str, Any]) -> str:
-    """The measurements as a Markdown section."""
+    """The measurements as a Markdown section.
+
+    Parameters
+    ----------
+    report : dict
+        The report of :func:`scaling`, without its ``markdown``.
+
+    Returns
+    -------
+    str
+        The ``## Simulation scaling`` section, with the piles' subsection when measured.
+    """
     rows = report["rows"]
     lines = [
         "## Simulation scaling",
@@ -167,10 +241,30 @@ def _pile_scene(name: str, dialect: str, bodies: Bodies, width: float,
 
 
 def circle_pile(n_bodies: int, solver_name: str = "policy_iteration") -> Scene:
-    """``n_bodies`` balls of radius 1/2 in a hexagonal packing resting on the floor of a
+    """A dense pile of balls in a container, every ball pressing on its neighbours.
+
+    ``n_bodies`` balls of radius 1/2 in a hexagonal packing resting on the floor of a
     container about twice as wide as the pile is high; every ball presses on its neighbours
     (centre distance ``PILE_SPACING``), moving down at ``PILE_SPEED``; impacts solved by the
-    SCISim solver ``solver_name``."""
+    SCISim solver ``solver_name``.
+
+    Parameters
+    ----------
+    n_bodies : int
+        The ball count, at least 1.
+    solver_name : str, optional
+        The SCISim name of the inner solver; ``policy_iteration`` by default.
+
+    Returns
+    -------
+    Scene
+        A ``ball2d`` scene named ``circle_pile_N``.
+
+    Raises
+    ------
+    ValueError
+        When ``n_bodies`` is below 1.
+    """
     if n_bodies < 1:
         raise ValueError("a pile needs at least one body")
     columns = math.ceil(math.sqrt(2.0 * n_bodies))
@@ -187,9 +281,27 @@ def circle_pile(n_bodies: int, solver_name: str = "policy_iteration") -> Scene:
 
 
 def box_pile(n_bodies: int) -> Scene:
-    """``n_bodies`` unit boxes (half-widths 1/2, mass 1, theta 0) in a square grid resting
+    """A dense pile of unit boxes in a container, each pressing on its neighbours.
+
+    ``n_bodies`` unit boxes (half-widths 1/2, mass 1, theta 0) in a square grid resting
     on the floor of a container, each pressing on its neighbours (pitch ``PILE_SPACING``),
-    moving down at ``PILE_SPEED`` (rigidbody2d)."""
+    moving down at ``PILE_SPEED`` (rigidbody2d).
+
+    Parameters
+    ----------
+    n_bodies : int
+        The box count, at least 1.
+
+    Returns
+    -------
+    Scene
+        A ``rigidbody2d`` scene named ``box_pile_N``.
+
+    Raises
+    ------
+    ValueError
+        When ``n_bodies`` is below 1.
+    """
     if n_bodies < 1:
         raise ValueError("a pile needs at least one body")
     columns = math.ceil(math.sqrt(2.0 * n_bodies))
@@ -225,20 +337,53 @@ class _Timed:
 
 
 def warm_up_pile(kind: str, bodies: int, choose_solve: ChooseSolve) -> None:
-    """One untimed step of a pile of ``kind`` with ``bodies`` bodies: the first calls into
-    numpy, scipy, the compiled box contacts and the solver happen here, not in a measured
-    step (a separate small pile, so that a large pile need not pay for an untimed step)."""
+    """One untimed step of a pile of ``kind`` with ``bodies`` bodies.
+
+    The first calls into numpy, scipy, the compiled box contacts and the solver happen here,
+    not in a measured step (a separate small pile, so that a large pile need not pay for an
+    untimed step).
+
+    Parameters
+    ----------
+    kind : str
+        A key of PILES: ``circles`` or ``boxes``.
+    bodies : int
+        The pile's body count.
+    choose_solve : ChooseSolve
+        The inner solve of the pile's operator.
+    """
     Simulator(PILES[kind](bodies), choose_solve).step()
 
 
 def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
                  solve_budget_s: float = math.inf) -> dict[str, Any]:
-    """One pile, warmed up beforehand (``warm_up_pile``): up to ``steps`` timed steps from
-    its first, split into the simulator's own parts (contact detection, assembly of the
-    impact problem, the rest of the step: integration and bookkeeping) and the inner solves
-    (the whole call into the impact operator, the solver's own formulation included). The
-    steps stop early, after at least one, once the inner solves have taken
-    ``solve_budget_s``; the row says so."""
+    """One pile, warmed up beforehand (``warm_up_pile``), its time split into parts.
+
+    Up to ``steps`` timed steps from its first, split into the simulator's own parts (contact
+    detection, assembly of the impact problem, the rest of the step: integration and
+    bookkeeping) and the inner solves (the whole call into the impact operator, the solver's
+    own formulation included). The steps stop early, after at least one, once the inner solves
+    have taken ``solve_budget_s``; the row says so.
+
+    Parameters
+    ----------
+    kind : str
+        A key of PILES: ``circles`` or ``boxes``.
+    bodies : int
+        The pile's body count.
+    steps : int
+        The timed steps at most.
+    choose_solve : ChooseSolve
+        The inner solve of the pile's operator.
+    solve_budget_s : float, optional
+        Seconds of inner solves after which no further step is timed; no budget by default.
+
+    Returns
+    -------
+    dict
+        The row: steps done and asked, seconds per part, costs per body per step in
+        microseconds, contacts per body, success or the failure, and the solves' accuracy.
+    """
     simulator = Simulator(PILES[kind](bodies), choose_solve)
     timers = {name: _Timed(getattr(simulator, name))
               for name in ("find_contacts", "impact_problem", "_solve")}
@@ -291,10 +436,32 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
                  steps: int = DEFAULT_PILE_STEPS,
                  solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
                  progress: Advance | None = None) -> dict[str, Any]:
-    """Every pile at every size (each kind warmed up once on a small pile); per kind, the
-    growth of the simulator's own cost per body per step (largest size against the smallest,
-    target <= 1.5x) and of the inner solves'. ``progress`` is told after each warm-up and
-    each pile (:data:`Advance`)."""
+    """Every pile at every size, and per kind the growth of its costs per body per step.
+
+    Each kind is warmed up once on a small pile; the growth of the simulator's own cost per
+    body per step (largest size against the smallest, target <= 1.5x) and of the inner solves'
+    is given per kind. ``progress`` is told after each warm-up and each pile (:data:`Advance`).
+
+    Parameters
+    ----------
+    choose_solve : ChooseSolve
+        The inner solve of every pile's operator.
+    sizes : dict of str to tuple of int
+        Per kind of pile (keys of PILES), its body counts, smallest first.
+    steps : int, optional
+        Timed steps per pile at most; DEFAULT_PILE_STEPS by default.
+    solve_budget_s : float, optional
+        Seconds of inner solves after which a pile stops timing steps;
+        DEFAULT_PILE_SOLVE_BUDGET_S by default.
+    progress : Advance or None, optional
+        The progress hook; None (default) for none.
+
+    Returns
+    -------
+    dict
+        The steps, budget, warm-up size and target, and under ``kinds`` per kind its sizes,
+        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio`` and ``meets_target``.
+    """
     told = progress or _silent
     warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
     report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
@@ -327,7 +494,21 @@ def _inaccurate_cell(row: dict[str, Any]) -> str:
 
 
 def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
-    """The pile measurements as Markdown (a subsection of the scaling section)."""
+    """The pile measurements as Markdown (a subsection of the scaling section).
+
+    Parameters
+    ----------
+    report : dict
+        The report of :func:`pile_scaling`.
+    solver : str or None
+        The inner solvers' names, for the text.
+
+    Returns
+    -------
+    str
+        The ``### Dense piles`` subsection: a table of every pile, the verdict per kind, and a
+        line per pile the solve budget stopped.
+    """
     budget = report.get("solve_budget_s", math.inf)
     budget_text = ("" if math.isinf(budget) else
                    f" (fewer when a pile's inner solves pass {budget:g} s; at least one)")

@@ -98,8 +98,15 @@ class StepEvent:
         return bool(np.any(_normal(self.problem).b < 0))
 
     def energy_gain(self) -> float:
-        """(KE+ - KE-) / KE- of the impulses, measured on the velocities they act on (for
-        symplectic_euler: ``v0 + dv`` before, ``v+ + dv`` after)."""
+        """(KE+ - KE-) / KE- of the impulses, measured on the velocities they act on.
+
+        For symplectic_euler: ``v0 + dv`` before, ``v+ + dv`` after.
+
+        Returns
+        -------
+        float
+            The relative gain of kinetic energy (KE- floored at TINY).
+        """
         assert self.problem is not None
         problem = self.problem
         shift = 0.0 if self.velocity_shift is None else self.velocity_shift
@@ -140,6 +147,14 @@ class SimulationResult:
     notes: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
+        """The summary's fields by name, with the log's counts (docs/json-output.md).
+
+        Returns
+        -------
+        dict
+            Every field but ``log`` and ``notes``, ``success`` (no failure), and the counts of
+            :meth:`SolveLog.as_dict`; ``theta_final`` and ``omega_final`` for rigid bodies only.
+        """
         return {
             "scene": self.scene, "steps": self.steps, "time": self.time,
             "impacts": self.impacts, "max_contacts": self.max_contacts,
@@ -160,9 +175,24 @@ def _normal(problem: ImpactProblem | FrictionalProblem) -> ImpactProblem:
 
 
 def inner_accuracy(scene: Scene, accuracy: float | None) -> float:
-    """The residual asked of every inner solve: ``accuracy`` when given; else, for a
-    frictional scene, its friction solver's own (``FrictionSolver.residual_asked``) within
-    [TIGHTEST_ACCURACY, DEFAULT_ACCURACY]; else DEFAULT_ACCURACY."""
+    """The residual asked of every inner solve.
+
+    ``accuracy`` when given; else, for a frictional scene, its friction solver's own
+    (``FrictionSolver.residual_asked``) within [TIGHTEST_ACCURACY, DEFAULT_ACCURACY]; else
+    DEFAULT_ACCURACY.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    accuracy : float or None
+        The residual asked by the user; None to take it from the scene.
+
+    Returns
+    -------
+    float
+        The residual bound.
+    """
     if accuracy is not None:
         return accuracy
     if scene.frictional:
@@ -172,7 +202,18 @@ def inner_accuracy(scene: Scene, accuracy: float | None) -> float:
 
 
 def solver_operators(operator: ImpactOperator | None) -> list[ImpactOperator]:
-    """The lcp/gr operators (nested in a grr too) that need an inner solver."""
+    """The lcp/gr operators (nested in a grr too) that need an inner solver.
+
+    Parameters
+    ----------
+    operator : ImpactOperator or None
+        The scene's impact operator; None for none.
+
+    Returns
+    -------
+    list of ImpactOperator
+        Those operators, elastic before inelastic in a grr.
+    """
     if operator is None:
         return []
     if operator.type == "grr":
@@ -184,9 +225,31 @@ def solver_operators(operator: ImpactOperator | None) -> list[ImpactOperator]:
 def choose_solvers(operator: ImpactOperator | FrictionSolver | None,
                    choose_solve: ChooseSolve | None, accuracy: float, log: SolveLog
                    ) -> tuple[dict[int, InnerSolver], list[str]]:
-    """The inner solver of each operator that needs one (keyed by ``id(operator)``; a
-    frictional scene's friction solver is one), and the notes of the choice; ValueError when
-    some operator needs one and ``choose_solve`` is None."""
+    """The inner solver of each operator that needs one, and the notes of the choice.
+
+    Keyed by ``id(operator)``; a frictional scene's friction solver is one.
+
+    Parameters
+    ----------
+    operator : ImpactOperator or FrictionSolver or None
+        The scene's impact operator, or its friction solver when mu > 0.
+    choose_solve : ChooseSolve or None
+        Picks the inner solve of each operator.
+    accuracy : float
+        The residual asked of every inner solve.
+    log : SolveLog
+        The run's counts, shared by every inner solver.
+
+    Returns
+    -------
+    tuple of (dict of int to InnerSolver, list of str)
+        The inner solvers by ``id`` of their operator, and the sorted distinct notes.
+
+    Raises
+    ------
+    ValueError
+        When some operator needs an inner solver and ``choose_solve`` is None.
+    """
     inner: dict[int, InnerSolver] = {}
     notes: list[str] = []
     needing = ([operator] if isinstance(operator, FrictionSolver)
@@ -263,8 +326,20 @@ class Simulator:
     # --- state -------------------------------------------------------------------------
     def dof_velocity(self, velocities: np.ndarray | None = None,
                      omega: np.ndarray | None = None) -> np.ndarray:
-        """v over all degrees of freedom, body by body: (vx, vy[, omega]); the current state's
-        unless ``velocities`` (and ``omega``) are given."""
+        """v over all degrees of freedom, body by body: (vx, vy[, omega]).
+
+        Parameters
+        ----------
+        velocities : np.ndarray or None, optional
+            (bodies, 2) linear velocities; None (default) for the current state's.
+        omega : np.ndarray or None, optional
+            (bodies,) angular velocities of rigid bodies; None (default) for the current state's.
+
+        Returns
+        -------
+        np.ndarray
+            (bodies * dofs_per_body,) velocities.
+        """
         velocities = self.velocities if velocities is None else velocities
         columns = [velocities[:, 0], velocities[:, 1]]
         if self.dofs_per_body == 3:
@@ -274,13 +349,42 @@ class Simulator:
         return np.stack(columns, axis=1).ravel()
 
     def energy(self) -> float:
+        """Kinetic plus gravitational potential energy of the current state (:func:`checks.energy`).
+
+        Returns
+        -------
+        float
+            The energy of the free bodies.
+        """
         bodies = self.scene.bodies
         return checks.energy(bodies.masses, bodies.inertia, self.free, self.positions,
                              self.velocities, self.omega, self.gravity)
 
     # --- one step ----------------------------------------------------------------------
     def find_contacts(self, x0: np.ndarray, x1: np.ndarray) -> contacts.Contacts:
-        """The active contacts of the step (only the kinds the scene has)."""
+        """The active contacts of the step (only the kinds the scene has).
+
+        In order: ball-ball (those across portals after), box-box and circle-box, ball-plane,
+        box-plane, ball-drum. Each contact's portal kick is kept for the problem; the first pair
+        of coincident centres is noted once.
+
+        Parameters
+        ----------
+        x0, x1 : np.ndarray
+            (bodies, 2) centres at the start and predicted at the end of the step.
+
+        Returns
+        -------
+        contacts.Contacts
+            The contacts.
+
+        Raises
+        ------
+        UnsupportedError
+            For a kinematic box-box or circle-box pair, or a ball at a drum's centre.
+        OutOfMemory
+            When the candidate pairs would not fit in memory.
+        """
         scene = self.scene
         radii, fixed = scene.bodies.radii, scene.bodies.fixed
         coincident: list[tuple[int, int]] = []
@@ -361,8 +465,26 @@ class Simulator:
 
     def impact_problem(self, found: contacts.Contacts, v_minus: np.ndarray | None = None,
                        n_rel: np.ndarray | None = None) -> ImpactProblem:
-        """The impact problem of this step: G over every body's dofs, v- = start velocities
-        (unless ``v_minus`` is given), with ``n_rel`` (default none)."""
+        """The impact problem of this step.
+
+        G over every body's dofs, v- = start velocities (unless ``v_minus`` is given), with
+        ``n_rel`` (default none).
+
+        Parameters
+        ----------
+        found : contacts.Contacts
+            The step's contacts.
+        v_minus : np.ndarray or None, optional
+            (bodies * dofs_per_body,) velocities before the impact; None (default) for the
+            current state's.
+        n_rel : np.ndarray or None, optional
+            (n,) added normal velocities; None (default) for none.
+
+        Returns
+        -------
+        ImpactProblem
+            The problem, named ``SCENE_stepNNNNNN``, with the scene's restitution.
+        """
         scene = self.scene
         assert scene.impact is not None
         name = f"{scene.name}_step{self.step_index:06d}"
@@ -374,7 +496,20 @@ class Simulator:
         )
 
     def tangents(self, found: contacts.Contacts, x0: np.ndarray) -> Any:
-        """T of this step's contacts at the start positions x0."""
+        """T of this step's contacts at the start positions x0.
+
+        Parameters
+        ----------
+        found : contacts.Contacts
+            The step's contacts.
+        x0 : np.ndarray
+            (bodies, 2) centres at the start of the step.
+
+        Returns
+        -------
+        sp.csc_matrix
+            T, (bodies * dofs_per_body, n) (:meth:`contacts.Contacts.tangent_jacobian`).
+        """
         bodies = self.scene.bodies
         return found.tangent_jacobian(x0, bodies.radii, bodies.fixed, bodies.count,
                                       self.dofs_per_body)
@@ -383,7 +518,27 @@ class Simulator:
                            v_minus: np.ndarray, n_rel: np.ndarray | None = None,
                            d_rel: np.ndarray | None = None, T: Any = None
                            ) -> FrictionalProblem:
-        """The frictional problem of this step: G and T at x0, mu and CoR per contact."""
+        """The frictional problem of this step: G and T at x0, mu and CoR per contact.
+
+        Parameters
+        ----------
+        found : contacts.Contacts
+            The step's contacts.
+        x0 : np.ndarray
+            (bodies, 2) centres at the start of the step.
+        v_minus : np.ndarray
+            (bodies * dofs_per_body,) velocities before the impact.
+        n_rel, d_rel : np.ndarray or None, optional
+            (n,) added normal and tangential velocities; None (default) for none.
+        T : sparse matrix or None, optional
+            The tangents, when already computed; None (default) computes them.
+
+        Returns
+        -------
+        FrictionalProblem
+            The problem, named ``SCENE_stepNNNNNN``, with the friction solver's settings in its
+            metadata.
+        """
         scene = self.scene
         assert self.friction is not None
         name = f"{scene.name}_step{self.step_index:06d}"
@@ -450,7 +605,26 @@ class Simulator:
         return apply(self.scene.impact, problem, self.inner, self.log, warm)
 
     def step(self) -> StepEvent:
-        """Advances one step; raises InnerSolveFailed when the inner solver fails."""
+        """Advance one step; raises InnerSolveFailed when the inner solver fails.
+
+        The unconstrained flow predicts x1; the contacts found over the step pose one problem
+        (captured when asked and some contact approaches), whose impulses give the velocities
+        after the impact and so the positions at the end of the step.
+
+        Returns
+        -------
+        StepEvent
+            What the step did.
+
+        Raises
+        ------
+        InnerSolveFailed
+            When the inner solve gives no usable answer.
+        UnsupportedError
+            For a contact SCISim does not support, or a state no longer finite.
+        OutOfMemory
+            When the contacts or their Q would not fit in memory.
+        """
         scene = self.scene
         staggering = scene.staggering
         x0, v0 = self.positions, self.velocities
@@ -538,7 +712,26 @@ class Simulator:
 
     # --- a run -------------------------------------------------------------------------
     def step_count(self, end_time: float | Fraction | None, max_steps: int | None) -> int:
-        """Steps to reach ``end_time`` (or the scene's), capped by ``max_steps``."""
+        """Steps to reach ``end_time`` (or the scene's), capped by ``max_steps``.
+
+        Parameters
+        ----------
+        end_time : float or Fraction or None
+            Simulated seconds (a float read as the decimal it prints as); None for the scene's
+            ``<end_time>``.
+        max_steps : int or None
+            The steps at most; None for no cap.
+
+        Returns
+        -------
+        int
+            ``ceil(end / dt)``, capped, at least 0.
+
+        Raises
+        ------
+        QpbenchError
+            When there is neither an end time nor a step cap.
+        """
         if end_time is None:
             end = self.scene.end_time
         elif isinstance(end_time, float):  # the decimal the user typed, not its binary value
@@ -554,7 +747,30 @@ class Simulator:
 
     def run(self, end_time: float | Fraction | None = None, max_steps: int | None = None,
             on_step: Callable[[StepEvent], None] | None = None) -> SimulationResult:
-        """Steps to the end time (or the step cap) and returns the summary."""
+        """Step to the end time (or the step cap) and return the summary.
+
+        An inner solve that fails ends the run early, recorded in the result's ``failure``.
+
+        Parameters
+        ----------
+        end_time : float or Fraction or None, optional
+            Simulated seconds; None (default) for the scene's ``<end_time>``.
+        max_steps : int or None, optional
+            The steps at most; None (default) for no cap.
+        on_step : callable or None, optional
+            Told every StepEvent; None (default) for none.
+
+        Returns
+        -------
+        SimulationResult
+            The run's summary.
+
+        Raises
+        ------
+        QpbenchError
+            When there is neither an end time nor a step cap, or a step meets an unsupported
+            contact, a state no longer finite, or a lack of memory.
+        """
         scene = self.scene
         total = self.step_count(end_time, max_steps)
         result = SimulationResult(scene=scene.path, log=self.log, notes=list(self.notes))

@@ -71,7 +71,25 @@ BOX_BALLS = 1000
 
 
 def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
-    """The first impact problem (some contact approaching) of a frictionless scene."""
+    """The first impact problem (some contact approaching) of a frictionless scene.
+
+    Parameters
+    ----------
+    scene_path : str or Path
+        The scene file, simulated with its own inner solver.
+    max_steps : int, optional
+        The steps searched at most; 100 by default.
+
+    Returns
+    -------
+    ImpactProblem
+        The problem of the first step where ``b < 0`` somewhere.
+
+    Raises
+    ------
+    ValueError
+        When no step within ``max_steps`` has an impact.
+    """
     simulator = Simulator(load_scene(scene_path), choose_by_name(None))
     for _ in range(max_steps):
         event = simulator.step()
@@ -81,6 +99,18 @@ def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
 
 
 def default_problems(root: Path = ROOT) -> list[ImpactProblem]:
+    """The breakdown's problems: the 5x5 grid dumps, the 7x7 grid's first impact, a box packing.
+
+    Parameters
+    ----------
+    root : Path, optional
+        The repository's folder, where DUMPS and GRID7_SCENE lie; ROOT by default.
+
+    Returns
+    -------
+    list of ImpactProblem
+        The problems, in that order.
+    """
     problems = [import_dump(root / path) for path in DUMPS]
     problems.append(first_impact(root / GRID7_SCENE))
     problems.append(generate("box", BOX_BALLS, seed=0)[0])
@@ -195,9 +225,26 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], floa
 
 def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAKDOWN_REPEATS
             ) -> dict[str, Any]:
-    """The breakdown of one problem (module docstring). Each of ``repeats`` rounds times every
-    part once, in turn, so that a burst of load on the host falls on all parts alike; each
-    part keeps its fastest round."""
+    """The breakdown of one problem (module docstring).
+
+    Each of ``repeats`` rounds times every part once, in turn, so that a burst of load on the
+    host falls on all parts alike; each part keeps its fastest round.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The problem measured.
+    trivial : ImpactProblem
+        A one-contact problem, for pi-robust's fixed cost.
+    repeats : int, optional
+        The rounds; BREAKDOWN_REPEATS by default.
+
+    Returns
+    -------
+    dict
+        The row: the problem's size, pi-robust's answer (success, residual, path, counts),
+        every part's seconds (module docstring), the floor and ``ratio_to_floor``.
+    """
     spec = get(SOLVER)
     first = call_solver(spec, problem, ACCURACY)  # untimed: its answer and counts are reported
     kernel_ran = bool(first.info.get("compiled"))  # True, or how the Python path followed it
@@ -244,6 +291,20 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
 
 
 def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
+    """The breakdown as a Markdown section: what each part is, and a table of the rows.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The rows of :func:`measure`.
+    repeats : int
+        The rounds each part was timed.
+
+    Returns
+    -------
+    str
+        The ``## Where pi-robust's time goes`` section, times in milliseconds.
+    """
     lines = [
         "## Where pi-robust's time goes\n",
         f"pi-robust at accuracy {ACCURACY:g}, {repeats} rounds that each time every part once "
@@ -286,8 +347,20 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
 
 def breakdown(problems: list[ImpactProblem] | None = None,
               repeats: int = BREAKDOWN_REPEATS) -> dict[str, Any]:
-    """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown``
-    section."""
+    """The JSON object of ``qpbench breakdown``: one row per problem and a ``markdown`` section.
+
+    Parameters
+    ----------
+    problems : list of ImpactProblem or None, optional
+        The problems measured; None (default) for :func:`default_problems`.
+    repeats : int, optional
+        The rounds; BREAKDOWN_REPEATS by default.
+
+    Returns
+    -------
+    dict
+        ``title``, ``solver``, ``accuracy``, ``repeats``, ``rows`` and ``markdown``.
+    """
     problems = default_problems() if problems is None else problems
     trivial = import_dump(ROOT / TRIVIAL_DUMP)
     rows = [measure(problem, trivial, repeats) for problem in problems]

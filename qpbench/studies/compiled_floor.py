@@ -91,10 +91,26 @@ def _round(run: Callable[[int], object], count: int) -> Callable[[], float]:
 
 def cholesky_rounds(matrix: np.ndarray, banded: bool
                     ) -> Callable[[], tuple[float, float]] | None:
-    """A function that times one round of Cholesky factorizations of ``matrix`` (dense n x n,
-    or a lower band when ``banded``) in LAPACK and one round of its copies alone, and returns
-    (seconds per copy and factorization, seconds per copy); None when ``matrix`` is not
-    positive definite. The caller interleaves rounds with its other timings."""
+    """A timer of one round of Cholesky factorizations of ``matrix`` in LAPACK.
+
+    The function returned times one round of Cholesky factorizations of ``matrix`` (dense n x n,
+    or a lower band when ``banded``) in LAPACK and one round of its copies alone. The caller
+    interleaves rounds with its other timings.
+
+    Parameters
+    ----------
+    matrix : np.ndarray
+        The symmetric matrix: dense (n, n), or its lower band ((kd + 1), n) with
+        ``band[i - j, j] = A_ij``.
+    banded : bool
+        Whether ``matrix`` is a lower band (``dpbtrf``) rather than dense (``dpotrf``).
+
+    Returns
+    -------
+    callable or None
+        A function of no argument returning (seconds per copy and factorization, seconds per
+        copy); None when ``matrix`` is not positive definite.
+    """
     pristine = np.asfortranarray(matrix, dtype=float)
     if pristine.size == 0:
         return lambda: (0.0, 0.0)
@@ -115,8 +131,20 @@ def cholesky_rounds(matrix: np.ndarray, banded: bool
 
 def product_rounds(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
                    impulses: np.ndarray) -> Callable[[], float]:
-    """A function that times one round of products ``Q l`` over Q's CSC arrays, in compiled
-    code, and returns seconds per product."""
+    """A timer of one round of products ``Q l`` over Q's CSC arrays, in compiled code.
+
+    Parameters
+    ----------
+    indptr, indices, data : np.ndarray
+        Q's CSC arrays.
+    impulses : np.ndarray
+        (n,) the vector l.
+
+    Returns
+    -------
+    callable
+        A function of no argument returning seconds per product.
+    """
     impulses = np.ascontiguousarray(impulses, dtype=float)
     product = np.empty(impulses.size)
 

@@ -108,10 +108,23 @@ SETS = ("fork 5x5 grid dumps", "fork 7x7 grid scenes", "grid scene captures", "b
 
 
 def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
-    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to; a
-    frictional problem's set is that of the pair's ``formulation`` (``frictional
-    (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one
-    model)."""
+    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to.
+
+    A frictional problem's set is that of the pair's ``formulation`` (``frictional
+    (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one model).
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem; an impact problem's set is named by its family.
+    formulation : str, optional
+        The pair's formulation, for a frictional problem; empty by default.
+
+    Returns
+    -------
+    str or None
+        One of SETS; None for a problem of no set.
+    """
     if isinstance(problem, FrictionalProblem):
         return f"frictional ({formulation})"
     family = str(problem.family or "")
@@ -133,11 +146,27 @@ BENCH_COLUMNS = ("problem", "family", "kind", "solver", "formulation", "backend"
 
 def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACCURACY
                      ) -> dict[str, list[str]]:
-    """{"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES,
-    and the fastest on each of those families where it is not among them already,
-    "frictional": the ``candidates // 3`` (at least one) fastest external pairs of each
-    frictional formulation}, by :func:`ranked` at ``accuracy`` in the main benchmark's
-    table."""
+    """The external pairs to measure, chosen from the main benchmark's table.
+
+    {"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES, and the
+    fastest on each of those families where it is not among them already, "frictional": the
+    ``candidates // 3`` (at least one) fastest external pairs of each frictional formulation},
+    by :func:`ranked` at ``accuracy``.
+
+    Parameters
+    ----------
+    bench : pd.DataFrame
+        The main benchmark's rows, with BENCH_COLUMNS.
+    candidates : int
+        How many of the fastest external impact pairs.
+    accuracy : float, optional
+        The level ranked at; ACCURACY by default.
+
+    Returns
+    -------
+    dict of str to list of str
+        ``impact`` and ``frictional`` pair keys, fastest first.
+    """
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
     frictional = level["kind"].astype(str) == "frictional"
@@ -156,9 +185,21 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
 
 
 def ranked(frame: pd.DataFrame) -> list[str]:
-    """``solver/formulation`` keys of a results table's rows by the shifted geometric mean of
-    their charged times (``qpbench.bench.stats``), fastest first; only pairs with a row for
-    every problem of ``frame``."""
+    """``solver/formulation`` keys of a results table's rows, fastest first.
+
+    Ranked by the shifted geometric mean of their charged times (``qpbench.bench.stats``);
+    only pairs with a row for every problem of ``frame``.
+
+    Parameters
+    ----------
+    frame : pd.DataFrame
+        Result rows of one accuracy level.
+
+    Returns
+    -------
+    list of str
+        The pair keys, fastest first; empty for an empty frame.
+    """
     if frame.empty:
         return []
     frame = frame.assign(key=stats.solver_keys(frame), charged=stats.charged_times(frame))
@@ -172,12 +213,34 @@ def ranked(frame: pd.DataFrame) -> list[str]:
 def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalProblem]],
                   repeats: int, accuracy: float = ACCURACY, pass_number: int = 0,
                   cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS) -> list[dict[str, Any]]:
-    """One row per (pair, problem) of ``pairs``, in pass ``pass_number``: their solves timed
-    together under the timing protocol (``qpbench.bench.repeats.time_interleaved``: one
-    untimed warm-up each, then up to ``repeats`` interleaved timed calls, ``time_s`` the
-    fastest), and beside them up to ``cold_repeats`` calls with the CPU caches flushed
-    before each (``time_cold_cache_s``, the fastest; NaN with none), in the same schedule.
-    The first interleaved answer is judged by qpbench."""
+    """One row per (pair, problem) of ``pairs``, their solves timed together.
+
+    In pass ``pass_number``, under the timing protocol
+    (``qpbench.bench.repeats.time_interleaved``: one untimed warm-up each, then up to
+    ``repeats`` interleaved timed calls, ``time_s`` the fastest), and beside them up to
+    ``cold_repeats`` calls with the CPU caches flushed before each (``time_cold_cache_s``, the
+    fastest; NaN with none), in the same schedule. The first interleaved answer is judged by
+    qpbench.
+
+    Parameters
+    ----------
+    pairs : sequence of (SolverSpec, ImpactProblem or FrictionalProblem)
+        The solves to time.
+    repeats : int
+        Timed interleaved calls per solve at most.
+    accuracy : float, optional
+        The level asked and judged; ACCURACY by default.
+    pass_number : int, optional
+        The pass the rows belong to; 0 by default.
+    cold_repeats : int, optional
+        Cache-flushed calls per solve; 0 for none; HEAD_TO_HEAD_COLD_REPEATS by default.
+
+    Returns
+    -------
+    list of dict
+        One row per pair: problem, set, solver, pass, own or not, contacts, status, success,
+        residual, iteration counts, ``time_s`` and ``time_cold_cache_s``.
+    """
     timings = [Timing(spec, problem) for spec, problem in pairs]
     if cold_repeats > 0:
         timings += [Timing(spec, problem, cold=True, repeats=cold_repeats)
@@ -215,9 +278,35 @@ class Running:
     out: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
 
     def running(self, set_name: str | None, solver: str) -> bool:
+        """Whether ``solver`` is still measured on the set ``set_name``.
+
+        Parameters
+        ----------
+        set_name : str or None
+            The set.
+        solver : str
+            The pair's key.
+
+        Returns
+        -------
+        bool
+            False once :meth:`update` took the pair out of that set.
+        """
         return solver not in self.out.get(str(set_name), {})
 
     def update(self, rows: Sequence[dict[str, Any]], set_name: str) -> None:
+        """Take every external pair far slower than the fastest out of ``set_name``.
+
+        The rule and what :attr:`out` keeps are the class docstring's.
+
+        Parameters
+        ----------
+        rows : sequence of dict
+            Every row so far (of :func:`measure_batch`); those of other sets, of own pairs, of
+            pairs out already and without a solution are skipped.
+        set_name : str
+            The set to update.
+        """
         totals: dict[str, float] = {}
         solved_all: dict[str, bool] = {}
         problems: dict[str, set[str]] = {}
@@ -241,8 +330,20 @@ class Running:
 
 
 def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
-    """Each (problem, pair)'s row with the smallest ``time_s`` over all passes, as
-    each solve keeps the fastest of its repeats."""
+    """Each (problem, pair)'s row with the smallest ``time_s`` over all passes.
+
+    As each solve keeps the fastest of its repeats.
+
+    Parameters
+    ----------
+    frame : pd.DataFrame
+        Rows of :func:`measure_batch`.
+
+    Returns
+    -------
+    pd.DataFrame
+        One row per (problem, pair); ``frame`` itself when empty or without passes.
+    """
     if "pass" not in frame or frame.empty:
         return frame
     fastest = frame.loc[frame.groupby(["problem", "solver"], sort=False)["time_s"].idxmin()]
@@ -251,12 +352,26 @@ def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
 
 def summarize(rows: Sequence[dict[str, Any]],
               out: dict[str, dict[str, dict[str, Any]]] | None = None) -> list[dict[str, Any]]:
-    """Per set: every pair's success and SGM (module docstring) on each problem's fastest row
-    over the passes, pi-robust's best pair, the fastest external pair and the speedup; with
-    more than one pass, ``pass_speedups``: the same speedup from each pass's rows alone (NaN
-    where a pass lacks one of the two kinds of pair, which then fails the target). The pairs
-    that left a set (``out``: :attr:`Running.out`) are left out of its figures, since they were
-    measured on part of it only, and listed as ``out_of_running``."""
+    """Per set: every pair's success and SGM, pi-robust's best pair, the fastest external one.
+
+    On each problem's fastest row over the passes (module docstring): the speedup; with more
+    than one pass, ``pass_speedups``: the same speedup from each pass's rows alone (NaN where a
+    pass lacks one of the two kinds of pair, which then fails the target). The pairs that left a
+    set (``out``: :attr:`Running.out`) are left out of its figures, since they were measured on
+    part of it only, and listed as ``out_of_running``.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Every row of every pass (:func:`measure_batch`).
+    out : dict or None, optional
+        :attr:`Running.out`; None (default) when no pair left.
+
+    Returns
+    -------
+    list of dict
+        One summary per set measured, in the order of SETS.
+    """
     out = out or {}
     frame = pd.DataFrame([one for one in rows if one["solver"] not in out.get(one["set"], {})])
     frame = frame[frame["status"] != NO_SOLUTION]  # charged to no solver (see judge)
@@ -282,9 +397,24 @@ def summarize(rows: Sequence[dict[str, Any]],
 
 
 def cold_cache_summary(name: str, group: pd.DataFrame) -> dict[str, Any]:
-    """The set's figures from the cold variant (``time_cold_cache_s``: the caches flushed
-    before each timed call) in place of ``time_s``: pi-robust's best pair, the fastest
-    external pair and the speedup (empty when the variant was not measured)."""
+    """The set's figures from the cold variant in place of ``time_s``.
+
+    ``time_cold_cache_s``: the caches flushed before each timed call. Gives pi-robust's best
+    pair, the fastest external pair and the speedup.
+
+    Parameters
+    ----------
+    name : str
+        The set.
+    group : pd.DataFrame
+        The set's rows, every pass.
+
+    Returns
+    -------
+    dict
+        ``own``, ``external`` and ``speedup``; empty when the variant was not measured or
+        one kind of pair is missing.
+    """
     if "time_cold_cache_s" not in group or not group["time_cold_cache_s"].notna().any():
         return {}
     cold = _set_summary(name, fastest_over_passes(
@@ -343,6 +473,26 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
              out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
              cold_repeats: int = 0) -> str:
+    """The head-to-head as a Markdown section: the protocol, a table per set, the pairs' figures.
+
+    Parameters
+    ----------
+    summary : sequence of dict
+        The per-set summaries of :func:`summarize`.
+    repeats : int
+        Timed repeats per solve.
+    passes : int, optional
+        Passes over every set; 1 by default.
+    out_of_running : float, optional
+        The limit of :class:`Running`; HEAD_TO_HEAD_OUT_OF_RUNNING by default.
+    cold_repeats : int, optional
+        Cache-flushed calls per solve; 0 (default) when not measured.
+
+    Returns
+    -------
+    str
+        The ``## Head to head`` section.
+    """
     lines = [
         "## Head to head, no warm start: pi-robust against the fastest external pairs per "
         "set\n",
@@ -418,8 +568,19 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
 
 
 def flushed(entry: dict[str, Any]) -> str:
-    """The speedup of a set's cold variant (caches flushed before each timed call), with the
-    pairs it compares when they differ from the table's; empty when not measured."""
+    """The speedup of a set's cold variant (caches flushed before each timed call).
+
+    Parameters
+    ----------
+    entry : dict
+        A set's summary.
+
+    Returns
+    -------
+    str
+        ``S.SSx``, with the pairs it compares when they differ from the table's; empty when not
+        measured.
+    """
     cold = entry.get("cold_cache")
     if not cold:
         return ""
@@ -430,15 +591,40 @@ def flushed(entry: dict[str, Any]) -> str:
 
 
 def pass_range(entry: dict[str, Any]) -> str:
-    """``lowest-highest x`` of the per-pass speedups (``pass_speedups``) of a set's or a
-    scene's summary (empty with one pass)."""
+    """``lowest-highest x`` of the per-pass speedups (``pass_speedups``).
+
+    Parameters
+    ----------
+    entry : dict
+        A set's or a scene's summary.
+
+    Returns
+    -------
+    str
+        The range; empty with one pass.
+    """
     speedups = entry.get("pass_speedups", [])
     return f"{min(speedups):.2f}-{max(speedups):.2f}x" if speedups else ""
 
 
 def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
                     thing: str) -> str:
-    """Which of the ``thing``s (sets, scenes) meet the ``target`` x speedup, in one sentence."""
+    """Which of the ``thing``s (sets, scenes) meet the ``target`` x speedup, in one sentence.
+
+    Parameters
+    ----------
+    target : float
+        The speedup asked.
+    held, missed : sequence of str
+        The names where the target holds, and where it does not.
+    thing : str
+        What the names are, singular (``set``, ``scene``).
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     if not missed:
         return f"The {target:g}x target holds on every {thing}: {', '.join(held)}."
     if not held:
@@ -451,10 +637,27 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
 def problem_batches(problems: Sequence[ImpactProblem | FrictionalProblem], size: int,
                     max_contacts: int = BATCH_CONTACTS
                     ) -> list[list[ImpactProblem | FrictionalProblem]]:
-    """Consecutive problems in batches whose solves are timed together: each of one set, at
-    most ``size`` problems, and no more than ``max_contacts`` contacts in all unless it holds
-    a single problem (a large problem's pairs are timed with each other only: its solves take
-    milliseconds, and a pair far slower than the fastest leaves the set after each batch)."""
+    """Consecutive problems in batches whose solves are timed together.
+
+    Each batch is of one set, at most ``size`` problems, and no more than ``max_contacts``
+    contacts in all unless it holds a single problem (a large problem's pairs are timed with
+    each other only: its solves take milliseconds, and a pair far slower than the fastest
+    leaves the set after each batch).
+
+    Parameters
+    ----------
+    problems : sequence of ImpactProblem or FrictionalProblem
+        The problems, in order.
+    size : int
+        Problems per batch at most.
+    max_contacts : int, optional
+        Contacts per batch at most; BATCH_CONTACTS by default.
+
+    Returns
+    -------
+    list of list
+        The batches, in order.
+    """
     grouped: list[list[ImpactProblem | FrictionalProblem]] = []
     for problem in problems:
         last = grouped[-1] if grouped else []
@@ -473,12 +676,41 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                  out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
                  cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS,
                  batch_problems: int = HEAD_TO_HEAD_BATCH_PROBLEMS) -> dict[str, Any]:
-    """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary,
-    ``markdown``. The problems are timed in batches (:func:`problem_batches` of
-    ``batch_problems``), every running pair on every problem of a batch in one interleaved
-    schedule (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside);
-    external pairs leave a set after a batch as :class:`Running` says, with ``limit =
-    out_of_running`` (infinite: every pair runs on every problem)."""
+    """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary, Markdown.
+
+    The problems are timed in batches (:func:`problem_batches` of ``batch_problems``), every
+    running pair on every problem of a batch in one interleaved schedule
+    (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside); external pairs
+    leave a set after a batch as :class:`Running` says, with ``limit = out_of_running``
+    (infinite: every pair runs on every problem).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The problem folder built from ``problems/head_to_head.toml``.
+    bench : pd.DataFrame
+        The main benchmark's rows, for :func:`fastest_external`.
+    repeats : int, optional
+        Timed repeats per solve; HEAD_TO_HEAD_REPEATS by default.
+    candidates : int, optional
+        Fastest external impact pairs compared; HEAD_TO_HEAD_CANDIDATES by default.
+    progress : callable or None, optional
+        Told a line before each batch; None (default) for none.
+    passes : int, optional
+        Whole passes, one after another; HEAD_TO_HEAD_PASSES by default.
+    out_of_running : float, optional
+        The limit of :class:`Running`; HEAD_TO_HEAD_OUT_OF_RUNNING by default.
+    cold_repeats : int, optional
+        Cache-flushed calls per solve; HEAD_TO_HEAD_COLD_REPEATS by default.
+    batch_problems : int, optional
+        Problems per batch at most; HEAD_TO_HEAD_BATCH_PROBLEMS by default.
+
+    Returns
+    -------
+    dict
+        The settings, the pairs chosen (``candidates``), ``rows``, ``summary``, ``markdown``,
+        the problem count and the sets not measured.
+    """
     chosen = fastest_external(bench, candidates)
     problems = [problem for problem in files.load_all(files.find([str(folder)]))
                 if set_of(problem) is not None]

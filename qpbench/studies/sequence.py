@@ -97,9 +97,25 @@ SCENE_BUDGET_S = 30.0
 # --- the sequence ---------------------------------------------------------------------------
 def capture(scene_path: str | os.PathLike[str], folder: str | os.PathLike[str],
             steps: int) -> list[Path]:
-    """Simulates ``scene_path`` with capture into ``folder`` until ``steps`` impact problems
-    are written (or ``STEP_BUDGET * steps`` time steps, or the scene's end); returns the
-    files in order."""
+    """Simulate ``scene_path`` with capture into ``folder`` until ``steps`` impacts are written.
+
+    The simulation also stops after ``STEP_BUDGET * steps`` time steps, at the scene's end, or
+    when an inner solve fails.
+
+    Parameters
+    ----------
+    scene_path : str or os.PathLike
+        The scene file, simulated with its own inner solver.
+    folder : str or os.PathLike
+        The folder the problem files are written to (made if missing).
+    steps : int
+        The impact problems wanted.
+
+    Returns
+    -------
+    list of Path
+        The problem files in ``folder``, in name (step) order.
+    """
     scene = load_scene(scene_path)
     simulator = Simulator(scene, choose_by_name(None), capture=folder)
     Path(folder).mkdir(parents=True, exist_ok=True)
@@ -115,7 +131,23 @@ def capture(scene_path: str | os.PathLike[str], folder: str | os.PathLike[str],
 
 
 def load_sequence(paths: Iterable[str | os.PathLike[str]]) -> list[ImpactProblem]:
-    """The captured problems in file-name order (the capture names them by step)."""
+    """The captured problems in file-name order (the capture names them by step).
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        The problem files.
+
+    Returns
+    -------
+    list of ImpactProblem
+        The problems, each with its contact keys.
+
+    Raises
+    ------
+    InputError
+        When a file is not a frictionless impact problem or carries no contact keys.
+    """
     problems = []
     for path in sorted(Path(p) for p in paths):
         problem = files.load(path)
@@ -128,14 +160,42 @@ def load_sequence(paths: Iterable[str | os.PathLike[str]]) -> list[ImpactProblem
 
 
 def step_of(problem: ImpactProblem) -> int | None:
+    """The simulation step a captured problem came from, as its metadata says.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        A captured problem.
+
+    Returns
+    -------
+    int or None
+        The step; None when the metadata has no integer ``step``.
+    """
     step = problem.metadata.get("step")
     return int(step) if isinstance(step, int | np.integer) else None
 
 
 def carried(previous_keys: np.ndarray, previous_impulses: np.ndarray,
             keys: np.ndarray) -> tuple[np.ndarray, int]:
-    """(warm start, persisting contacts): the previous answer on the contacts whose keys
-    persist, zero on new ones."""
+    """(warm start, persisting contacts): the previous answer on the contacts that persist.
+
+    Contacts are matched by their keys; new contacts start at zero.
+
+    Parameters
+    ----------
+    previous_keys : np.ndarray
+        (m,) contact keys of the previous captured problem.
+    previous_impulses : np.ndarray
+        (m,) the solver's answer there.
+    keys : np.ndarray
+        (n,) contact keys of this problem.
+
+    Returns
+    -------
+    tuple of (np.ndarray, int)
+        The (n,) warm start, and how many of the contacts persist.
+    """
     by_key = dict(zip(np.asarray(previous_keys).tolist(),
                       np.asarray(previous_impulses, dtype=float).tolist(), strict=True))
     warm = np.array([by_key.get(key, 0.0) for key in np.asarray(keys).tolist()], dtype=float)
@@ -154,9 +214,31 @@ def _figures(row: dict[str, Any]) -> dict[str, Any]:
 def replay(spec: SolverSpec, problems: Sequence[ImpactProblem],
            accuracy: float = SEQUENCE_ACCURACY, scene: str = "", budget_s: float = math.inf,
            repeats: int = REPEATS) -> list[dict[str, Any]]:
-    """One row per step: the cold solve and the sequence solve of ``spec`` (module
-    docstring), each the fastest of ``repeats``; it stops early, with fewer rows than
-    problems, once those ``time_s`` on this scene add up to more than ``budget_s``."""
+    """One row per step: the cold solve and the sequence solve of ``spec`` (module docstring).
+
+    Each is the fastest of ``repeats``; it stops early, with fewer rows than problems, once
+    those ``time_s`` on this scene add up to more than ``budget_s``.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The pair replayed.
+    problems : sequence of ImpactProblem
+        The captured problems, in order.
+    accuracy : float, optional
+        The level asked and judged; SEQUENCE_ACCURACY by default.
+    scene : str, optional
+        The scene's name, for the rows; empty by default.
+    budget_s : float, optional
+        Seconds of solves on this scene past which the pair stops; no budget by default.
+    repeats : int, optional
+        Timed calls per solve; REPEATS by default.
+
+    Returns
+    -------
+    list of dict
+        The rows of :func:`replayed_step`.
+    """
     return replay_side_by_side([spec], problems, accuracy, scene, budget_s, repeats)
 
 
@@ -165,12 +247,36 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
                         budget_s: float = math.inf, repeats: int = REPEATS,
                         progress: Callable[[str], None] | None = None
                         ) -> list[dict[str, Any]]:
-    """:func:`replay` of every pair of ``specs`` at once, step by step: each step is solved by
-    every pair before the next step is, so that a change in the machine's speed during a scene
-    falls on all pairs alike rather than on the pairs replayed at that moment, and the step's
-    cold and sequence solves of every pair are timed together under the timing protocol
-    (:func:`replayed_step`). Each pair keeps its own previous answer and its own budget (a
-    pair past ``budget_s`` stops there)."""
+    """:func:`replay` of every pair of ``specs`` at once, step by step.
+
+    Each step is solved by every pair before the next step is, so that a change in the
+    machine's speed during a scene falls on all pairs alike rather than on the pairs replayed at
+    that moment, and the step's cold and sequence solves of every pair are timed together under
+    the timing protocol (:func:`replayed_step`). Each pair keeps its own previous answer and its
+    own budget (a pair past ``budget_s`` stops there).
+
+    Parameters
+    ----------
+    specs : sequence of SolverSpec
+        The pairs replayed.
+    problems : sequence of ImpactProblem
+        The captured problems, in order.
+    accuracy : float, optional
+        The level asked and judged; SEQUENCE_ACCURACY by default.
+    scene : str, optional
+        The scene's name, for the rows and the progress; empty by default.
+    budget_s : float, optional
+        Seconds of solves on this scene past which a pair stops; no budget by default.
+    repeats : int, optional
+        Timed calls per solve; REPEATS by default.
+    progress : callable or None, optional
+        Told a line before each step; None (default) for none.
+
+    Returns
+    -------
+    list of dict
+        One row per (step, pair) solved, step by step.
+    """
     rows = []
     previous: dict[str, tuple[ImpactProblem, np.ndarray | None]] = {}
     spent = dict.fromkeys((spec.key for spec in specs), 0.0)
@@ -190,11 +296,37 @@ def replayed_step(specs: Sequence[SolverSpec], problem: ImpactProblem, index: in
                   previous: dict[str, tuple[ImpactProblem, np.ndarray | None]],
                   accuracy: float, scene: str, repeats: int
                   ) -> list[tuple[dict[str, Any], np.ndarray | None, float]]:
-    """Per pair of ``specs``: (row, the answer to carry, time_s spent) of one step, its cold
-    solve and its sequence solve from its own ``previous`` (problem, finite answer or None),
-    each the fastest of ``repeats``, all of the step's timed calls in one interleaved
+    """Per pair of ``specs``: (row, the answer to carry, time_s spent) of one step.
+
+    Its cold solve and its sequence solve from its own ``previous`` (problem, finite answer or
+    None), each the fastest of ``repeats``, all of the step's timed calls in one interleaved
     schedule (``qpbench.bench.repeats.time_interleaved``: one untimed warm-up per pair, then
-    rounds in a rotated order; the two solves of a pair are one (problem, pair) unit)."""
+    rounds in a rotated order; the two solves of a pair are one (problem, pair) unit).
+
+    Parameters
+    ----------
+    specs : sequence of SolverSpec
+        The pairs still running.
+    problem : ImpactProblem
+        The step's problem.
+    index : int
+        The step's position in the sequence.
+    previous : dict of str to (ImpactProblem, np.ndarray or None)
+        Per pair key, the previous problem it solved and its finite answer there (None: start
+        cold).
+    accuracy : float
+        The level asked and judged.
+    scene : str
+        The scene's name, for the rows.
+    repeats : int
+        Timed calls per solve.
+
+    Returns
+    -------
+    list of (dict, np.ndarray or None, float)
+        Per pair, in the order of ``specs``: the row (cold and sequence figures), the sequence
+        answer when finite, and the ``time_s`` of both solves.
+    """
     starts: list[tuple[np.ndarray | None, int]] = []
     for spec in specs:
         warm, persisting = None, 0
@@ -243,8 +375,20 @@ def _shift(rows: Sequence[dict[str, Any]]) -> float:
 
 
 def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per solver: median and SGM of the charged times, cold and in sequence, and success
-    rates (a failure is charged the largest time of the measurement)."""
+    """Per solver: median and SGM of the charged times, cold and in sequence, and success rates.
+
+    A failure is charged the largest time of the measurement.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of :func:`replayed_step` (one per step and pair).
+
+    Returns
+    -------
+    list of dict
+        One entry per solver, in order of first appearance.
+    """
     times = [row[f"{mode}_time_s"] for row in rows for mode in ("cold", "sequence")]
     finite = [t for t in times if isinstance(t, float) and math.isfinite(t)]
     charge = max(finite, default=1.0)
@@ -267,9 +411,22 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def fastest_over_passes(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per (scene, step, pair): in each mode (cold, sequence), the figures of the pass
-    whose ``time_s`` was the smallest, as head-to-head keeps each problem's fastest row
-    (rows without a ``pass`` are one pass already)."""
+    """One row per (scene, step, pair), each mode's figures from its fastest pass.
+
+    In each mode (cold, sequence), the figures of the pass whose ``time_s`` was the smallest,
+    as head-to-head keeps each problem's fastest row (rows without a ``pass`` are one pass
+    already).
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of every pass.
+
+    Returns
+    -------
+    list of dict
+        The kept rows, without ``pass``.
+    """
     kept: dict[tuple[str, int, str], dict[str, Any]] = {}
     for row in rows:
         key = (row["scene"], row["index"], row["solver"])
@@ -285,8 +442,23 @@ def fastest_over_passes(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def comparison(summary: Sequence[dict[str, Any]], own: str = OWN) -> dict[str, Any]:
-    """pi-robust against the fastest warm-startable external pair (charged SGM), in each
-    mode: ``ratio = external / own`` (above 1: pi-robust faster)."""
+    """pi-robust against the fastest warm-startable external pair (charged SGM), in each mode.
+
+    ``ratio = external / own`` (above 1: pi-robust faster).
+
+    Parameters
+    ----------
+    summary : sequence of dict
+        The per-solver summary of :func:`summarize`.
+    own : str, optional
+        Our pair's key; OWN by default.
+
+    Returns
+    -------
+    dict
+        ``own``, ``target_speedup``, per mode (``cold``, ``sequence``) the fastest external pair,
+        both SGMs and the speedup (None when a side is missing), and ``target_met``.
+    """
     by_solver = {entry["solver"]: entry for entry in summary}
     mine = by_solver.get(own)
     external = [entry for entry in summary if entry["warm_startable"]
@@ -308,10 +480,22 @@ def comparison(summary: Sequence[dict[str, Any]], own: str = OWN) -> dict[str, A
 
 
 def over_passes(rows: Sequence[dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """(summary, comparison) of the rows' :func:`fastest_over_passes`. With more than one
-    pass the comparison also holds ``pass_speedups``, the sequence speedup of each pass's rows
-    alone (NaN where a pass lacks pi-robust or an external pair), and its target is met only
-    when every one of them is at least ``TARGET_SPEEDUP`` too."""
+    """(summary, comparison) of the rows' :func:`fastest_over_passes`.
+
+    With more than one pass the comparison also holds ``pass_speedups``, the sequence speedup of
+    each pass's rows alone (NaN where a pass lacks pi-robust or an external pair), and its
+    target is met only when every one of them is at least ``TARGET_SPEEDUP`` too.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of every pass.
+
+    Returns
+    -------
+    tuple of (list of dict, dict)
+        The per-solver summary and the comparison.
+    """
     summary = summarize(fastest_over_passes(rows))
     compared = comparison(summary)
     passes = sorted({row["pass"] for row in rows if "pass" in row})
@@ -327,7 +511,18 @@ def over_passes(rows: Sequence[dict[str, Any]]) -> tuple[list[dict[str, Any]], d
 
 
 def by_scene(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per scene: the comparison of :func:`over_passes` on that scene's rows alone."""
+    """Per scene: the comparison of :func:`over_passes` on that scene's rows alone.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of every scene and pass.
+
+    Returns
+    -------
+    list of dict
+        One comparison per scene, with ``scene``, in order of first appearance.
+    """
     return [{"scene": scene, **over_passes([row for row in rows if row["scene"] == scene])[1]}
             for scene in dict.fromkeys(row["scene"] for row in rows)]
 
@@ -346,6 +541,34 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              scenes: Sequence[dict[str, Any]], accuracy: float,
              per_scene: Sequence[dict[str, Any]] = (), stopped: dict[str, str] | None = None,
              budget_s: float = SCENE_BUDGET_S, repeats: int = REPEATS, passes: int = 1) -> str:
+    """The sequence study as a Markdown section: protocol, scenes, table, verdicts.
+
+    Parameters
+    ----------
+    summary : sequence of dict
+        The per-solver summary.
+    compared : dict
+        The comparison over all scenes (:func:`over_passes`).
+    scenes : sequence of dict
+        Per scene: its name, impact steps, contact range and share of persisting contacts.
+    accuracy : float
+        The level asked.
+    per_scene : sequence of dict, optional
+        The comparisons scene by scene (:func:`by_scene`); none by default.
+    stopped : dict of str to str or None, optional
+        The pairs stopped by the budget, and where; None (default) for none.
+    budget_s : float, optional
+        The budget per scene; SCENE_BUDGET_S by default.
+    repeats : int, optional
+        Timed calls per solve; REPEATS by default.
+    passes : int, optional
+        Replays of every scene; 1 by default.
+
+    Returns
+    -------
+    str
+        The ``## Sequence mode`` section.
+    """
     lines = [
         "## Sequence mode: warm starts from each solver's own previous answer\n",
         "Each captured scene is replayed in order, every pair solving a step before the next "
@@ -435,8 +658,25 @@ def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
 
 def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
                  accuracy: float = SEQUENCE_ACCURACY) -> list[str]:
-    """The ``count`` fastest external impact pairs that take no warm start on the captured
-    scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM of charged times)."""
+    """The ``count`` fastest external impact pairs that take no warm start.
+
+    Ranked on the captured scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM
+    of charged times).
+
+    Parameters
+    ----------
+    bench : pd.DataFrame
+        The main benchmark's rows.
+    count : int, optional
+        How many pairs; COLD_PAIRS by default.
+    accuracy : float, optional
+        The level ranked at; SEQUENCE_ACCURACY by default.
+
+    Returns
+    -------
+    list of str
+        The pair keys, fastest first.
+    """
     cold_only = {spec.key for spec in usable_solvers()
                  if not spec.warm_start and spec.backend != OWN_BACKEND}
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
@@ -446,8 +686,21 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
 
 
 def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
-    """pi-robust, every usable warm-startable external impact pair, and the pairs ``cold``
-    (the fastest that take no warm start: :func:`fastest_cold`)."""
+    """pi-robust, every usable warm-startable external impact pair, and the pairs ``cold``.
+
+    Frictional formulations (``nsgs``, ``ccp``, ``staggered``) are left out.
+
+    Parameters
+    ----------
+    cold : sequence of str, optional
+        Keys of the fastest pairs that take no warm start (:func:`fastest_cold`); none by
+        default.
+
+    Returns
+    -------
+    list of SolverSpec
+        The pairs, in the registry's order.
+    """
     chosen = []
     for spec in usable_solvers():
         if spec.formulation in ("nsgs", "ccp", "staggered") or "staggered" in spec.name:
@@ -463,12 +716,44 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SE
              progress: Callable[[str], None] | None = None,
              budget_s: float = SCENE_BUDGET_S,
              repeats: int = REPEATS, passes: int = SEQUENCE_PASSES) -> dict[str, Any]:
-    """The JSON object of ``qpbench sequence``: per-step rows (each pass's, numbered in
-    ``pass``), per-solver summary, the comparison with the target and a ``markdown`` section.
-    A scene argument that is a folder is read as an existing capture; every scene is captured
-    once and replayed ``passes`` times. A pair whose solves on one scene take more than
-    ``budget_s`` in any pass stops there (``stopped``: where) and is left out of every
-    summary."""
+    """The JSON object of ``qpbench sequence``: rows, per-solver summary, comparison, Markdown.
+
+    Per-step rows (each pass's, numbered in ``pass``), per-solver summary, the comparison with
+    the target and a ``markdown`` section. A scene argument that is a folder is read as an
+    existing capture; every scene is captured once and replayed ``passes`` times. A pair whose
+    solves on one scene take more than ``budget_s`` in any pass stops there (``stopped``:
+    where) and is left out of every summary.
+
+    Parameters
+    ----------
+    scenes : sequence of str
+        Scene files to capture, or folders of an existing capture.
+    specs : sequence of SolverSpec
+        The pairs replayed.
+    steps : int, optional
+        Impact steps per scene; SEQUENCE_STEPS by default.
+    accuracy : float, optional
+        The level asked and judged; SEQUENCE_ACCURACY by default.
+    progress : callable or None, optional
+        Told a line before each step; None (default) for none.
+    budget_s : float, optional
+        Seconds of solves per scene past which a pair stops; SCENE_BUDGET_S by default.
+    repeats : int, optional
+        Timed calls per solve; REPEATS by default.
+    passes : int, optional
+        Replays of every scene; SEQUENCE_PASSES by default.
+
+    Returns
+    -------
+    dict
+        The settings, ``scenes``, ``summary``, ``comparison``, ``by_scene``, ``target_met``,
+        ``rows``, ``stopped`` and ``markdown``.
+
+    Raises
+    ------
+    InputError
+        When a scene gives no impact, or a captured file is not a usable problem.
+    """
     rows: list[dict[str, Any]] = []
     stopped: dict[str, str] = {}
     described = []

@@ -54,13 +54,37 @@ ORDERINGS = {
 
 
 def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
-    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC (SuperLU's input)."""
+    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC (SuperLU's input).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The box packing.
+
+    Returns
+    -------
+    sp.csc_matrix
+        The shifted matrix, (n_contacts, n_contacts).
+    """
     shift = FACTOR_SHIFT * metrics.vector_scale(problem.diag_Q)
     return sp.csc_matrix(problem.Q + shift * sp.identity(problem.n_contacts, format="csc"))
 
 
 def factorize(matrix: sp.csc_matrix, ordering: str) -> float:
-    """The time (seconds) of one ``splu`` of ``matrix`` with ``ordering`` (ORDERINGS)."""
+    """The time (seconds) of one ``splu`` of ``matrix`` with ``ordering`` (ORDERINGS).
+
+    Parameters
+    ----------
+    matrix : sp.csc_matrix
+        The matrix to factor (:func:`shifted_matrix`).
+    ordering : str
+        A key of ORDERINGS.
+
+    Returns
+    -------
+    float
+        Wall seconds of the factorization.
+    """
     start = time.perf_counter()
     spla.splu(matrix, **ORDERINGS[ordering])
     return time.perf_counter() - start
@@ -68,13 +92,28 @@ def factorize(matrix: sp.csc_matrix, ordering: str) -> float:
 
 def timed_parts(problems: Sequence[ImpactProblem], repeats: int
                 ) -> tuple[dict[tuple[int, str], list[float]], dict[int, SolverOutput]]:
-    """(times of every timed call of each (problem index, part), pi-robust's first timed
-    output on each problem). The parts are pi-robust (through ``call_solver``) and one
-    ``splu`` per ordering of ORDERINGS (of :func:`shifted_matrix`, built outside the timed
-    window); every (problem, part) is timed ``repeats`` times under the timing protocol of
-    docs/design.md section 7 (``qpbench.bench.schedule.Schedule``): one untimed call of each
-    first, then rounds of one call each, in an order that rotates from round to round, so no
-    part is timed twice in a row."""
+    """Every part timed on every problem under the timing protocol, and pi-robust's answers.
+
+    The parts are pi-robust (through ``call_solver``) and one ``splu`` per ordering of
+    ORDERINGS (of :func:`shifted_matrix`, built outside the timed window); every (problem, part)
+    is timed ``repeats`` times under the timing protocol of docs/design.md section 7
+    (``qpbench.bench.schedule.Schedule``): one untimed call of each first, then rounds of one
+    call each, in an order that rotates from round to round, so no part is timed twice in a
+    row.
+
+    Parameters
+    ----------
+    problems : sequence of ImpactProblem
+        The box packings.
+    repeats : int
+        Timed calls per (problem, part).
+
+    Returns
+    -------
+    tuple of (dict, dict)
+        The times in seconds of every timed call of each (problem index, part), and
+        pi-robust's first timed output on each problem index.
+    """
     spec = get(SOLVER)
     matrices = [shifted_matrix(problem) for problem in problems]
     items = [(number, part) for number in range(len(problems))
@@ -97,8 +136,26 @@ def timed_parts(problems: Sequence[ImpactProblem], repeats: int
 
 def solver_figures(problem: ImpactProblem, first: SolverOutput, times: Sequence[float]
                    ) -> dict[str, Any]:
-    """pi-robust at 1e-8: minimum solve time over ``times``, status, residual and v_error of
-    the ``first`` timed answer (judged by qpbench's metrics, not by the solver's claim)."""
+    """pi-robust at 1e-8: minimum solve time, and the judged figures of its first timed answer.
+
+    Status, residual and v_error of the ``first`` timed answer are judged by qpbench's metrics,
+    not by the solver's claim.
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The box packing, with its reference.
+    first : SolverOutput
+        pi-robust's first timed output on it.
+    times : sequence of float
+        Its timed solves, in seconds.
+
+    Returns
+    -------
+    dict
+        ``solve_s``, the solver's status and claim, ``success``, ``residual``, ``v_error``,
+        ``iterations`` and ``path``.
+    """
     measured = metrics.evaluate(problem, first.impulses, ACCURACY)
     return {"solve_s": float(np.nanmin(times)), "solver_status": first.status,
             "claimed_success": first.claimed_success, "success": bool(measured["success"]),
@@ -107,8 +164,25 @@ def solver_figures(problem: ImpactProblem, first: SolverOutput, times: Sequence[
 
 
 def measure_all(sizes: Sequence[int], seed: int, repeats: int) -> list[dict[str, Any]]:
-    """The figures of one box packing per size of ``sizes`` (in that order), all timed
-    together (:func:`timed_parts`)."""
+    """The figures of one box packing per size of ``sizes`` (in that order), all timed together.
+
+    Each packing gets its reference before the timings (:func:`timed_parts`).
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Ball counts of the packings.
+    seed : int
+        The packings' seed.
+    repeats : int
+        Timed calls per (packing, part).
+
+    Returns
+    -------
+    list of dict
+        One row per packing: size, nonzeros, the fastest factorization and its ordering,
+        pi-robust's figures (:func:`solver_figures`), ``ratio`` and ``target_met``.
+    """
     problems = [attach_reference(generate("box", size, seed=seed)[0]) for size in sizes]
     times, first = timed_parts(problems, repeats)
     rows = []
@@ -127,7 +201,20 @@ def measure_all(sizes: Sequence[int], seed: int, repeats: int) -> list[dict[str,
 
 
 def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
-    """A short section with one table row per size."""
+    """A short section with one table row per size.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        The rows of :func:`measure_all`.
+    repeats : int
+        Timed calls per part.
+
+    Returns
+    -------
+    str
+        The Markdown section, times in milliseconds.
+    """
     lines = [
         "## pi-robust against one sparse factorization (box packings)\n",
         f"Target: `{SOLVER}`'s solve time at accuracy {ACCURACY:g} within {TARGET_RATIO:g}x "
@@ -153,15 +240,40 @@ def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
 
 
 def single_threaded() -> bool:
-    """Whether this process was started with single-threaded BLAS (the env variables are read
-    when numpy loads, so setting them later changes nothing)."""
+    """Whether this process was started with single-threaded BLAS.
+
+    The env variables are read when numpy loads, so setting them later changes nothing.
+
+    Returns
+    -------
+    bool
+        True when every variable of SINGLE_THREAD_ENV is ``1``.
+    """
     return all(os.environ.get(name) == "1" for name in SINGLE_THREAD_ENV)
 
 
 def speed(sizes: Sequence[int] = SPEED_SIZES, seed: int = 0,
           repeats: int = REPEATS) -> dict[str, Any]:
-    """The JSON object of ``qpbench speed``: per-size figures (largest first), whether the
-    target is met on every size, and a ready ``markdown`` section."""
+    """The JSON object of ``qpbench speed``: per-size figures, the verdict and a Markdown section.
+
+    Per-size figures (largest first), whether the target is met on every size, and a ready
+    ``markdown`` section.
+
+    Parameters
+    ----------
+    sizes : sequence of int, optional
+        Ball counts of the packings (duplicates once); SPEED_SIZES by default.
+    seed : int, optional
+        The packings' seed; 0 by default.
+    repeats : int, optional
+        Timed calls per part; REPEATS by default.
+
+    Returns
+    -------
+    dict
+        The settings, whether BLAS is single-threaded, ``rows``, ``target_met`` and
+        ``markdown``.
+    """
     rows = measure_all(sorted(set(sizes), reverse=True), seed, repeats)
     return {"solver": SOLVER, "accuracy": ACCURACY, "target_ratio": TARGET_RATIO,
             "factor_shift": FACTOR_SHIFT, "repeats": repeats, "seed": seed,
