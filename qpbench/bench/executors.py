@@ -29,7 +29,21 @@ Result = tuple[Cell, dict[str, Any]]
 class Executor(Protocol):
     name: str
 
-    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]: ...
+    def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        """Solve ``cells`` under ``limits`` and yield each cell's row as it finishes.
+
+        Parameters
+        ----------
+        cells : list of Cell
+            The cells to solve.
+        limits : Limits
+            The wall-clock, memory and repeat limits of each solve.
+
+        Yields
+        ------
+        tuple of (Cell, dict)
+            A cell and its results row, in any order.
+        """
 
 
 class SerialExecutor:
@@ -38,6 +52,22 @@ class SerialExecutor:
     name = "serial"
 
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        """Solve ``cells`` batch after batch on one isolated worker.
+
+        See :func:`qpbench.bench.runner.solve_serially`.
+
+        Parameters
+        ----------
+        cells : list of Cell
+            The cells to solve, problem-major.
+        limits : Limits
+            The wall-clock, memory and repeat limits of each solve.
+
+        Yields
+        ------
+        tuple of (Cell, dict)
+            A cell and its results row, in matrix order.
+        """
         yield from solve_serially(cells, limits)
 
 
@@ -56,6 +86,24 @@ class ProcessExecutor:
         self.workers = workers
 
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        """Solve ``cells`` on ``workers`` isolated workers, one batch per worker at a time.
+
+        Each feeding thread takes the next batch from a shared queue and passes its rows on; the
+        first error a thread meets is raised here. When the caller stops early every worker is
+        retired (killed and never restarted) and each thread joined for at most ``THREAD_JOIN_S``.
+
+        Parameters
+        ----------
+        cells : list of Cell
+            The cells to solve, problem-major.
+        limits : Limits
+            The wall-clock, memory and repeat limits of each solve.
+
+        Yields
+        ------
+        tuple of (Cell, dict)
+            A cell and its results row, as cells finish.
+        """
         chunks: queue.Queue[list[Cell] | None] = queue.Queue()
         for chunk in batches(cells):
             chunks.put(chunk)
@@ -118,8 +166,23 @@ atexit.register(_close_dask_workers)
 
 
 def solve_chunk(chunk: list[Cell], limits: Limits) -> list[Result]:
-    """A Dask task: one batch of cells on this thread's isolated worker (kept for the next
-    task, so the worker process starts once per Dask worker thread)."""
+    """Solve one batch of cells as a Dask task.
+
+    The batch runs on this thread's isolated worker, kept for the next task, so the worker
+    process starts once per Dask worker thread.
+
+    Parameters
+    ----------
+    chunk : list of Cell
+        One batch of cells (:func:`qpbench.bench.runner.batches`).
+    limits : Limits
+        The wall-clock, memory and repeat limits of each solve.
+
+    Returns
+    -------
+    list of tuple of (Cell, dict)
+        Each cell of the batch with its results row.
+    """
     key = threading.get_ident()
     with _DASK_LOCK:
         worker = _DASK_WORKERS.setdefault(key, IsolatedWorker())
@@ -135,6 +198,18 @@ class DaskExecutor:
         self.address = address
 
     def client(self) -> Any:
+        """Connect to the Dask scheduler at ``address`` (20 s timeout).
+
+        Returns
+        -------
+        distributed.Client
+            A client of the scheduler.
+
+        Raises
+        ------
+        QpbenchError
+            When dask.distributed is not installed or the scheduler cannot be reached.
+        """
         try:
             from distributed import Client
         except ImportError as error:
@@ -147,6 +222,23 @@ class DaskExecutor:
                                f"{error}") from error
 
     def map(self, cells: list[Cell], limits: Limits) -> Iterator[Result]:
+        """Submit one Dask task per batch of cells and yield the rows as tasks complete.
+
+        The solving processes on every Dask worker are closed when the run ends, also when the
+        caller stops early.
+
+        Parameters
+        ----------
+        cells : list of Cell
+            The cells to solve, problem-major.
+        limits : Limits
+            The wall-clock, memory and repeat limits of each solve.
+
+        Yields
+        ------
+        tuple of (Cell, dict)
+            A cell and its results row, a whole batch at a time, in order of completion.
+        """
         from distributed import as_completed
 
         client = self.client()
@@ -162,7 +254,27 @@ class DaskExecutor:
 
 
 def make_executor(executor: str, workers: int = 1) -> Executor:
-    """``serial``, ``processes`` (with ``workers``) or ``dask://HOST:PORT`` (or tcp://...)."""
+    """Make the executor a ``--executor`` value names.
+
+    Parameters
+    ----------
+    executor : str
+        ``serial``, ``processes``, ``dask://HOST:PORT`` (or a ``tcp://``, ``tls://`` or
+        ``inproc://`` scheduler address); ``""`` or ``auto`` is ``processes`` when ``workers``
+        exceeds 1, else ``serial``.
+    workers : int, optional
+        The number of local worker processes of ``processes``; 1 by default.
+
+    Returns
+    -------
+    Executor
+        A :class:`SerialExecutor`, :class:`ProcessExecutor` or :class:`DaskExecutor`.
+
+    Raises
+    ------
+    QpbenchError
+        On an unknown executor, ``serial`` with more than one worker, or fewer than one worker.
+    """
     if executor in ("", "auto"):
         executor = "processes" if workers > 1 else "serial"
     if executor == "serial":

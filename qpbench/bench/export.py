@@ -55,14 +55,45 @@ FRICTIONAL_MODEL = "ccp"
 
 
 def exported_problem(problem: AnyProblem) -> ImpactProblem:
-    """The impact problem whose QP is exported for ``problem``: itself, or for a frictional
-    problem its ``ccp`` relaxation (2n contacts)."""
+    """Give the impact problem whose QP is exported for ``problem``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to export.
+
+    Returns
+    -------
+    ImpactProblem
+        ``problem`` itself, or for a frictional problem its ``ccp`` relaxation (2n contacts).
+    """
     return problem.relaxed() if isinstance(problem, FrictionalProblem) else problem
 
 
 def qp_matrices(problem: AnyProblem, formulation: str) -> dict[str, Any]:
-    """The QP of ``problem`` as qpbenchmark names it: P, q and G, h or lb (sparse P, G); a
-    frictional problem's is that of its ``ccp`` relaxation."""
+    """Build the QP of ``problem`` as qpbenchmark names it.
+
+    A frictional problem's QP is that of its ``ccp`` relaxation.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to export.
+    formulation : str
+        ``dual`` (``P = Q``, ``q = b``, ``lb = 0``) or ``primal`` (``P = diag(M_free)``,
+        ``q = -M_free v-_free``, ``G = -G_free^T``, ``h = -lower``).
+
+    Returns
+    -------
+    dict of str to Any
+        ``P`` (sparse CSC), ``q`` and either ``lb`` (dual) or ``G`` (sparse CSC) and ``h``
+        (primal).
+
+    Raises
+    ------
+    QpbenchError
+        On an unknown formulation.
+    """
     impact = exported_problem(problem)
     if formulation == "dual":
         return {"P": sp.csc_matrix(impact.Q), "q": np.asarray(impact.b, dtype=float),
@@ -75,7 +106,20 @@ def qp_matrices(problem: AnyProblem, formulation: str) -> dict[str, Any]:
 
 
 def mat_content(problem: AnyProblem, formulation: str) -> dict[str, Any]:
-    """What ``<name>.mat`` holds: the QP, ``name``, ``model`` and, for ``ccp``, ``mu``."""
+    """Assemble what ``<name>.mat`` holds: the QP, ``name``, ``model`` and, for ``ccp``, ``mu``.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to export.
+    formulation : str
+        ``dual`` or ``primal`` (:func:`qp_matrices`).
+
+    Returns
+    -------
+    dict of str to Any
+        The variables of the MATLAB file; ``model`` is ``impact`` or ``ccp``.
+    """
     content = {**qp_matrices(problem, formulation), "name": problem.name}
     if isinstance(problem, FrictionalProblem):
         return {**content, "model": FRICTIONAL_MODEL, "mu": np.asarray(problem.mu, dtype=float)}
@@ -90,8 +134,29 @@ def _dense_flat(matrix: sp.spmatrix, problem: AnyProblem) -> np.ndarray:
 
 
 def export_parquet(problems: Iterable[AnyProblem], path: Path, formulation: str) -> int:
-    """Writes qpbenchmark's problem list to ``path`` (one atomic file); returns the number of
-    problems."""
+    """Write qpbenchmark's problem list to ``path`` as one atomic Parquet file.
+
+    Matrices are dense and flattened row by row; absent entries are null.
+
+    Parameters
+    ----------
+    problems : iterable of ImpactProblem or FrictionalProblem
+        The problems, one row each.
+    path : pathlib.Path
+        The Parquet file to write.
+    formulation : str
+        ``dual`` or ``primal`` (:func:`qp_matrices`).
+
+    Returns
+    -------
+    int
+        The number of problems written.
+
+    Raises
+    ------
+    QpbenchError
+        When there is no problem, or a matrix is too large to store dense (UnsupportedError).
+    """
     columns: dict[str, list[Any]] = {key: [] for key in QPBENCHMARK_KEYS}
     for problem in problems:
         qp = qp_matrices(problem, formulation)
@@ -110,10 +175,34 @@ def export_parquet(problems: Iterable[AnyProblem], path: Path, formulation: str)
 
 def export_files(problems: Iterable[AnyProblem], folder: Path, suffix: str,
                  write: Callable[[AnyProblem, Path], None]) -> int:
-    """Writes ``folder/<name><suffix>`` per problem with ``write(problem, path)``; returns the
-    number written. Each file is written to a temporary file, and none is renamed into place
-    before all are written, so an error on any problem leaves the folder as it was. Two
-    problems of one name are an InputError (their files would be one)."""
+    """Write ``folder/<name><suffix>`` per problem with ``write(problem, path)``, all or none.
+
+    Each file is written to a temporary file, and none is renamed into place before all are
+    written, so an error on any problem leaves the folder as it was.
+
+    Parameters
+    ----------
+    problems : iterable of ImpactProblem or FrictionalProblem
+        The problems, one file each.
+    folder : pathlib.Path
+        The folder to write into.
+    suffix : str
+        The files' suffix, with its dot (``.mat``).
+    write : callable
+        ``write(problem, path)`` writes one problem to ``path`` (a temporary file).
+
+    Returns
+    -------
+    int
+        The number of files written.
+
+    Raises
+    ------
+    InputError
+        When two problems have one name (their files would be one).
+    QpbenchError
+        When there is no problem.
+    """
     written: dict[str, str] = {}
     with ExitStack() as pending:
         for problem in problems:
@@ -129,21 +218,62 @@ def export_files(problems: Iterable[AnyProblem], folder: Path, suffix: str,
 
 
 def export_mat(problems: Iterable[AnyProblem], folder: Path, formulation: str) -> int:
-    """One MATLAB file per problem in ``folder`` (:func:`mat_content`), all or none."""
+    """Write one MATLAB file per problem in ``folder`` (:func:`mat_content`), all or none.
+
+    Parameters
+    ----------
+    problems : iterable of ImpactProblem or FrictionalProblem
+        The problems, one file each.
+    folder : pathlib.Path
+        The folder to write into.
+    formulation : str
+        ``dual`` or ``primal`` (:func:`qp_matrices`).
+
+    Returns
+    -------
+    int
+        The number of files written.
+    """
     return export_files(problems, folder, ".mat", lambda problem, path: scipy.io.savemat(
         str(path), mat_content(problem, formulation), do_compression=True))
 
 
 def export_fclib(problems: Iterable[AnyProblem], folder: Path) -> int:
-    """One HDF5 file per problem in ``folder`` in FCLIB's layout (qpbench.problem.fclib), all or
-    none."""
+    """Write one HDF5 file per problem in ``folder`` in FCLIB's layout, all or none.
+
+    See :mod:`qpbench.problem.fclib`.
+
+    Parameters
+    ----------
+    problems : iterable of ImpactProblem or FrictionalProblem
+        The problems, one file each.
+    folder : pathlib.Path
+        The folder to write into.
+
+    Returns
+    -------
+    int
+        The number of files written.
+    """
     return export_files(problems, folder, fclib.SUFFIX, fclib.write)
 
 
 def check_output(output: Path, fmt: str) -> None:
-    """OutputError before any problem is read when ``output`` cannot take ``fmt``: for
-    ``parquet`` anything but a regular file or nothing (:func:`checked_target`), for ``mat``
-    anything but a folder or nothing."""
+    """Check, before any problem is read, that ``output`` can take ``fmt``.
+
+    Parameters
+    ----------
+    output : pathlib.Path
+        The output path.
+    fmt : str
+        ``parquet`` needs a regular file or nothing (:func:`checked_target`); ``mat`` and
+        ``fclib`` need a folder or nothing.
+
+    Raises
+    ------
+    OutputError
+        When ``output`` cannot take ``fmt``.
+    """
     if fmt == "parquet":
         checked_target(output)
     elif checked_target(output, accept_folder=True).exists() and not output.is_dir():
@@ -152,8 +282,32 @@ def check_output(output: Path, fmt: str) -> None:
 
 def export(paths: Iterable[str | os.PathLike[str]], output: str | os.PathLike[str],
            fmt: str = "parquet", formulation: str = "dual") -> int:
-    """Exports every problem file named or found in ``paths`` (frictional ones as their
-    ``ccp`` relaxation); returns the number exported."""
+    """Export every problem file named or found in ``paths``.
+
+    Frictional problems are exported as their ``ccp`` relaxation.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Problem files and directories holding them.
+    output : str or os.PathLike
+        The Parquet file (``parquet``) or the folder (``mat``, ``fclib``) to write.
+    fmt : str, optional
+        ``parquet`` (default), ``mat`` or ``fclib``.
+    formulation : str, optional
+        ``dual`` (default) or ``primal``; ``fclib`` ignores it.
+
+    Returns
+    -------
+    int
+        The number of problems exported.
+
+    Raises
+    ------
+    QpbenchError
+        On an unknown format or formulation, an unusable output (OutputError), an unreadable
+        problem file, or no problem at all.
+    """
     if fmt not in FORMATS:
         raise QpbenchError(f"--format: unknown '{fmt}' (known: {', '.join(FORMATS)})")
     if formulation not in FORMULATIONS:

@@ -81,8 +81,15 @@ class WorkerRetired(QpbenchError):
 
 
 def oom_kill_count() -> int | None:
-    """How many processes the kernel's OOM killer has killed since boot (``oom_kill`` of
-    /proc/vmstat, counting system-wide and cgroup kills); None where it is not reported."""
+    """Count the processes the kernel's OOM killer has killed since boot.
+
+    Read from ``oom_kill`` of /proc/vmstat, which counts system-wide and cgroup kills.
+
+    Returns
+    -------
+    int or None
+        The count; None where it is not reported.
+    """
     try:
         with open("/proc/vmstat", encoding="ascii") as stream:
             for line in stream:
@@ -98,9 +105,17 @@ _FORK_SERVER_LOCK = threading.Lock()
 
 
 def fork_server() -> Any:
-    """The multiprocessing context that forks workers from a server which has imported
-    qpbench's solver backends once, so a new worker is ready in milliseconds. Its numerical
-    libraries are limited to one thread (SINGLE_THREAD_ENV)."""
+    """Give the multiprocessing context that forks workers from a preloaded server.
+
+    The server has imported qpbench's solver backends once (``qpbench.bench.preload``), so a
+    new worker is ready in milliseconds. Its numerical libraries are limited to one thread
+    (SINGLE_THREAD_ENV). The server is (re)started when it is not running.
+
+    Returns
+    -------
+    multiprocessing.context.ForkServerContext
+        The ``forkserver`` context, the same one on every call.
+    """
     global _FORK_SERVER
     with _FORK_SERVER_LOCK:
         if _FORK_SERVER is None:
@@ -134,7 +149,13 @@ def start_fork_server() -> None:
 
 
 def can_have_children() -> bool:
-    """False in a daemonic multiprocessing process (e.g. a Dask worker), which may not fork."""
+    """Tell whether this process may fork workers.
+
+    Returns
+    -------
+    bool
+        False in a daemonic multiprocessing process (e.g. a Dask worker), which may not fork.
+    """
     return not multiprocessing.current_process().daemon
 
 
@@ -220,6 +241,13 @@ class IsolatedWorker:
                 self._log_path = None
 
     def alive(self) -> bool:
+        """Tell whether the worker process is running.
+
+        Returns
+        -------
+        bool
+            True while a started process has not ended.
+        """
         if self.process is None:
             return False
         if self.program:
@@ -227,8 +255,15 @@ class IsolatedWorker:
         return self.process.is_alive()
 
     def returncode(self) -> int | None:
-        """The exit code (negative: the signal) once the process has ended; a process still
-        running 10 s after closing its end of the messages is killed first."""
+        """Wait for the process to end and give its exit code.
+
+        A process still running 10 s after closing its end of the messages is killed first.
+
+        Returns
+        -------
+        int or None
+            The exit code (negative: the signal); None when no process was started.
+        """
         with self._life:
             process = self.process
             if process is None:
@@ -297,7 +332,18 @@ class IsolatedWorker:
         self.stop()
 
     def stderr_tail(self, lines: int = 3) -> str:
-        """The last lines the process wrote to its log (solver messages, fatal errors)."""
+        """Read the last lines the process wrote to its log (solver messages, fatal errors).
+
+        Parameters
+        ----------
+        lines : int, optional
+            How many lines, from the last 4 KiB of the log; 3 by default.
+
+        Returns
+        -------
+        str
+            The lines, stripped and joined by `` | ``; ``""`` without a log.
+        """
         with self._life:
             if self._log_descriptor is None:
                 return ""
@@ -353,22 +399,54 @@ class IsolatedWorker:
         return json.loads(line)
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell`` alone (:meth:`solve_batch` of one cell)."""
+        """Solve ``cell`` alone (:meth:`solve_batch` of one cell).
+
+        Parameters
+        ----------
+        cell : Cell
+            The cell to solve.
+        limits : Limits
+            The wall-clock, memory and repeat limits of the solve.
+
+        Returns
+        -------
+        dict
+            The cell's results row.
+        """
         [(_, row)] = list(self.solve_batch([cell], limits))
         return row
 
     def solve_batch(self, cells: Sequence[Cell], limits: Limits
                     ) -> Iterator[tuple[Cell, dict[str, Any]]]:
-        """(cell, row) of every cell of the batch as it finishes: from the worker, which
-        runs the batch under the timing protocol (``qpbench.bench.worker``), or, for a cell
-        whose worker died or hung, a row saying how.
+        """Solve a batch of cells, yielding each cell's row as it finishes.
+
+        Each row comes from the worker, which runs the batch under the timing protocol
+        (``qpbench.bench.worker``), or, for a cell whose worker died or hung, is a row saying how.
 
         The wall-clock limit applies to each solver call the worker announces (``begin`` ...
         ``end``: the warm-up and every timed repeat), OUTSIDE_SOLVE_ALLOWANCE_S to the rest.
         A death or a timeout is the row of the cell that was running (the one whose set-up,
         solver call or judging was under way); the rows received before are kept, and the
         batch's other unfinished cells run again, from their warm-up, in a new worker
-        process. A caller that stops early (closing the iterator) kills the worker."""
+        process. A caller that stops early (closing the iterator) kills the worker.
+
+        Parameters
+        ----------
+        cells : sequence of Cell
+            The batch's cells.
+        limits : Limits
+            The wall-clock, memory and repeat limits of each solve.
+
+        Yields
+        ------
+        tuple of (Cell, dict)
+            A cell and its results row.
+
+        Raises
+        ------
+        QpbenchError
+            When a worker process cannot start (WorkerRetired once the run is ending).
+        """
         pending = list(cells)
         try:
             while pending:
@@ -453,7 +531,18 @@ class IsolatedWorker:
 
 
 def signal_name(number: int) -> str:
-    """``SIGSEGV`` for 11; ``signal 77`` for a number without a name."""
+    """Name a signal number: ``SIGSEGV`` for 11.
+
+    Parameters
+    ----------
+    number : int
+        The signal number.
+
+    Returns
+    -------
+    str
+        The signal's name, or ``signal N`` for a number without a name.
+    """
     try:
         return signal.Signals(number).name
     except ValueError:
@@ -462,7 +551,7 @@ def signal_name(number: int) -> str:
 
 def classify_death(returncode: int | None, stderr_tail: str, memory_cap_mb: int = 0,
                    oom_killer_ran: bool = False) -> tuple[str, str]:
-    """(status, message) for a worker that died while solving a cell the runner did not kill.
+    """Classify the death of a worker the runner did not kill while it solved a cell.
 
     * ``out-of-memory`` only on evidence: the log reports an allocation failure
       (ALLOCATION_FAILURES) and an address-space cap was set (``memory_cap_mb`` > 0), or the
@@ -471,6 +560,22 @@ def classify_death(returncode: int | None, stderr_tail: str, memory_cap_mb: int 
     * ``crashed``: any other signal or exit code.
 
     The message names the signal or the exit code, then the log's last lines.
+
+    Parameters
+    ----------
+    returncode : int or None
+        The worker's exit code (negative: the signal); None when unknown.
+    stderr_tail : str
+        The last lines of the worker's log (:meth:`IsolatedWorker.stderr_tail`).
+    memory_cap_mb : int, optional
+        The worker's address-space cap in MiB; 0 (none) by default.
+    oom_killer_ran : bool, optional
+        Whether the kernel's OOM kill count rose while the cell ran; False by default.
+
+    Returns
+    -------
+    tuple of (str, str)
+        (status, message), the message cut to 500 characters.
     """
     number = -returncode if returncode is not None and returncode < 0 else None
     cause = f"exit code {returncode}" if number is None else f"killed by {signal_name(number)}"
@@ -492,8 +597,26 @@ def classify_death(returncode: int | None, stderr_tail: str, memory_cap_mb: int 
 
 def failure_row(cell: Cell, status: str, message: str, time_s: float = math.nan,
                 memory_limit_mb: int = 0) -> dict[str, Any]:
-    """The row of a cell whose worker died, hung or could not set it up: no answer.
-    ``memory_limit_mb`` is the worker's address-space cap (0: none)."""
+    """Make the row of a cell whose worker died, hung or could not set it up: no answer.
+
+    Parameters
+    ----------
+    cell : Cell
+        The cell.
+    status : str
+        ``timeout``, ``out-of-memory``, ``killed``, ``crashed`` or ``error``.
+    message : str
+        What happened, stored as ``solver_status``.
+    time_s : float, optional
+        The time charged to the cell; NaN by default.
+    memory_limit_mb : int, optional
+        The worker's address-space cap in MiB; 0 (none) by default.
+
+    Returns
+    -------
+    dict
+        The row: unsuccessful, no residuals, no repeats, dated now (UTC).
+    """
     nan = math.nan
     return {
         "solver": cell.solver,

@@ -17,7 +17,18 @@ _PIN = re.compile(r"^([A-Za-z0-9_.\-]+)==([^\s;\\]+)")
 
 
 def lock_hash(path: Path = LOCK_FILE) -> str:
-    """The first 16 hex digits of the lock file's SHA-256 (``no-lock`` without one)."""
+    """Hash the lock file: the first 16 hex digits of its SHA-256.
+
+    Parameters
+    ----------
+    path : pathlib.Path, optional
+        The lock file; ``requirements.lock`` of the repository by default.
+
+    Returns
+    -------
+    str
+        The hash, or ``no-lock`` when the file cannot be read.
+    """
     try:
         return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
     except OSError:
@@ -25,7 +36,18 @@ def lock_hash(path: Path = LOCK_FILE) -> str:
 
 
 def pinned_versions(path: Path = LOCK_FILE) -> dict[str, str]:
-    """package name (normalized) -> the version the lock pins."""
+    """Read the version the lock pins for each package.
+
+    Parameters
+    ----------
+    path : pathlib.Path, optional
+        The lock file; ``requirements.lock`` of the repository by default.
+
+    Returns
+    -------
+    dict of str to str
+        package name (normalized) -> the version the lock pins; empty without a lock file.
+    """
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
     except OSError:
@@ -35,8 +57,18 @@ def pinned_versions(path: Path = LOCK_FILE) -> dict[str, str]:
 
 
 def deviations(path: Path = LOCK_FILE) -> list[str]:
-    """``name installed!=locked`` for every locked package installed at another version
-    (or missing) in this environment."""
+    """List the locked packages installed at another version (or missing) in this environment.
+
+    Parameters
+    ----------
+    path : pathlib.Path, optional
+        The lock file; ``requirements.lock`` of the repository by default.
+
+    Returns
+    -------
+    list of str
+        ``name installed!=locked`` per deviating package, sorted by name.
+    """
     found = []
     for name, locked in sorted(pinned_versions(path).items()):
         try:
@@ -50,8 +82,16 @@ def deviations(path: Path = LOCK_FILE) -> list[str]:
 
 @cache
 def lock_label() -> str:
-    """The lock's hash, followed by ``+venv-differs(...)`` when the installed versions are
-    not the locked ones, so results from such an environment never pass for locked ones."""
+    """Label this environment's package set: the lock's hash, marked when the venv differs.
+
+    The hash is followed by ``+venv-differs(...)`` when the installed versions are not the
+    locked ones, so results from such an environment never pass for locked ones.
+
+    Returns
+    -------
+    str
+        The label stored as ``lock_hash`` in every row (computed once per process).
+    """
     differs = deviations()
     if not differs:
         return lock_hash()

@@ -23,7 +23,18 @@ LINE_STYLES = ("-", "--", ":", "-.")
 
 
 def style(index: int) -> dict[str, str]:
-    """Colour and line style of curve ``index``: ten colours, then the next line style."""
+    """Give the colour and line style of curve ``index``: ten colours, then the next line style.
+
+    Parameters
+    ----------
+    index : int
+        The curve's position, from 0.
+
+    Returns
+    -------
+    dict of str to str
+        matplotlib's ``color`` and ``linestyle``.
+    """
     return {"color": f"C{index % 10}", "linestyle": LINE_STYLES[(index // 10) % 4]}
 
 
@@ -40,8 +51,21 @@ MAX_LINES = 12  # no static chart draws more curves than this; index.html has ev
 
 
 def best(scores: pd.DataFrame, limit: int = MAX_LINES) -> list[str]:
-    """The first ``limit`` index entries of ``scores`` (columns ``solved``, higher first, and
-    ``time``, lower first): the most reliable, then the fastest."""
+    """Rank pairs: the most reliable, then the fastest, and keep the first ``limit``.
+
+    Parameters
+    ----------
+    scores : pandas.DataFrame
+        One row per pair (the index) with columns ``solved`` (higher first) and ``time``
+        (lower first).
+    limit : int, optional
+        How many to keep; MAX_LINES by default.
+
+    Returns
+    -------
+    list of str
+        The first ``limit`` index entries of the ranking.
+    """
     ranked = scores.assign(_s=-scores["solved"].astype(float), _t=scores["time"].astype(float))
     ranked = ranked.sort_values(["_s", "_t"], kind="stable")
     return [str(key) for key in ranked.index[:limit]]
@@ -52,7 +76,19 @@ def _note(shown: int, total: int) -> str:
 
 
 def slug(text: str) -> str:
-    """A file-name-safe form of ``text``."""
+    """Turn ``text`` into a file-name-safe form.
+
+    Parameters
+    ----------
+    text : str
+        Any text (a family's name, say).
+
+    Returns
+    -------
+    str
+        ``text`` with every run of other characters than letters, digits, ``.``, ``+`` and
+        ``-`` replaced by ``_``; ``all`` when nothing is left.
+    """
     return re.sub(r"[^A-Za-z0-9.+-]+", "_", text).strip("_") or "all"
 
 
@@ -62,8 +98,20 @@ _figure_listeners: list[Callable[[Path], None]] = []
 
 @contextmanager
 def on_figure(listener: Callable[[Path], None]) -> Iterator[None]:
-    """Within the block, ``listener(path)`` as each figure of this module starts being written
-    (drawing it to PNG is most of a figure's time): a progress hook for the report."""
+    """Tell ``listener(path)`` as each figure of this module starts being written, within the block.
+
+    Drawing a figure to PNG is most of its time: this is a progress hook for the report.
+
+    Parameters
+    ----------
+    listener : callable
+        Called with the path of each figure.
+
+    Yields
+    ------
+    None
+        Control to the block, with the listener registered.
+    """
     _figure_listeners.append(listener)
     try:
         yield
@@ -83,10 +131,27 @@ def _save(figure: plt.Figure, path: Path) -> Path:
 
 
 def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
-    """Achieved error against time across the accuracy sweep, one panel per formulation and
-    one curve per solver: each point is one level, at (median time_s, median v_error) over
-    the family's problems that returned an answer. Uses the residual where no problem has a
-    verified reference. A solver keeps its colour and line style in every panel."""
+    """Plot achieved error against time across the accuracy sweep of one family.
+
+    One panel per formulation and one curve per solver: each point is one level, at (median
+    time_s, median v_error) over the family's problems that returned an answer. Uses the
+    residual where no problem has a verified reference. A solver keeps its colour and line
+    style in every panel; each panel draws at most MAX_LINES solvers (:func:`best`).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows of the family.
+    family : str
+        The family's name, for the title.
+    path : pathlib.Path
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None when no row has an answer (nothing written).
+    """
     answered = frame[frame["residual"].notna() & frame["time_s"].notna()]
     if answered.empty:
         return None
@@ -132,8 +197,25 @@ def work_precision(frame: pd.DataFrame, family: str, path: Path) -> Path | None:
 
 
 def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
-    """Dolan-More performance profile at one accuracy level: share of problems solved within
-    tau times the fastest solver's time."""
+    """Plot the Dolan-More performance profile at one accuracy level.
+
+    Each curve is the share of problems solved within tau times the fastest solver's time; at
+    most MAX_LINES curves, those of largest area.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows of the level.
+    accuracy : float
+        The level, for the title.
+    path : pathlib.Path
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None when no problem was solved (nothing written).
+    """
     curves = performance_profile(frame)
     if curves.empty or curves.shape[1] == 0:
         return None
@@ -154,7 +236,20 @@ def profile(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
 
 
 def success_by_level(summary: pd.DataFrame, path: Path) -> Path | None:
-    """Success rate of each solver/formulation at each accuracy level (grouped bars)."""
+    """Plot the success rate of each solver/formulation at each accuracy level (grouped bars).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        :func:`~qpbench.bench.stats.level_summary` of the results.
+    path : pathlib.Path
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None for an empty summary (nothing written).
+    """
     if summary.empty:
         return None
     table = summary.pivot(index="solver", columns="accuracy", values="success_rate")
@@ -174,9 +269,24 @@ def success_by_level(summary: pd.DataFrame, path: Path) -> Path | None:
 
 
 def cost_of_accuracy(relative: pd.DataFrame, path: Path) -> Path | None:
-    """Time relative to the loosest level against the level, one line per pair of
-    ``relative`` (rows: pairs, the first MAX_LINES drawn; columns: levels, loosest first;
-    stats.relative_time): what each further digit costs the pairs whose time grows with it."""
+    """Plot each pair's time relative to the loosest level against the level.
+
+    What each further digit costs the pairs whose time grows with it; one line per pair of
+    ``relative``, the first MAX_LINES drawn.
+
+    Parameters
+    ----------
+    relative : pandas.DataFrame
+        Pairs (rows) x levels (columns, loosest first), as
+        :func:`~qpbench.bench.stats.relative_time` gives.
+    path : pathlib.Path
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None with no pair or fewer than two levels (nothing written).
+    """
     if relative.empty or relative.shape[1] < 2:
         return None
     shown = relative.head(MAX_LINES)
@@ -200,8 +310,24 @@ def cost_of_accuracy(relative: pd.DataFrame, path: Path) -> Path | None:
 
 
 def time_by_size(frame: pd.DataFrame, accuracy: float, path: Path) -> Path | None:
-    """Solver time against the number of contacts at one level (successful solves only),
-    one marker series per solver/formulation."""
+    """Plot solver time against the number of contacts at one level (successful solves only).
+
+    One marker series per solver/formulation, at most MAX_LINES, those that solved most.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows of the level.
+    accuracy : float
+        The level, for the title.
+    path : pathlib.Path
+        The PNG file to write.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None when nothing was solved (nothing written).
+    """
     solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()
                    & (frame["contacts"].fillna(0) > 0)]
     if solved.empty:

@@ -69,7 +69,27 @@ ALL_FAMILIES = (*FAMILIES, *FRICTION_FAMILIES)
 
 
 def read_set(path: str | Path) -> dict[str, Any]:
-    """The parsed set file; InputError names the file and the entry at fault."""
+    """Read and check a set file.
+
+    Every section and key is checked against what a set file may hold (module docstring), so
+    a misspelt key is refused rather than ignored.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The TOML set file.
+
+    Returns
+    -------
+    dict of str to Any
+        The parsed set file.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the entry at fault: a missing or unreadable file, malformed TOML,
+        an unknown section, family or key, or a value of the wrong type.
+    """
     path = Path(path)
     try:
         definition = tomllib.loads(path.read_text())
@@ -164,8 +184,23 @@ def _family_problems(definition: dict[str, Any], existing: set[str]
 
 def check_sizes(definition: dict[str, Any], scenes: list[tuple[dict[str, Any], Scene]],
                 set_file: Path) -> None:
-    """OutOfMemory (one line naming the set file, the entry and its size) when one problem of
-    a family size, or the state of a scene, needs more than the memory available."""
+    """Check, before anything is built, that every family size and scene fits in memory.
+
+    Parameters
+    ----------
+    definition : dict of str to Any
+        The parsed set file (:func:`read_set`).
+    scenes : list of tuple of (dict, Scene)
+        Each ``[[scenes]]`` entry and a scene it names, read.
+    set_file : pathlib.Path
+        The set file, named in the error.
+
+    Raises
+    ------
+    OutOfMemory
+        One line naming the set file, the entry and its size, when one problem of a family
+        size, or the state of a scene, needs more than the memory available.
+    """
     for family, options in definition.get("families", {}).items():
         table = FRICTION_FAMILIES if family in FRICTION_FAMILIES else FAMILIES
         for size in options.get("sizes", [None]):
@@ -249,8 +284,31 @@ def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[st
 
 def build(set_file: str | Path, output: str | Path,
           on_problem: Callable[[str], None] | None = None) -> list[Path]:
-    """Writes every problem of the set to ``output`` (skipping those already there); calls
-    ``on_problem(name)`` after each problem written."""
+    """Write every problem of the set to ``output``, skipping those already there.
+
+    Families, dumps, Siconos and FCLIB files, then scenes, each problem with its reference
+    (module docstring); a reference that is not verified is said in one line on stderr.
+
+    Parameters
+    ----------
+    set_file : str or pathlib.Path
+        The TOML set file; the globs in it are relative to its folder.
+    output : str or pathlib.Path
+        The folder of problem files, created when missing.
+    on_problem : callable, optional
+        Called with each problem's name after its file is written; None calls nothing.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The problem files written, in the order written.
+
+    Raises
+    ------
+    QpbenchError
+        On a bad set file or scene (InputError), an unknown inner solver, or a problem or
+        scene too large for the memory available (OutOfMemory).
+    """
     set_file, output = Path(set_file), Path(output)
     definition = read_set(set_file)
     root = set_file.parent

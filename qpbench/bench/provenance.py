@@ -18,7 +18,13 @@ from qpbench.bench.lock import lock_label
 
 
 def cpu_model() -> str:
-    """The CPU's model name from /proc/cpuinfo, else platform.processor()."""
+    """Read the CPU's model name.
+
+    Returns
+    -------
+    str
+        The model name from /proc/cpuinfo, else platform.processor() (or the machine type).
+    """
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as stream:
             for line in stream:
@@ -30,7 +36,14 @@ def cpu_model() -> str:
 
 
 def provenance() -> dict[str, Any]:
-    """Machine and version columns common to every row this process writes (read once)."""
+    """Give the machine and version columns common to every row this process writes.
+
+    Returns
+    -------
+    dict of str to Any
+        ``qpbench_version``, ``lock_hash``, ``python_version``, ``numpy_version``,
+        ``platform``, ``cpu_model`` and ``hostname`` (read once, returned as a fresh dict).
+    """
     return dict(_provenance())
 
 

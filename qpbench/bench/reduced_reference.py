@@ -50,9 +50,23 @@ def _iterative(problem: ReducedFrictionalProblem) -> tuple[np.ndarray, str]:
 
 
 def reduced_reference(problem: ReducedFrictionalProblem) -> FrictionalReference:
-    """The reference of a reduced problem (module docstring), one group of coupled contacts
-    (``friction_reference.components``) at a time: Lemke where the group has at most
-    ``LEMKE_CONTACTS`` contacts and finds a solution to 1e-12, else the iterative solvers."""
+    """Compute the reference of a reduced problem, one group of coupled contacts at a time.
+
+    The groups are ``friction_reference.components``; each is solved by Lemke where it has at
+    most ``LEMKE_CONTACTS`` contacts and Lemke finds a solution to 1e-12, else by the iterative
+    solvers (module docstring). Uniqueness is never proven.
+
+    Parameters
+    ----------
+    problem : ReducedFrictionalProblem
+        The reduced frictional problem (W, q, mu).
+
+    Returns
+    -------
+    FrictionalReference
+        The impulses ``r`` (normal then tangential; no velocities), the methods used, the
+        Coulomb residual and ``unique`` None.
+    """
     n = problem.n_contacts
     if n == 0:
         return FrictionalReference(np.zeros(0), np.zeros(0), "none", 0.0, True)
@@ -73,7 +87,22 @@ def reduced_reference(problem: ReducedFrictionalProblem) -> FrictionalReference:
 
 
 def attach(problem: AnyProblem) -> AnyProblem:
-    """Sets the reference of any imported problem and records whether it is verified."""
+    """Set the reference of any imported problem and record whether it is verified.
+
+    A reduced problem gets :func:`reduced_reference` and the ``reference_verified``,
+    ``reference_unique`` and ``reference_solvable`` metadata; global frictional and impact
+    problems get the references of their kind.
+
+    Parameters
+    ----------
+    problem : ImpactProblem, FrictionalProblem or ReducedFrictionalProblem
+        The imported problem, changed in place.
+
+    Returns
+    -------
+    ImpactProblem, FrictionalProblem or ReducedFrictionalProblem
+        ``problem`` itself, with its reference.
+    """
     if isinstance(problem, ReducedFrictionalProblem):
         problem.reference = reduced_reference(problem)
         problem.metadata["reference_verified"] = problem.reference.verified
@@ -87,7 +116,19 @@ def attach(problem: AnyProblem) -> AnyProblem:
 
 
 def flag(problem: AnyProblem) -> str:
-    """Why the reference of ``problem`` is not verified, in a few words ('' when it is)."""
+    """Say in a few words why the reference of ``problem`` is not verified.
+
+    Parameters
+    ----------
+    problem : ImpactProblem, FrictionalProblem or ReducedFrictionalProblem
+        A problem with or without a reference.
+
+    Returns
+    -------
+    str
+        ``no reference``, a frictional reference's description, ``references disagree (...)``
+        with their agreement, or ``''`` when the reference is verified.
+    """
     reference = problem.reference
     if reference is None:
         return "no reference"

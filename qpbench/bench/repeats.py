@@ -45,7 +45,13 @@ class Timing:
     unit: Hashable = None
 
     def unit_key(self) -> Hashable:
-        """The (problem, pair) this timing is a repeat of."""
+        """Give the (problem, pair) this timing is a repeat of.
+
+        Returns
+        -------
+        Hashable
+            ``unit`` when set, else (the problem's name, the pair's key).
+        """
         if self.unit is not None:
             return self.unit
         return (self.problem.name, self.spec.key)
@@ -56,14 +62,38 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
                      budget_s: float = REPEAT_BUDGET_S,
                      flush: Callable[[], None] | None = None,
                      accuracies: Sequence[float] | None = None) -> list[list[SolverOutput]]:
-    """The outputs of every timed call of each of ``timings``, through the one stopwatch
-    (``call_solver``) at ``accuracy`` (or ``accuracies[i]`` for the i-th), in the order of a
-    :class:`~qpbench.bench.schedule.Schedule`: with ``warm_up``, one untimed solve per unit
-    first (on its first timing; its output discarded), then rounds of one timed call of each
-    timing still running. A timing stops after its ``repeats`` (or the batch's), after a
-    failed solve, or once its calls have taken ``budget_s`` in all. A cold timing's every
-    timed call follows a call of ``flush`` (outside the stopwatch; None:
-    :func:`~qpbench.bench.schedule.flush_caches`)."""
+    """Time every one of ``timings`` through the one stopwatch, interleaved by a schedule.
+
+    Every call goes through ``call_solver`` at ``accuracy`` (or ``accuracies[i]`` for the
+    i-th), in the order of a :class:`~qpbench.bench.schedule.Schedule`: with ``warm_up``, one
+    untimed solve per unit first (on its first timing; its output discarded), then rounds of
+    one timed call of each timing still running. A timing stops after its ``repeats`` (or the
+    batch's), after a failed solve, or once its calls have taken ``budget_s`` in all. A cold
+    timing's every timed call follows a call of ``flush`` (outside the stopwatch).
+
+    Parameters
+    ----------
+    timings : sequence of Timing
+        What to time, in a canonical order (problem-major, say).
+    repeats : int, optional
+        Timed calls per timing whose own ``repeats`` is None; REPEATS by default.
+    accuracy : float, optional
+        The accuracy level of every call when ``accuracies`` is None; 1e-8 by default.
+    warm_up : bool, optional
+        Run one untimed solve per unit first; True by default.
+    budget_s : float, optional
+        Seconds of timed calls after which a timing stops; REPEAT_BUDGET_S by default.
+    flush : callable, optional
+        Called before each timed call of a cold timing; None:
+        :func:`~qpbench.bench.schedule.flush_caches`.
+    accuracies : sequence of float, optional
+        One accuracy level per timing, in place of ``accuracy``.
+
+    Returns
+    -------
+    list of list of SolverOutput
+        Per timing, the outputs of its timed calls in the order they ran.
+    """
     levels = list(accuracies) if accuracies is not None else [accuracy] * len(timings)
     wanted = [timing.repeats or repeats for timing in timings]
     schedule = Schedule(range(len(timings)), max(wanted, default=1),
@@ -86,5 +116,16 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
 
 
 def fastest_output(outputs: Sequence[SolverOutput]) -> SolverOutput:
-    """The output of the fastest of a timing's timed calls."""
+    """Pick the output of the fastest of a timing's timed calls.
+
+    Parameters
+    ----------
+    outputs : sequence of SolverOutput
+        The outputs of one timing's timed calls (at least one).
+
+    Returns
+    -------
+    SolverOutput
+        The output of least ``time_s``.
+    """
     return min(outputs, key=lambda output: output.time_s)

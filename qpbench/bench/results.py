@@ -56,7 +56,21 @@ COLUMNS = (
 
 
 def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
-    """The rows as one DataFrame with the columns of COLUMNS (then any others) and fixed dtypes."""
+    """Turn rows into one DataFrame with the columns of COLUMNS (then any others) and fixed dtypes.
+
+    Columns of FLOAT_COLUMNS become float64, of INT_COLUMNS nullable Int64, of BOOL_COLUMNS
+    nullable boolean, every other column string; values that do not convert become missing.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The results rows; a column a row lacks is missing there.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per element of ``rows``.
+    """
     frame = pd.DataFrame.from_records(rows)
     extra = [column for column in frame.columns if column not in COLUMNS]
     frame = frame.reindex(columns=[*COLUMNS, *extra])
@@ -73,7 +87,18 @@ def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(frictionless rows, frictional rows); rows without a kind are frictionless."""
+    """Split results rows by problem kind; rows without a kind are frictionless.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows, with or without a ``kind`` column.
+
+    Returns
+    -------
+    tuple of (pandas.DataFrame, pandas.DataFrame)
+        (frictionless rows, frictional rows).
+    """
     kind = frame["kind"].astype("string").fillna("impact") if "kind" in frame \
         else pd.Series("impact", index=frame.index)
     return frame[kind != FRICTIONAL], frame[kind == FRICTIONAL]
@@ -110,8 +135,21 @@ class ResultStore:
 
     @contextlib.contextmanager
     def exclusive(self) -> Iterator[None]:
-        """Holds ``FILE.parquet.lock`` (flock) for one writing run; a second run on the same file
-        is refused. The kernel releases the lock when the process dies, even by kill -9."""
+        """Hold ``FILE.parquet.lock`` (flock) for one writing run.
+
+        A second run on the same file is refused. The kernel releases the lock when the process
+        dies, even by kill -9.
+
+        Yields
+        ------
+        None
+            Control to the block, with the lock held.
+
+        Raises
+        ------
+        QpbenchError
+            When another run holds the lock.
+        """
         import fcntl
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -128,6 +166,13 @@ class ResultStore:
                 fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
 
     def part_files(self) -> list[Path]:
+        """List the part files written since the last compaction.
+
+        Returns
+        -------
+        list of pathlib.Path
+            The parts in the order written (their names start with a nanosecond time).
+        """
         if not self.parts.is_dir():
             return []
         return sorted(self.parts.glob("part-*.parquet"))
@@ -154,8 +199,26 @@ class ResultStore:
         return frame
 
     def read(self, columns: Iterable[str] | None = None) -> pd.DataFrame:
-        """Every row: main file then parts in the order written, the last row of each cell key
-        kept."""
+        """Read every stored row, the last row of each cell key kept.
+
+        The main file is read first, then the parts in the order written.
+
+        Parameters
+        ----------
+        columns : iterable of str, optional
+            The columns to read, those a file lacks as missing values; None reads all of them and
+            requires every column of COLUMNS.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The rows (``columns`` only when given); an empty table when nothing is stored.
+
+        Raises
+        ------
+        InputError
+            When a file is not a readable results table, or a column holds values of the wrong type.
+        """
         sources = ([self.path] if self.path.exists() else []) + self.part_files()
         if not sources:
             return table([])
@@ -170,8 +233,18 @@ class ResultStore:
         return frame if columns is None else frame[list(columns)]
 
     def finished_keys(self, retry: Iterable[str] = ()) -> set[tuple[str, str, str, float, str]]:
-        """The cell keys already stored (problem, solver, formulation, accuracy, mode), less
-        those whose stored status is in ``retry``."""
+        """Collect the cell keys already stored, less those whose stored status is in ``retry``.
+
+        Parameters
+        ----------
+        retry : iterable of str, optional
+            Statuses whose cells count as not finished; none by default.
+
+        Returns
+        -------
+        set of tuple of (str, str, str, float, str)
+            (problem, solver, formulation, accuracy, mode) of each finished cell.
+        """
         frame = self.read([*CELL_KEY, "status"])
         frame = frame[~frame["status"].astype(str).isin(list(retry))]
         return {
@@ -180,10 +253,35 @@ class ResultStore:
         }
 
     def writer(self, batch_rows: int = 20, batch_seconds: float = 10.0) -> BatchWriter:
+        """Make a writer that stores rows in this store's part files.
+
+        Parameters
+        ----------
+        batch_rows : int, optional
+            Rows per part file; 20 by default.
+        batch_seconds : float, optional
+            Seconds after which the rows collected are written however few; 10 by default.
+
+        Returns
+        -------
+        BatchWriter
+            A writer with no rows yet.
+        """
         return BatchWriter(self, batch_rows, batch_seconds)
 
     def write_part(self, rows: list[dict[str, Any]]) -> Path:
-        """Stores ``rows`` as one new part file (atomically) and returns its path."""
+        """Store ``rows`` as one new part file (atomically).
+
+        Parameters
+        ----------
+        rows : list of dict
+            The results rows (:func:`table`).
+
+        Returns
+        -------
+        pathlib.Path
+            The part file written.
+        """
         self.parts.mkdir(parents=True, exist_ok=True)
         name = f"part-{time.time_ns():020d}-{os.getpid()}-{uuid.uuid4().hex[:8]}.parquet"
         path = self.parts / name
@@ -191,7 +289,16 @@ class ResultStore:
         return path
 
     def compact(self) -> int:
-        """Merges main file and parts into the main file, then removes the parts; returns rows."""
+        """Merge the main file and the parts into the main file, then remove the parts.
+
+        Temporary files that a kill left behind are removed too; the parts folder is removed when
+        empty.
+
+        Returns
+        -------
+        int
+            The number of rows in the main file.
+        """
         parts = self.part_files()
         if not parts and self.path.exists():
             return len(self._read_file(self.path, CELL_KEY))
@@ -223,12 +330,20 @@ class BatchWriter:
         self.last_flush = time.monotonic()
 
     def add(self, row: dict[str, Any]) -> None:
+        """Collect one row, writing a part file when the batch is full or old enough.
+
+        Parameters
+        ----------
+        row : dict
+            One results row.
+        """
         self.rows.append(row)
         if (len(self.rows) >= self.batch_rows
                 or time.monotonic() - self.last_flush >= self.batch_seconds):
             self.flush()
 
     def flush(self) -> None:
+        """Write the rows collected so far as one part file (nothing when there are none)."""
         if self.rows:
             self.store.write_part(self.rows)
             self.rows = []

@@ -96,8 +96,13 @@ class Schedule(Generic[Item]):
         self._units: list[Hashable] = list(dict.fromkeys(unit(item) for item in self.items))
 
     def retire(self, index: int) -> None:
-        """Takes the ``index``-th item out of every later round (its repeats are done, or it
-        failed)."""
+        """Take the ``index``-th item out of every later round.
+
+        Parameters
+        ----------
+        index : int
+            The item's position in ``items`` (its repeats are done, its budget spent, or it failed).
+        """
         self._retired.add(index)
 
     def __iter__(self) -> Iterator[Call[Item]]:
@@ -118,10 +123,26 @@ class Schedule(Generic[Item]):
 
     def round_order(self, members: Sequence[int], number: int, previous: Hashable | None
                     ) -> list[int]:
-        """The indices ``members`` of one round in the order they run: each next call is of the
-        unit with the most calls left in the round, other than the unit of the call before
-        (``previous`` at the start), ties broken by the units' order rotated by ``number``;
-        a unit's own calls keep their order in ``items``."""
+        """Order the calls of one round.
+
+        Each next call is of the unit with the most calls left in the round, other than the unit
+        of the call before (``previous`` at the start), ties broken by the units' order rotated
+        by ``number``; a unit's own calls keep their order in ``items``.
+
+        Parameters
+        ----------
+        members : sequence of int
+            The indices in ``items`` of the round's calls.
+        number : int
+            The round's number, which rotates the units' order.
+        previous : Hashable or None
+            The unit of the call just before the round; None at the start.
+
+        Returns
+        -------
+        list of int
+            ``members`` in the order they run.
+        """
         if not self._units:
             return []
         rotation = number % len(self._units)
@@ -142,8 +163,18 @@ class Schedule(Generic[Item]):
 
 
 def fastest(times: Sequence[float]) -> tuple[float, float]:
-    """(minimum, median) of the finite ``times`` of an item's timed repeats; (NaN, NaN) when
-    none is finite."""
+    """Summarise an item's timed repeats by their minimum and median.
+
+    Parameters
+    ----------
+    times : sequence of float
+        The ``time_s`` of the repeats; None and non-finite values are left out.
+
+    Returns
+    -------
+    tuple of (float, float)
+        (minimum, median) of the finite times; (NaN, NaN) when none is finite.
+    """
     finite = [value for value in times if value is not None and math.isfinite(value)]
     if not finite:
         return math.nan, math.nan
@@ -152,9 +183,15 @@ def fastest(times: Sequence[float]) -> tuple[float, float]:
 
 @cache
 def last_level_cache_bytes() -> int:
-    """The size of the largest CPU cache the operating system reports for CPU 0 (Linux's
-    ``/sys/devices/system/cpu/cpu0/cache/index*/size``), or ``FLUSH_FALLBACK_BYTES`` when it
-    reports none."""
+    """Read the size of the largest CPU cache the operating system reports for CPU 0.
+
+    Linux reports them in ``/sys/devices/system/cpu/cpu0/cache/index*/size``.
+
+    Returns
+    -------
+    int
+        The size in bytes, or ``FLUSH_FALLBACK_BYTES`` when none is reported (read once).
+    """
     sizes = []
     for entry in CACHE_FOLDER.glob("index*/size"):
         try:
@@ -169,8 +206,13 @@ def last_level_cache_bytes() -> int:
 
 
 def flush_bytes() -> int:
-    """The size of the buffer :func:`flush_caches` writes: the last-level cache's, at most
-    ``FLUSH_CAP_BYTES``."""
+    """Size the buffer :func:`flush_caches` writes.
+
+    Returns
+    -------
+    int
+        The last-level cache's size in bytes, at most ``FLUSH_CAP_BYTES``.
+    """
     return min(last_level_cache_bytes(), FLUSH_CAP_BYTES)
 
 

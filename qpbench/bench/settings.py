@@ -59,6 +59,13 @@ class Cell:
         return f"{self.solver}/{self.formulation}"
 
     def as_dict(self) -> dict[str, Any]:
+        """Give the cell's fields as a dict.
+
+        Returns
+        -------
+        dict
+            ``problem_file``, ``problem``, ``solver``, ``formulation``, ``accuracy`` and ``mode``.
+        """
         return asdict(self)
 
 
@@ -116,8 +123,7 @@ ACCURACY_FLOOR = 1e-14
 
 
 def check_accuracy(accuracy: float, option: str = "--accuracy") -> float:
-    """``accuracy`` when it is a residual bound in [ACCURACY_FLOOR, 1); QpbenchError naming
-    ``option`` otherwise (NaN, infinity, zero, negative, 1 or more, or below the floor).
+    """Check that ``accuracy`` is a residual bound in [ACCURACY_FLOOR, 1).
 
     The floor, 1e-14, is where a relative residual computed in double precision still
     certifies the answer rather than the rounding (residual of docs/design.md section 2): each
@@ -126,6 +132,23 @@ def check_accuracy(accuracy: float, option: str = "--accuracy") -> float:
     their magnitudes, which is at least ``||b||_inf`` once the impulses cancel the approach
     velocity. With the tens of neighbours a contact has in a dense pile that bound reaches a
     few 1e-15; 1e-14 stays above it, while 1e-15 and below would pass or fail on rounding.
+
+    Parameters
+    ----------
+    accuracy : float
+        The relative residual bound to check.
+    option : str, optional
+        The option named in the error; ``--accuracy`` by default.
+
+    Returns
+    -------
+    float
+        ``accuracy`` itself.
+
+    Raises
+    ------
+    QpbenchError
+        On NaN, infinity, zero, a negative value, 1 or more, or a value below the floor.
     """
     if not 0 < accuracy < 1:
         raise QpbenchError(f"{option}: accuracy levels must lie in (0, 1), got {accuracy}")
@@ -136,14 +159,45 @@ def check_accuracy(accuracy: float, option: str = "--accuracy") -> float:
 
 
 def check_at_least(value: float, minimum: float, option: str) -> None:
-    """QpbenchError naming ``option`` unless ``value >= minimum`` (NaN is refused)."""
+    """Check that ``value >= minimum`` (NaN is refused).
+
+    Parameters
+    ----------
+    value : float
+        The option's value.
+    minimum : float
+        The smallest value allowed.
+    option : str
+        The option named in the error.
+
+    Raises
+    ------
+    QpbenchError
+        When ``value`` is below ``minimum`` or NaN.
+    """
     if not value >= minimum:
         raise QpbenchError(f"{option} must be at least {minimum}, got {value}")
 
 
 def parse_accuracies(text: str) -> tuple[float, ...]:
-    """``"1e-4,1e-8"`` -> (1e-4, 1e-8); raises QpbenchError on a value that is not a number
-    or not a level :func:`check_accuracy` accepts."""
+    """Parse a comma-separated list of accuracy levels: ``"1e-4,1e-8"`` -> (1e-4, 1e-8).
+
+    Parameters
+    ----------
+    text : str
+        The ``--accuracy`` value; empty items are skipped.
+
+    Returns
+    -------
+    tuple of float
+        The levels, in the order given.
+
+    Raises
+    ------
+    QpbenchError
+        On a value that is not a number or not a level :func:`check_accuracy` accepts, or when
+        no level is given.
+    """
     levels = []
     for part in text.split(","):
         if not part.strip():
@@ -158,7 +212,23 @@ def parse_accuracies(text: str) -> tuple[float, ...]:
 
 
 def parse_modes(text: str) -> tuple[str, ...]:
-    """``"cold,warm"`` -> ("cold", "warm")."""
+    """Parse a comma-separated list of modes: ``"cold,warm"`` -> ("cold", "warm").
+
+    Parameters
+    ----------
+    text : str
+        The ``--mode`` value; empty items are skipped.
+
+    Returns
+    -------
+    tuple of str
+        The modes, in the order given.
+
+    Raises
+    ------
+    QpbenchError
+        On a mode not in MODES, or when no mode is given.
+    """
     modes = tuple(part.strip() for part in text.split(",") if part.strip())
     for mode in modes:
         if mode not in MODES:
@@ -169,8 +239,23 @@ def parse_modes(text: str) -> tuple[str, ...]:
 
 
 def parse_statuses(text: str) -> tuple[str, ...]:
-    """``"timeout,crashed"`` -> ("timeout", "crashed"); raises QpbenchError on a status no row
-    can carry (one not in STATUSES), listing the known ones."""
+    """Parse a comma-separated list of statuses: ``"timeout,crashed"`` -> ("timeout", "crashed").
+
+    Parameters
+    ----------
+    text : str
+        The ``--retry`` value; empty items are skipped.
+
+    Returns
+    -------
+    tuple of str
+        The statuses, in the order given.
+
+    Raises
+    ------
+    QpbenchError
+        On a status no row can carry (one not in STATUSES), listing the known ones.
+    """
     statuses = tuple(part.strip() for part in text.split(",") if part.strip())
     for status in statuses:
         if status not in STATUSES:
@@ -180,8 +265,25 @@ def parse_statuses(text: str) -> tuple[str, ...]:
 
 
 def parse_solver_names(text: str) -> list[str]:
-    """``"pi-robust, osqp/dual"`` -> ["pi-robust", "osqp/dual"]; QpbenchError when the list
-    names no solver at all (``""``, ``","``)."""
+    """Parse a comma-separated list of solver names.
+
+    ``"pi-robust, osqp/dual"`` -> ["pi-robust", "osqp/dual"].
+
+    Parameters
+    ----------
+    text : str
+        The ``--solvers`` value; items are stripped and empty ones skipped.
+
+    Returns
+    -------
+    list of str
+        The names, in the order given.
+
+    Raises
+    ------
+    QpbenchError
+        When the list names no solver at all (``""``, ``","``).
+    """
     names = [part.strip() for part in text.split(",") if part.strip()]
     if not names:
         raise QpbenchError(f"--solvers: no solver named in '{text}' (name one or more, "
@@ -191,7 +293,22 @@ def parse_solver_names(text: str) -> list[str]:
 
 def cells(problems: list[tuple[str, str]], solver_keys: list[str], settings: RunSettings
           ) -> list[Cell]:
-    """Every cell of the matrix, problem-major: ``problems`` are (file, name) pairs."""
+    """List every cell of the matrix, problem-major.
+
+    Parameters
+    ----------
+    problems : list of tuple of (str, str)
+        (file, name) of each problem.
+    solver_keys : list of str
+        ``NAME/FORMULATION`` of each solver pair.
+    settings : RunSettings
+        The accuracy levels and modes of the matrix.
+
+    Returns
+    -------
+    list of Cell
+        One cell per problem, pair, level and mode, in that nesting order.
+    """
     matrix = []
     for problem_file, name in problems:
         for solver_key in solver_keys:

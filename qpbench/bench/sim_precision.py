@@ -9,23 +9,13 @@ with no pair of the kind (``nsgs`` on a frictionless scene) is a skipped row wit
 
 Each run records the inner solves' summed time and the run's wall time, and its final state
 against a *reference run*: the same scene at the tightest level by the first pair of
-:data:`REFERENCE_PAIRS` that ends the run with every inner solve accurate. With q the
-positions (x, y and, for rigid bodies, the angle) and v the velocities of every body in file
-order, and W the masses (m, m and the moment of inertia I), ``||z||_W = sqrt(sum W z^2)``:
-
-* ``position_error = ||q - q_ref||_W / max(||q_ref||_W, ||reach||_W)``, ``reach`` the bodies'
-  radii (r, r, 1 radian per body), so that a body at the origin is measured against its size;
-* ``velocity_error = ||v - v_ref||_W / max(||v_ref||_W, ||v_start||_W, |g| t sqrt(sum m),
-  tiny)``, the third the speed free fall reaches in the simulated time t (the free bodies'
-  masses), so that a body held at rest under gravity is measured against that speed;
-* ``state_error = max(position_error, velocity_error)``.
-
-Where SCISim's own final state at the same step count is known (the committed records of
-``problems/scisim_fidelity`` and, when present, the ``tight`` records of
-``../shared/scisim/expected`` whose self-consistency is within :data:`SCISIM_CONSISTENT`),
-the same measure against it is ``scisim_error``, and ``scisim_agrees`` applies the fidelity
-rule (positions within 1e-6, velocities within 1e-6 x max(1, largest SCISim speed)). A scene
-file is matched to a record by its bytes (SHA-256), so a copy anywhere is recognised.
+:data:`REFERENCE_PAIRS` that ends the run with every inner solve accurate. ``position_error``,
+``velocity_error`` and ``state_error`` measure the final positions and velocities against the
+reference's in the mass norm (:mod:`qpbench.bench.final_states` defines them). Where SCISim's
+own final state at the same step count is known (committed or shared records, matched to a
+scene file by its bytes), the same measure against it is ``scisim_error``, and
+``scisim_agrees`` applies the fidelity rule (positions within 1e-6, velocities within 1e-6 x
+max(1, largest SCISim speed)).
 
 Along the run, at the start of every step with contacts: the largest penetration, of a
 circle's contact (ball-ball, ball-plane, ball-drum) and of a box against the planes and the
@@ -42,9 +32,6 @@ falls on no level.
 
 from __future__ import annotations
 
-import gzip
-import hashlib
-import json
 import math
 import time
 from collections.abc import Callable, Iterable
@@ -56,12 +43,19 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from qpbench.atomic import atomic_path
+from qpbench.bench.final_states import (
+    ScisimState,
+    agrees_with_scisim,
+    final_state,
+    scene_digest,
+    scisim_states,
+    state_errors,
+)
 from qpbench.bench.plots import DPI, style
 from qpbench.errors import QpbenchError, UnsupportedError
 from qpbench.inner_solvers import chosen
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.problem.metrics import TINY
 from qpbench.scenes import load_scene
 from qpbench.scenes.model import FrictionSolver, ImpactOperator, Scene
 from qpbench.simulation import contacts, overlap
@@ -70,13 +64,6 @@ from qpbench.simulation.stepper import SimulationResult, Simulator, StepEvent
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import get
 
-ROOT = Path(__file__).resolve().parents[2]
-FIDELITY = ROOT / "problems" / "scisim_fidelity"
-SHARED_SCISIM = ROOT.parent / "shared" / "scisim"
-SCISIM_POSITION_TOLERANCE = 1e-6
-SCISIM_VELOCITY_TOLERANCE = 1e-6  # times max(1, the largest SCISim speed)
-# a shared ``tight`` record counts when it agrees with ``tighter`` this well (as the rule)
-SCISIM_CONSISTENT = 1e-8
 WITHIN = 1e-6  # the table: the loosest level whose final state stays this close
 FRICTIONAL, FRICTIONLESS = "frictional", "frictionless"
 # the registry's kind of problem each scene kind poses
@@ -97,15 +84,44 @@ def _silent(count: int, note: str | None) -> None:
 
 # --- pairs ---------------------------------------------------------------------------------
 def scene_kind(scene: Scene) -> str:
-    """``frictional`` when the scene declares friction with mu > 0, else ``frictionless``."""
+    """Give the kind of a scene: ``frictional`` when it declares friction with mu > 0.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+
+    Returns
+    -------
+    str
+        FRICTIONAL or FRICTIONLESS.
+    """
     return FRICTIONAL if scene.frictional else FRICTIONLESS
 
 
 def pair_for(name: str, kind: str) -> tuple[SolverSpec | None, str | None]:
-    """The pair that runs scenes of ``kind`` for the solver name ``name``, or None and why not.
+    """Find the pair that runs scenes of ``kind`` for the solver name ``name``, or say why none.
 
     ``NAME/FORMULATION`` itself when it takes that kind; else NAME's default pair of the kind
-    (:func:`qpbench.solvers.registry.get`); QpbenchError (one line) for an unknown name."""
+    (:func:`qpbench.solvers.registry.get`).
+
+    Parameters
+    ----------
+    name : str
+        A solver name, ``NAME`` or ``NAME/FORMULATION``.
+    kind : str
+        FRICTIONAL or FRICTIONLESS.
+
+    Returns
+    -------
+    tuple of (SolverSpec or None, str or None)
+        The pair and None, or None and why the name has no pair of the kind.
+
+    Raises
+    ------
+    QpbenchError
+        For an unknown name (one line).
+    """
     registry_kind = REGISTRY_KIND[kind]
     try:
         return get(name, registry_kind), None
@@ -123,7 +139,18 @@ def pair_for(name: str, kind: str) -> tuple[SolverSpec | None, str | None]:
 
 
 def choose_pair(spec: SolverSpec) -> ChooseSolve:
-    """A ChooseSolve giving every operator (and a friction solver) the pair ``spec``."""
+    """Make a ChooseSolve giving every operator (and a friction solver) the pair ``spec``.
+
+    Parameters
+    ----------
+    spec : SolverSpec
+        The inner solver's pair.
+
+    Returns
+    -------
+    ChooseSolve
+        The choice the simulator calls per operator.
+    """
 
     def choose(operator: ImpactOperator | FrictionSolver) -> ChosenSolve:
         return chosen(spec)
@@ -132,147 +159,23 @@ def choose_pair(spec: SolverSpec) -> ChooseSolve:
 
 
 def check_names(names: Iterable[str]) -> None:
-    """QpbenchError (one line) when a name is unknown, or has no usable pair of either kind."""
+    """Check that every solver name is known and has a usable pair of some kind.
+
+    Parameters
+    ----------
+    names : iterable of str
+        The solver names, ``NAME`` or ``NAME/FORMULATION``.
+
+    Raises
+    ------
+    QpbenchError
+        One line when a name is unknown, or has no usable pair of either kind.
+    """
     for name in names:
         found = [pair_for(name, kind)[0] for kind in (FRICTIONLESS, FRICTIONAL)]
         if not any(found):
             raise QpbenchError(f"solver '{name}' takes neither frictionless nor frictional "
                                "problems")
-
-
-# --- states and their errors ---------------------------------------------------------------
-def final_state(scene: Scene, result: SimulationResult) -> tuple[np.ndarray, np.ndarray]:
-    """q and v of the run's end, as SCISim lays them out: ``(x, y[, theta])`` and
-    ``(vx, vy[, omega])`` per body in file order, flattened."""
-    q, v = [result.x_final], [result.v_final]
-    if scene.bodies.rotates:
-        assert result.theta_final is not None and result.omega_final is not None
-        q.append(result.theta_final[:, None])
-        v.append(result.omega_final[:, None])
-    return np.hstack(q).ravel(), np.hstack(v).ravel()
-
-
-def start_state(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """q and v of the scene as written, laid out as :func:`final_state`."""
-    bodies = scene.bodies
-    q, v = [bodies.positions], [bodies.velocities]
-    if bodies.rotates:
-        q.append(bodies.theta[:, None])
-        v.append(bodies.omega[:, None])
-    return np.hstack(q).ravel(), np.hstack(v).ravel()
-
-
-def weights(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """The mass norm's weights (m, m[, I]) per body, and the reach (r, r[, 1]) that scales
-    positions, each laid out as :func:`final_state`."""
-    bodies = scene.bodies
-    mass = [bodies.masses, bodies.masses]
-    reach = [bodies.radii, bodies.radii]
-    if bodies.rotates:
-        mass.append(bodies.inertia)
-        reach.append(np.ones(bodies.count))
-    return np.stack(mass, axis=1).ravel(), np.stack(reach, axis=1).ravel()
-
-
-def _norm(values: np.ndarray, weight: np.ndarray) -> float:
-    return math.sqrt(float(np.sum(weight * values * values)))
-
-
-def falling_speed(scene: Scene, elapsed: float) -> float:
-    """``|g| t sqrt(sum m)`` over the free bodies: the mass norm of the velocities gravity
-    alone gives them in ``elapsed`` seconds (0 without gravity)."""
-    if scene.gravity is None:
-        return 0.0
-    free = ~scene.bodies.fixed
-    mass = float(np.sum(scene.bodies.masses[free]))
-    return float(np.hypot(*scene.gravity)) * elapsed * math.sqrt(mass)
-
-
-def state_errors(scene: Scene, q: np.ndarray, v: np.ndarray, q_ref: np.ndarray,
-                 v_ref: np.ndarray, elapsed: float) -> dict[str, float]:
-    """``position_error``, ``velocity_error`` and ``state_error`` of (q, v) against
-    (q_ref, v_ref) in the mass norm, after ``elapsed`` simulated seconds (module docstring)."""
-    weight, reach = weights(scene)
-    v_start = start_state(scene)[1]
-    position = _norm(q - q_ref, weight) / max(_norm(q_ref, weight), _norm(reach, weight), TINY)
-    velocity = _norm(v - v_ref, weight) / max(_norm(v_ref, weight), _norm(v_start, weight),
-                                              falling_speed(scene, elapsed), TINY)
-    return {"position_error": position, "velocity_error": velocity,
-            "state_error": max(position, velocity)}
-
-
-def agrees_with_scisim(q: np.ndarray, v: np.ndarray, q_scisim: np.ndarray,
-                       v_scisim: np.ndarray) -> bool:
-    """The fidelity rule: positions within SCISIM_POSITION_TOLERANCE, velocities within
-    SCISIM_VELOCITY_TOLERANCE x max(1, the largest SCISim speed), coordinate by coordinate."""
-    scale = max(1.0, float(np.max(np.abs(v_scisim)))) if v_scisim.size else 1.0
-    return bool(np.max(np.abs(q - q_scisim), initial=0.0) <= SCISIM_POSITION_TOLERANCE
-                and np.max(np.abs(v - v_scisim), initial=0.0)
-                <= SCISIM_VELOCITY_TOLERANCE * scale)
-
-
-# --- SCISim's records ----------------------------------------------------------------------
-@dataclass(frozen=True)
-class ScisimState:
-    """SCISim's final state of one scene after ``steps`` steps, and where it was read."""
-
-    steps: int
-    q: np.ndarray
-    v: np.ndarray
-    source: str
-
-
-def _digest(path: Path) -> str | None:
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
-def _consistent(record: dict[str, Any]) -> bool:
-    """A shared ``tight`` record whose run agrees with ``tighter`` within SCISIM_CONSISTENT."""
-    check = record.get("self_consistency") or {}
-    speed = max([1.0, *(abs(value) for value in record.get("v") or [])])
-    dq, dv = check.get("max_dq"), check.get("max_dv")
-    return (dq is not None and dv is not None and dq <= SCISIM_CONSISTENT
-            and dv <= SCISIM_CONSISTENT * speed)
-
-
-def _records() -> Iterable[tuple[Path, dict[str, Any], str]]:
-    """(scene file, record, source) of every usable SCISim record found."""
-    committed = FIDELITY / "expected.jsonl"
-    if committed.is_file():
-        for line in committed.read_text().splitlines():
-            record = json.loads(line)
-            yield FIDELITY / "scenes" / record["scene"], record, str(committed)
-    expected = SHARED_SCISIM / "expected"
-    for name in ("ball2d.jsonl", "rigidbody2d.jsonl", "fork.jsonl.gz"):
-        path = expected / name
-        if not path.is_file():
-            continue
-        text = (gzip.decompress(path.read_bytes()).decode() if name.endswith(".gz")
-                else path.read_text())
-        for line in text.splitlines():
-            record = json.loads(line)
-            if (record.get("variant") == "tight" and record.get("ok")
-                    and record.get("q") is not None and _consistent(record)):
-                yield SHARED_SCISIM / record["scene"], record, str(path)
-
-
-def scisim_states(steps: int) -> dict[str, ScisimState]:
-    """SCISim's final states after ``steps`` steps, keyed by the SHA-256 of the scene file."""
-    states: dict[str, ScisimState] = {}
-    digests: dict[Path, str | None] = {}
-    for scene, record, source in _records():
-        if record.get("steps") != steps:
-            continue
-        if scene not in digests:
-            digests[scene] = _digest(scene)
-        digest = digests[scene]
-        if digest is not None and digest not in states:
-            states[digest] = ScisimState(steps, np.array(record["q"], dtype=float),
-                                         np.array(record["v"], dtype=float), source)
-    return states
 
 
 # --- one run -------------------------------------------------------------------------------
@@ -287,7 +190,20 @@ class RunTally:
 
 
 def mdp_gap(problem: FrictionalProblem, impulses: np.ndarray) -> float:
-    """The maximum-dissipation gap of one frictional answer (module docstring)."""
+    """Compute the maximum-dissipation gap of one frictional answer (module docstring).
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The step's problem.
+    impulses : numpy.ndarray
+        The accepted impulses, normal then tangential (2n).
+
+    Returns
+    -------
+    float
+        The largest gap over the contacts over ``scale^2``; 0 without contacts.
+    """
     if problem.n_contacts == 0:
         return 0.0
     normal, tangential = problem.split(impulses)
@@ -298,9 +214,23 @@ def mdp_gap(problem: FrictionalProblem, impulses: np.ndarray) -> float:
 
 
 def penetration(scene: Scene, event: StepEvent) -> float:
-    """The deepest overlap at the step's start: of a circle's contact (its gap), and of every
-    box against the planes and against the bodies it has a contact with
-    (:mod:`qpbench.simulation.overlap`); 0 if none."""
+    """Find the deepest overlap at the step's start.
+
+    Of a circle's contact (its gap), and of every box against the planes and against the
+    bodies it has a contact with (:mod:`qpbench.simulation.overlap`).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene simulated.
+    event : StepEvent
+        The step's positions, orientations and contacts.
+
+    Returns
+    -------
+    float
+        The depth; 0 if nothing overlaps.
+    """
     found = event.contacts
     deepest = 0.0
     if found.count:
@@ -315,8 +245,24 @@ def penetration(scene: Scene, event: StepEvent) -> float:
 
 def box_overlap(scene: Scene, positions: np.ndarray, angles: np.ndarray,
                 found: contacts.Contacts) -> float:
-    """The deepest overlap of a box at ``positions`` and ``angles``: each box against each
-    plane, and each body-body contact pair with a box in it."""
+    """Find the deepest overlap of a box: each against each plane, and each contact pair with one.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene simulated.
+    positions : numpy.ndarray
+        The bodies' positions, shape (bodies, 2).
+    angles : numpy.ndarray
+        The bodies' orientations in radians.
+    found : Contacts
+        The step's contacts; only body-body pairs with a box in them are measured.
+
+    Returns
+    -------
+    float
+        The depth; 0 if no box overlaps.
+    """
     bodies = scene.bodies
     is_box, half_widths, radii = bodies.is_box, bodies.half_widths, bodies.radii
     deepest = 0.0
@@ -339,7 +285,21 @@ def box_overlap(scene: Scene, positions: np.ndarray, angles: np.ndarray,
 
 
 def tally_hook(scene: Scene, tally: RunTally) -> Callable[[StepEvent], None]:
-    """The per-step hook filling ``tally`` (its own time counted in ``tally.hook_s``)."""
+    """Make the per-step hook that fills ``tally``.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene simulated.
+    tally : RunTally
+        Where the hook records the largest penetration, Coulomb residual and maximum-dissipation
+        gap, and its own time (``hook_s``).
+
+    Returns
+    -------
+    callable
+        The hook, called with each StepEvent.
+    """
 
     def hook(event: StepEvent) -> None:
         start = time.perf_counter()
@@ -357,9 +317,25 @@ def tally_hook(scene: Scene, tally: RunTally) -> Callable[[StepEvent], None]:
 
 def simulate(scene: Scene, spec: SolverSpec, accuracy: float, steps: int
              ) -> tuple[SimulationResult, RunTally, str | None]:
-    """One run of ``scene`` with ``spec`` at ``accuracy`` for at most ``steps`` steps; the
-    result, the tally, and the reason it stopped early (a failed inner solve, a state no
-    longer finite), or None."""
+    """Run ``scene`` with ``spec`` at ``accuracy`` for at most ``steps`` steps.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    spec : SolverSpec
+        The inner solver's pair.
+    accuracy : float
+        The inner solves' accuracy level.
+    steps : int
+        The step cap.
+
+    Returns
+    -------
+    tuple of (SimulationResult, RunTally, str or None)
+        The result, the tally, and the reason it stopped early (a failed inner solve, a state
+        no longer finite), or None.
+    """
     tally = RunTally()
     simulator = Simulator(scene, choose_pair(spec), accuracy=accuracy)
     try:
@@ -378,7 +354,18 @@ def _never_called(problem: Any, accuracy: float, warm_start: np.ndarray | None) 
 
 
 def needs_inner_solver(scene: Scene) -> bool:
-    """The scene has an operator (or a frictional friction solver) that calls an inner solve."""
+    """Tell whether the scene has an operator (or a friction solver) that calls an inner solve.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+
+    Returns
+    -------
+    bool
+        True when some operator needs an inner solver.
+    """
     probe = Simulator(scene, lambda operator: ChosenSolve(name="probe", solve=_never_called))
     return bool(probe.inner)
 
@@ -392,7 +379,28 @@ ROW_FIELDS = ("scene", "kind", "solver", "pair", "accuracy", "steps", "status", 
 
 def row(scene: Scene, kind: str, solver: str, pair: str | None, accuracy: float,
         **values: Any) -> dict[str, Any]:
-    """One result row with every field of ROW_FIELDS (None where not given)."""
+    """Make one result row with every field of ROW_FIELDS (None where not given).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    kind : str
+        FRICTIONAL or FRICTIONLESS.
+    solver : str
+        The solver name as given.
+    pair : str or None
+        The pair's key; None when the name has no pair of the kind.
+    accuracy : float
+        The level.
+    **values : Any
+        The row's other fields.
+
+    Returns
+    -------
+    dict of str to Any
+        The row.
+    """
     base = {name: None for name in ROW_FIELDS}
     base.update(scene=scene.path, kind=kind, solver=solver, pair=pair, accuracy=accuracy)
     base.update(values)
@@ -403,7 +411,34 @@ def measured_row(scene: Scene, kind: str, solver: str, spec: SolverSpec, accurac
                  run: tuple[SimulationResult, RunTally, str | None],
                  reference: tuple[np.ndarray, np.ndarray] | None,
                  scisim: ScisimState | None) -> dict[str, Any]:
-    """The row of one run: times, errors against the reference and SCISim, the tally."""
+    """Make the row of one run: times, errors against the reference and SCISim, the tally.
+
+    Errors are measured only for a run that ended, against SCISim only at its step count.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    kind : str
+        FRICTIONAL or FRICTIONLESS.
+    solver : str
+        The solver name as given.
+    spec : SolverSpec
+        The pair that ran.
+    accuracy : float
+        The level.
+    run : tuple of (SimulationResult, RunTally, str or None)
+        What :func:`simulate` gave.
+    reference : tuple of (numpy.ndarray, numpy.ndarray) or None
+        The reference run's final (q, v); None without one.
+    scisim : ScisimState or None
+        SCISim's final state of the scene; None when unknown.
+
+    Returns
+    -------
+    dict of str to Any
+        The row (:func:`row`).
+    """
     result, tally, stopped = run
     finished = stopped is None
     values: dict[str, Any] = {
@@ -431,9 +466,25 @@ def measured_row(scene: Scene, kind: str, solver: str, spec: SolverSpec, accurac
 
 def reference_run(scene: Scene, accuracy: float, steps: int
                   ) -> tuple[dict[str, Any], tuple[np.ndarray, np.ndarray] | None]:
-    """The reference of ``scene``: the first pair of REFERENCE_PAIRS[kind] that ends the run
-    at ``accuracy`` with no failed or inaccurate inner solve. Its summary (``pair`` None when
-    none did, ``tried`` saying why each was passed over) and its final (q, v)."""
+    """Run the reference of ``scene``: the first pair of REFERENCE_PAIRS[kind] that ends accurate.
+
+    A pair qualifies when its run at ``accuracy`` ends with no failed or inaccurate inner solve.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    accuracy : float
+        The tightest level.
+    steps : int
+        The step cap.
+
+    Returns
+    -------
+    tuple of (dict, tuple of (numpy.ndarray, numpy.ndarray) or None)
+        Its summary (``pair`` None when none did, ``tried`` saying why each was passed over)
+        and its final (q, v), or None.
+    """
     kind = scene_kind(scene)
     tried: list[str] = []
     for name in REFERENCE_PAIRS[kind]:
@@ -458,16 +509,52 @@ def reference_run(scene: Scene, accuracy: float, steps: int
 
 # --- the measurement -----------------------------------------------------------------------
 def run_count(scenes: int, names: int, levels: int) -> int:
-    """The runs :func:`sim_precision` makes at most: per scene a reference and one per
-    (name, level)."""
+    """Count the runs :func:`sim_precision` makes at most.
+
+    Per scene: a reference and one per (name, level).
+
+    Parameters
+    ----------
+    scenes, names, levels : int
+        How many scenes, solver names and levels.
+
+    Returns
+    -------
+    int
+        The number of runs.
+    """
     return scenes * (1 + names * levels)
 
 
 def sim_precision(scene_paths: list[str], names: list[str], levels: tuple[float, ...],
                   steps: int, progress: Advance | None = None) -> dict[str, Any]:
-    """Every scene x solver name x level measured (module docstring) into one report:
-    ``scenes`` (each with its reference), ``rows``, ``loosest`` (:func:`loosest_within`) and
-    ``markdown``. ``progress`` is told after every run."""
+    """Measure every scene x solver name x level (module docstring) into one report.
+
+    Parameters
+    ----------
+    scene_paths : list of str
+        The scene files.
+    names : list of str
+        The solver names, ``NAME`` or ``NAME/FORMULATION``.
+    levels : tuple of float
+        The accuracy levels; the tightest is the reference's.
+    steps : int
+        The step cap of every run.
+    progress : callable, optional
+        Told ``(runs done, note)`` after every run; None tells nothing.
+
+    Returns
+    -------
+    dict of str to Any
+        ``title``, ``steps``, ``levels``, ``solvers``, ``within``, ``reference_pairs``,
+        ``scenes`` (each with its reference), ``rows``, ``loosest`` (:func:`loosest_within`)
+        and ``markdown``.
+
+    Raises
+    ------
+    QpbenchError
+        On an unknown solver name, or a scene file that cannot be read.
+    """
     told = progress or _silent
     check_names(names)
     scenes = [load_scene(path) for path in scene_paths]
@@ -479,7 +566,7 @@ def sim_precision(scene_paths: list[str], names: list[str], levels: tuple[float,
     warmed: set[str] = set()
     for scene in scenes:
         kind = scene_kind(scene)
-        known = scisim.get(_digest(Path(scene.path)) or "")
+        known = scisim.get(scene_digest(Path(scene.path)) or "")
         summary: dict[str, Any] = {
             "scene": scene.path, "kind": kind, "bodies": scene.bodies.count,
             "boxes": scene.bodies.has_boxes, "portals": bool(scene.portals),
@@ -519,9 +606,24 @@ def sim_precision(scene_paths: list[str], names: list[str], levels: tuple[float,
 
 
 def loosest_within(rows: list[dict[str, Any]], within: float = WITHIN) -> list[dict[str, Any]]:
-    """Per scene and pair: the loosest level from which every run down to the tightest level
-    ended with ``state_error <= within`` (None when the tightest did not), and its solve time
-    over the tightest level's (``cost_ratio``)."""
+    """Find per scene and pair the loosest level whose runs stay within ``within``.
+
+    The level is the loosest from which every run down to the tightest level ended with
+    ``state_error <= within`` (None when the tightest did not); ``cost_ratio`` is its solve
+    time over the tightest level's.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The report's rows.
+    within : float, optional
+        The bound on ``state_error``; WITHIN by default.
+
+    Returns
+    -------
+    list of dict
+        Per (scene, solver): scene, kind, solver, pair, accuracy, state_error, cost_ratio.
+    """
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for entry in rows:
         if entry["pair"] is not None:
@@ -568,9 +670,23 @@ def _short(scene: str) -> str:
 
 
 def pair_summary(rows: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
-    """Per (solver, level) over the scenes of ``kind``: the summed inner-solve and wall times
-    of the runs that ended, the largest and median ``state_error``, runs that failed, and the
-    scenes whose final state stayed within WITHIN."""
+    """Summarise each (solver, level) over the scenes of ``kind``.
+
+    The summed inner-solve and wall times of the runs that ended, the largest and median
+    ``state_error``, runs that failed, and the scenes whose final state stayed within WITHIN.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The report's rows.
+    kind : str
+        FRICTIONAL or FRICTIONLESS.
+
+    Returns
+    -------
+    list of dict
+        One entry per (solver, level), by solver then loosest level first.
+    """
     groups: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for entry in rows:
         if entry["kind"] == kind and entry["status"] != "skipped":
@@ -599,9 +715,23 @@ LOOSEST_CAPTION = ("Loosest level from which every tighter level's final state s
 
 def loosest_grid(report: dict[str, Any], kind: str
                  ) -> tuple[list[str], list[tuple[str, list[str]]]]:
-    """The per-scene table of ``report["loosest"]`` for the scenes of ``kind``: the solver
-    names that have a row, and per scene its short name and a cell per solver (the loosest
-    level within WITHIN and its cost ratio, ``none`` or ``skipped``)."""
+    """Lay out ``report["loosest"]`` as a per-scene table for the scenes of ``kind``.
+
+    Each cell holds the loosest level within WITHIN and its cost ratio, ``none`` or
+    ``skipped``.
+
+    Parameters
+    ----------
+    report : dict of str to Any
+        The report of :func:`sim_precision`.
+    kind : str
+        FRICTIONAL or FRICTIONLESS.
+
+    Returns
+    -------
+    tuple of (list of str, list of tuple of (str, list of str))
+        The solver names that have a row, and per scene its short name and its cells.
+    """
     loosest = report["loosest"]
     solvers = [name for name in report["solvers"]
                if any(entry["kind"] == kind and entry["solver"] == name for entry in loosest)]
@@ -626,9 +756,22 @@ def loosest_grid(report: dict[str, Any], kind: str
 
 
 def markdown(report: dict[str, Any]) -> str:
-    """The measurement as a Markdown section: per kind of scene, a table per pair and level
-    (summed times, largest error, failures) and the per-scene table of the loosest level within
-    WITHIN of the reference with its cost against the tightest level."""
+    """Write the measurement as a Markdown section.
+
+    Per kind of scene, a table per pair and level (summed times, largest error, failures) and
+    the per-scene table of the loosest level within WITHIN of the reference with its cost
+    against the tightest level.
+
+    Parameters
+    ----------
+    report : dict of str to Any
+        The report of :func:`sim_precision`.
+
+    Returns
+    -------
+    str
+        The Markdown text.
+    """
     rows = report["rows"]
     tightest = min(report["levels"])
     lines = [f"# {report['title']}", "",
@@ -677,10 +820,24 @@ def markdown(report: dict[str, Any]) -> str:
 
 
 def figure(report: dict[str, Any], path: str | Path) -> Path | None:
-    """The scene-level work-precision figure as a PNG at ``path``: a panel per kind of scene,
-    a curve per solver, each point one level at (inner-solve time summed over the kind's
-    scenes, largest ``state_error`` over them), drawn only where every run of that level
-    ended. None when nothing can be drawn."""
+    """Draw the scene-level work-precision figure as a PNG at ``path``.
+
+    A panel per kind of scene, a curve per solver, each point one level at (inner-solve time
+    summed over the kind's scenes, largest ``state_error`` over them), drawn only where every
+    run of that level ended.
+
+    Parameters
+    ----------
+    report : dict of str to Any
+        The report of :func:`sim_precision`.
+    path : str or pathlib.Path
+        The PNG file to write (atomically).
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``path``; None when nothing can be drawn (nothing written).
+    """
     kinds = [kind for kind in (FRICTIONLESS, FRICTIONAL)
              if any(entry["kind"] == kind for entry in report["rows"])]
     if not kinds:

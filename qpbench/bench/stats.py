@@ -31,12 +31,36 @@ PROFILE_TAUS = np.logspace(0, 4, 200)
 
 
 def solver_keys(frame: pd.DataFrame) -> pd.Series:
-    """``solver/formulation`` for every row."""
+    """Give ``solver/formulation`` for every row.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows with ``solver`` and ``formulation`` columns.
+
+    Returns
+    -------
+    pandas.Series
+        The pair's key of each row, on ``frame``'s index.
+    """
     return frame["solver"].astype(str) + "/" + frame["formulation"].astype(str)
 
 
 def charged_times(frame: pd.DataFrame) -> pd.Series:
-    """time_s where the solve succeeded, else the run's time limit (or the largest time seen)."""
+    """Give each row's time charged: ``time_s`` where the solve succeeded, else the time limit.
+
+    A row without a time limit is charged the largest time seen (1 s when there is none).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows with ``time_s``, ``success`` and, optionally, ``time_limit_s``.
+
+    Returns
+    -------
+    pandas.Series
+        The charged time in seconds of each row, on ``frame``'s index.
+    """
     fallback = float(np.nanmax(frame["time_s"].to_numpy(dtype=float), initial=1.0))
     limit = frame["time_limit_s"].astype(float).fillna(fallback) if "time_limit_s" in frame \
         else pd.Series(fallback, index=frame.index)
@@ -46,10 +70,23 @@ def charged_times(frame: pd.DataFrame) -> pd.Series:
 
 
 def time_scale_shift(frame: pd.DataFrame, factor: float = SHIFT_FACTOR) -> float:
-    """The shift of the geometric mean on the problems' own time scale:
-    ``factor * median over (problem, accuracy) of the fastest successful time_s``.
+    """Compute the shift of the geometric mean on the problems' own time scale.
 
-    Falls back to ``factor`` times the median of all finite times, then to 1 s."""
+    The shift is ``factor * median over (problem, accuracy) of the fastest successful
+    time_s``; it falls back to ``factor`` times the median of all positive times, then to 1 s.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows with ``problem``, ``accuracy``, ``success`` and ``time_s``.
+    factor : float, optional
+        The multiple of the median; SHIFT_FACTOR (10) by default.
+
+    Returns
+    -------
+    float
+        The shift in seconds.
+    """
     solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()]
     if len(solved):
         fastest = solved.groupby(["problem", "accuracy"])["time_s"].min()
@@ -62,7 +99,20 @@ def time_scale_shift(frame: pd.DataFrame, factor: float = SHIFT_FACTOR) -> float
 
 
 def shifted_geometric_mean(times: Sequence[float] | np.ndarray, shift: float) -> float:
-    """SGM = exp(mean(log(t_i + shift))) - shift; NaN for no times."""
+    """Compute the shifted geometric mean SGM = exp(mean(log(t_i + shift))) - shift.
+
+    Parameters
+    ----------
+    times : sequence of float or numpy.ndarray
+        The times t_i in seconds.
+    shift : float
+        The shift in seconds (:func:`time_scale_shift`).
+
+    Returns
+    -------
+    float
+        The SGM in seconds; NaN for no times.
+    """
     values = np.asarray(times, dtype=float)
     if values.size == 0:
         return math.nan
@@ -70,9 +120,26 @@ def shifted_geometric_mean(times: Sequence[float] | np.ndarray, shift: float) ->
 
 
 def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
-    """Per (accuracy, solver/formulation): solves, success rate, SGM of charged time, median
-    formulation time (building its matrices, outside time_s), median and max residual, max v_error,
-    counts of crashed / timeout / out-of-memory rows."""
+    """Summarise each (accuracy, solver/formulation) of a results table.
+
+    Per pair and level: solves, success rate, SGM of charged time, median formulation time
+    (building its matrices, outside time_s), median and max residual, max v_error, counts of
+    crashed / timeout / out-of-memory rows.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+    shift : float
+        The shift of the SGM in seconds (:func:`time_scale_shift`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (accuracy, pair), sorted: columns accuracy, solver (the pair), ours,
+        solves, success_rate, sgm_time_s, median_formulation_s, median_residual, max_residual,
+        max_v_error, crashed, timeout, out_of_memory.
+    """
     frame = frame.assign(key=solver_keys(frame), charged=charged_times(frame))
     rows = []
     for (accuracy, key), group in frame.groupby(["accuracy", "key"], sort=True):
@@ -97,9 +164,20 @@ def level_summary(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
 
 
 def performance_ratios(frame: pd.DataFrame) -> pd.DataFrame:
-    """problem x solver/formulation table of r = t / min over solvers of t (inf on failure).
+    """Tabulate the performance ratios r = t / min over solvers of t (inf on failure).
 
-    Problems no solver solved are dropped (no ratio exists)."""
+    Problems no solver solved are dropped (no ratio exists).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows of one accuracy level.
+
+    Returns
+    -------
+    pandas.DataFrame
+        problem x solver/formulation table of r.
+    """
     frame = frame.assign(key=solver_keys(frame))
     success = frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()
     times = frame["time_s"].astype(float).where(success, np.inf)
@@ -112,7 +190,20 @@ def performance_ratios(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def performance_profile(frame: pd.DataFrame, taus: np.ndarray = PROFILE_TAUS) -> pd.DataFrame:
-    """Dolan-More profile: rho_s(tau) = share of problems with r_{p,s} <= tau (index tau)."""
+    """Compute the Dolan-More profile rho_s(tau): the share of problems with r_{p,s} <= tau.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows of one accuracy level.
+    taus : numpy.ndarray, optional
+        The values of tau; PROFILE_TAUS (200 points from 1 to 1e4) by default.
+
+    Returns
+    -------
+    pandas.DataFrame
+        tau (index) x solver/formulation table of rho; no columns when no problem was solved.
+    """
     ratios = performance_ratios(frame)
     if ratios.empty:
         return pd.DataFrame(index=pd.Index(taus, name="tau"))
@@ -123,8 +214,22 @@ def performance_profile(frame: pd.DataFrame, taus: np.ndarray = PROFILE_TAUS) ->
 
 
 def cost_of_accuracy(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
-    """Per solver/formulation (rows) the SGM charged time at each level, and the ratio from each
-    level to the next tighter one (columns ``a -> b``)."""
+    """Tabulate each pair's SGM charged time at each level and its growth from level to level.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+    shift : float
+        The shift of the SGM in seconds (:func:`time_scale_shift`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per solver/formulation (rows) the SGM charged time at each level (columns
+        ``SGM @ a``, loosest first), and the ratio from each level to the next tighter one
+        (columns ``a -> b``); empty without rows.
+    """
     summary = level_summary(frame, shift)
     if summary.empty:
         return summary
@@ -139,9 +244,22 @@ def cost_of_accuracy(frame: pd.DataFrame, shift: float) -> pd.DataFrame:
 
 
 def paired_cost_of_accuracy(frame: pd.DataFrame) -> pd.DataFrame:
-    """Per solver/formulation (rows), for each level and the next tighter one (columns
-    ``a -> b``): the median over problems solved at BOTH levels of ``t_b / t_a``, so failures
-    at either level do not enter (NaN: no problem solved at both)."""
+    """Tabulate each pair's time ratio from each level to the next, on problems solved at both.
+
+    For each level and the next tighter one (columns ``a -> b``): the median over problems
+    solved at BOTH levels of ``t_b / t_a``, so failures at either level do not enter.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per solver/formulation (rows, index ``solver``) the median ratio of each step; NaN
+        where no problem is solved at both levels.
+    """
     frame = frame.assign(key=solver_keys(frame))
     solved = frame[frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()]
     times = solved.pivot_table(index=["key", "problem"], columns="accuracy", values="time_s",
@@ -161,12 +279,27 @@ def paired_cost_of_accuracy(frame: pd.DataFrame) -> pd.DataFrame:
 
 def accuracy_within_budget(frame: pd.DataFrame, budget_s: float, share: float = 0.9
                            ) -> pd.DataFrame:
-    """Per solver/formulation, what it reaches within ``budget_s`` seconds per solve:
+    """Tabulate what each pair reaches within ``budget_s`` seconds per solve.
 
     * ``tightest_level``: the smallest accuracy level at which it succeeded within the budget
       on at least ``share`` of the problems (NaN: none);
     * ``median_best_v_error``: over problems, the median of the smallest v_error among its
-      successful solves within the budget (inf for a problem with none)."""
+      successful solves within the budget (inf for a problem with none).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+    budget_s : float
+        The time budget per solve in seconds.
+    share : float, optional
+        The share of problems a level must be reached on; 0.9 by default.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per pair: solver, problems, tightest_level, median_best_v_error.
+    """
     frame = frame.assign(key=solver_keys(frame))
     in_budget = (frame["success"].fillna(False).astype(bool) & frame["time_s"].notna()
                  & (frame["time_s"] <= budget_s))
@@ -188,16 +321,43 @@ def accuracy_within_budget(frame: pd.DataFrame, budget_s: float, share: float = 
 
 
 def own_mark(group: pd.DataFrame) -> str:
-    """``ours`` for the rows of a solver written here (backend ``qpbench``): it stops on
-    qpbench's own residual, so its claim agrees with the verdict by construction."""
+    """Mark the rows of a solver written here.
+
+    Such a solver (backend ``qpbench``) stops on qpbench's own residual, so its claim agrees
+    with the verdict by construction.
+
+    Parameters
+    ----------
+    group : pandas.DataFrame
+        The rows of one pair, with a ``backend`` column.
+
+    Returns
+    -------
+    str
+        ``ours`` when a row's backend is ``qpbench``, else ``''``.
+    """
     return "ours" if (group["backend"].astype(str) == OWN_BACKEND).any() else ""
 
 
 def honesty(frame: pd.DataFrame) -> pd.DataFrame:
-    """Per solver/formulation, over solves that returned (no crash, timeout or out-of-memory):
-    the share where its own claim of success agreed with qpbench's verdict, and the two ways
-    it can disagree (claimed success but failed; claimed failure but solved). Our own solvers
-    are marked (``ours``): their honesty is 100% by construction, not an achievement."""
+    """Tabulate how often each pair's own claim of success agrees with qpbench's verdict.
+
+    Over solves that returned (no crash, timeout or out-of-memory): the share where its own
+    claim of success agreed with qpbench's verdict, and the two ways it can disagree (claimed
+    success but failed; claimed failure but solved). Our own solvers are marked (``ours``):
+    their honesty is 100% by construction, not an achievement.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per pair: solver, ours, solves, honesty_rate, false_success_claims,
+        false_failure_claims.
+    """
     returned = frame[frame["status"].isin(["solved", "inaccurate", "failed"])]
     returned = returned.assign(key=solver_keys(returned))
     rows = []
@@ -224,22 +384,56 @@ FORMULATION_ORDER = ("dual", "lcp", "primal", "dual-factored", "nsgs", "staggere
 
 
 def formulations_in_order(frame: pd.DataFrame) -> list[str]:
-    """The formulations of ``frame``'s rows, those of FORMULATION_ORDER first in its order."""
+    """List the formulations of ``frame``'s rows, those of FORMULATION_ORDER first in its order.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows with a ``formulation`` column.
+
+    Returns
+    -------
+    list of str
+        The formulations present; those not in FORMULATION_ORDER follow, by name.
+    """
     present = set(frame["formulation"].dropna().astype(str))
     return ([name for name in FORMULATION_ORDER if name in present]
             + sorted(present - set(FORMULATION_ORDER)))
 
 
 def without_unsolvable(frame: pd.DataFrame) -> pd.DataFrame:
-    """The rows of the problems not known to have no solution: a problem with a
-    ``no-solution`` row loses all its rows (a timeout on it included), never counted against
-    a solver."""
+    """Drop the rows of the problems known to have no solution.
+
+    A problem with a ``no-solution`` row loses all its rows (a timeout on it included), never
+    counted against a solver.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The rows of the other problems.
+    """
     hopeless = set(frame.loc[frame["status"].astype(str) == NO_SOLUTION, "problem"])
     return frame[~frame["problem"].isin(hopeless)]
 
 
 def pair_backends(frame: pd.DataFrame) -> dict[str, str]:
-    """``solver/formulation`` -> the backend of its rows ('' where the column is missing)."""
+    """Map each ``solver/formulation`` to the backend of its rows.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows, with or without a ``backend`` column.
+
+    Returns
+    -------
+    dict of str to str
+        pair -> the backend of its first row ('' where the column is missing).
+    """
     backend = (frame["backend"].astype("string").fillna("").astype(str) if "backend" in frame
                else pd.Series("", index=frame.index))
     return {str(key): str(value) for key, value in
@@ -248,15 +442,27 @@ def pair_backends(frame: pd.DataFrame) -> dict[str, str]:
 
 def fastest_pairs(summarised: Sequence[tuple[str, float, pd.DataFrame]],
                   backends: dict[str, str]) -> pd.DataFrame:
-    """Per family and level (loosest first), among the pairs that solve the family at the level
+    """Pick, per family and level, the fastest pair of each formulation, of others and of ours.
+
+    Per family and level (loosest first), among the pairs that solve the family at the level
     (at least SOLVES_SHARE of its problems): the fastest pair of each formulation (``column``
     the formulation), the fastest pair of a backend other than ours (``column`` EXTERNAL) and
-    the fastest pair written here (``column`` OURS).
+    the fastest pair written here (``column`` OURS). A column with no pair that solves has no
+    row; ties go to the first pair by name.
 
-    ``summarised`` holds (family, shift, summary) with a summary's columns ``accuracy``,
-    ``solver`` (the pair), ``success_rate`` and ``sgm_time_s``; ``backends`` maps a pair to its
-    backend. Columns: family, level, column, pair, sgm_time_s, success_rate. A column with no
-    pair that solves has no row; ties go to the first pair by name."""
+    Parameters
+    ----------
+    summarised : sequence of tuple of (str, float, pandas.DataFrame)
+        (family, shift, summary) with a summary's columns ``accuracy``, ``solver`` (the pair),
+        ``success_rate`` and ``sgm_time_s`` (:func:`level_summary`).
+    backends : dict of str to str
+        pair -> its backend (:func:`pair_backends`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns family, level, column, pair, sgm_time_s, success_rate.
+    """
     rows = []
     for family, _shift, summary in summarised:
         solving = summary[summary["success_rate"] >= SOLVES_SHARE]
@@ -291,9 +497,22 @@ def _solved_times(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def time_growth(frame: pd.DataFrame) -> pd.Series:
-    """Per pair: the geometric mean, over the problems it solves at both the loosest level and
+    """Measure how each pair's time grows from the loosest level to GROWTH_LEVEL.
+
+    Per pair: the geometric mean, over the problems it solves at both the loosest level and
     GROWTH_LEVEL (the tightest level where that is absent), of the time at the tighter level
-    divided by the time at the loosest. Pairs without such a problem are left out."""
+    divided by the time at the loosest. Pairs without such a problem are left out.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.Series
+        pair -> growth factor; empty with fewer than two levels.
+    """
     levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
     times = _solved_times(frame)
     if len(levels) < 2 or times.empty:
@@ -306,9 +525,21 @@ def time_growth(frame: pd.DataFrame) -> pd.Series:
 
 
 def iterative_pairs(frame: pd.DataFrame) -> list[str]:
-    """The pairs whose time grows with the level (time_growth >= ITERATIVE_GROWTH), the
-    steepest first: the first-order and splitting methods, whose iterations follow the
-    tolerance, where a direct method's factorization costs the same at every level."""
+    """List the pairs whose time grows with the level (time_growth >= ITERATIVE_GROWTH).
+
+    These are the first-order and splitting methods, whose iterations follow the tolerance,
+    where a direct method's factorization costs the same at every level.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    list of str
+        The pairs, the steepest first.
+    """
     growth = time_growth(frame)
     growth = growth[growth >= ITERATIVE_GROWTH]
     return [str(key) for key in growth.sort_values(ascending=False, kind="stable").index]
@@ -331,11 +562,24 @@ def _step_logs(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def time_per_digit(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
-    """Per pair (rows, in the order of ``pairs``) and family (columns, ALL_PROBLEMS first): the
-    factor each further digit of accuracy multiplies its time by, the geometric mean over the
-    family's problems it solves at two consecutive levels a > b of
-    ``(t_b / t_a) ** (1 / log10(a / b))``. NaN where it solves no problem at two consecutive
-    levels."""
+    """Tabulate the factor each further digit of accuracy multiplies a pair's time by.
+
+    Per pair and family: the geometric mean over the family's problems it solves at two
+    consecutive levels a > b of ``(t_b / t_a) ** (1 / log10(a / b))``.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+    pairs : sequence of str
+        The pairs to tabulate.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Pairs (rows, in the order of ``pairs``) x families (columns, ALL_PROBLEMS first); NaN
+        where a pair solves no problem at two consecutive levels.
+    """
     steps = _step_logs(frame[solver_keys(frame).isin(list(pairs))])
     family = frame.assign(family=frame["family"].astype("string").fillna("").astype(str)) \
         .groupby("problem")["family"].first()
@@ -349,10 +593,24 @@ def time_per_digit(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
 
 
 def relative_time(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
-    """Per pair (rows, in the order of ``pairs``) and level (columns, loosest first): its time
-    relative to the loosest level, the product of the steps up to the level, each step the
-    geometric mean over the problems solved at both its levels of the time ratio. NaN from the
-    first step without such a problem on."""
+    """Tabulate each pair's time relative to the loosest level, at each level.
+
+    The relative time is the product of the steps up to the level, each step the geometric
+    mean over the problems solved at both its levels of the time ratio.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+    pairs : sequence of str
+        The pairs to tabulate.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Pairs (rows, in the order of ``pairs``) x levels (columns, loosest first, where the
+        value is 1); NaN from the first step without a problem solved at both levels on.
+    """
     levels = sorted({float(a) for a in frame["accuracy"].dropna()}, reverse=True)
     steps = _step_logs(frame[solver_keys(frame).isin(list(pairs))])
     mean = steps.groupby(["key", "looser"])["log"].mean()
@@ -369,13 +627,26 @@ def relative_time(frame: pd.DataFrame, pairs: Sequence[str]) -> pd.DataFrame:
 
 
 def wrapper_costs(frame: pd.DataFrame) -> pd.DataFrame:
-    """Per native pair (backend NATIVE_BACKEND, ``<solver>-native``) and each twin that calls
+    """Compare each native pair with its twins that call the same solver through a wrapper.
+
+    Per native pair (backend NATIVE_BACKEND, ``<solver>-native``) and each twin that calls
     the same solver on the same formulation through a wrapper (WRAPPERS: the qpsolvers pair
     ``<solver>``, the cvxpy pair ``cvxpy-<solver>``) in ``frame``: over the cells (problem,
     level, mode) both ran, the success rate of each, and the median over the cells both solved
     of the twin's time divided by the native pair's (what the wrapper adds: above 1 it is
-    slower). Columns: native, wrapper, twin, cells, native_success_rate, twin_success_rate,
-    both_solved, time_ratio."""
+    slower).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns native, wrapper, twin, cells, native_success_rate, twin_success_rate,
+        both_solved, time_ratio; empty without a ``backend`` column.
+    """
     columns = ["native", "wrapper", "twin", "cells", "native_success_rate",
                "twin_success_rate", "both_solved", "time_ratio"]
     if "backend" not in frame:

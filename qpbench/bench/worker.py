@@ -55,8 +55,20 @@ from qpbench.solvers.run import call_solver, judge
 
 
 def timer_overhead_s(samples: int = 2000) -> float:
-    """The smallest gap between two back-to-back ``time.perf_counter()`` calls (seconds):
-    the resolution below which a measured solve time means nothing."""
+    """Measure the resolution below which a measured solve time means nothing.
+
+    It is the smallest gap between two back-to-back ``time.perf_counter()`` calls.
+
+    Parameters
+    ----------
+    samples : int, optional
+        Pairs of calls to take the minimum over; 2000 by default.
+
+    Returns
+    -------
+    float
+        The smallest gap in seconds.
+    """
     best = math.inf
     for _ in range(samples):
         start = time.perf_counter()
@@ -65,16 +77,28 @@ def timer_overhead_s(samples: int = 2000) -> float:
 
 
 def warm_start_for(problem: ImpactProblem | FrictionalProblem) -> tuple[np.ndarray | None, str]:
-    """The warm start of ``problem`` and where it came from.
+    """Give the warm start of ``problem`` and where it came from.
 
     * ``previous``: the impulses the simulator carried into this step from the previous one
       (``problem.data["warm_start"]``, stored by a capture of a scene that caches impulses,
       as SCISim's ``cache_impulses``): what a simulator has;
-    * ``none``: the problem carries none; the solve is then a cold start.
+    * ``none``: the problem carries none (or one of the wrong size); the solve is then a cold
+      start.
 
     Never anything derived from the reference: a solver must not see the answer it is judged
     against (sequence mode, ``qpbench sequence``, warm-starts every solver from its own
     answers instead).
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to warm-start.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray or None, str)
+        The warm start (n impulses, 2n for a frictional problem) or None, and ``previous`` or
+        ``none``.
     """
     previous = problem.data.get("warm_start")
     size = problem.n_contacts * (2 if isinstance(problem, FrictionalProblem) else 1)
@@ -112,16 +136,48 @@ class CellSolver:
         self.memory_limit_mb = 0
 
     def say(self, event: str, **fields: Any) -> None:
+        """Announce an event to the runner (nothing without an ``announce`` callback).
+
+        Parameters
+        ----------
+        event : str
+            The event's name (``ready``, ``load``, ``begin``, ``end``, ``row``, ``error``).
+        **fields : Any
+            The message's other fields (the cell's index, ...).
+        """
         if self.announce is not None:
             self.announce({"event": event, **fields})
 
     def problem(self, path: str) -> ImpactProblem | FrictionalProblem:
-        """The problem of ``path``, loaded once per batch."""
+        """Load the problem of ``path`` once per batch.
+
+        Parameters
+        ----------
+        path : str
+            The problem file.
+
+        Returns
+        -------
+        ImpactProblem or FrictionalProblem
+            The problem, kept until the batch ends.
+        """
         if path not in self._problems:
             self._problems[path] = files.load(path)
         return self._problems[path]
 
     def spec(self, key: str) -> SolverSpec:
+        """Resolve a solver key once per process.
+
+        Parameters
+        ----------
+        key : str
+            ``NAME/FORMULATION`` of the pair.
+
+        Returns
+        -------
+        SolverSpec
+            The pair's solver.
+        """
         if key not in self._specs:
             self._specs[key] = resolve([key])[0]
         return self._specs[key]
@@ -129,14 +185,30 @@ class CellSolver:
     def warm_up(self, spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
                 accuracy: float, warm_start: np.ndarray | None, problem_file: str = "",
                 cell_index: int = 0) -> None:
-        """Solves ``problem`` once with ``spec``, exactly as the timed solves will (a blind
-        copy posed in the solver's formulation, the same warm start), and discards the
-        answer and its time, the first time this process meets the pair on
-        ``problem_file``: the first call fills the caches and does the lazy set-up (a
-        backend's imports and code paths, the problem's own arrays) that every later call
-        finds done, so every timed level of the pair sees the same state. The runner's
-        wall-clock limit applies to it as to a timed solve (announced for the batch's
-        ``cell_index``-th cell)."""
+        """Solve ``problem`` once untimed, the first time this process meets the pair on the file.
+
+        The solve is exactly as the timed solves will be (a blind copy posed in the solver's
+        formulation, the same warm start); its answer and its time are discarded. The first call
+        fills the caches and does the lazy set-up (a backend's imports and code paths, the
+        problem's own arrays) that every later call finds done, so every timed level of the pair
+        sees the same state. The runner's wall-clock limit applies to it as to a timed solve
+        (announced for the batch's ``cell_index``-th cell).
+
+        Parameters
+        ----------
+        spec : SolverSpec
+            The solver.
+        problem : ImpactProblem or FrictionalProblem
+            The problem.
+        accuracy : float
+            The accuracy level of the solve.
+        warm_start : numpy.ndarray or None
+            The warm start of the timed solves; None for a cold start.
+        problem_file : str, optional
+            The problem's file, which with the solver's key identifies the pair; ``""`` by default.
+        cell_index : int, optional
+            The index in the batch of the cell announced; 0 by default.
+        """
         if (problem_file, spec.key) in self._warmed:
             return
         self._warmed.add((problem_file, spec.key))
@@ -146,8 +218,7 @@ class CellSolver:
 
     def solve_batch(self, cells: Sequence[Cell], limits: Limits
                     ) -> Iterator[tuple[int, dict[str, Any] | Exception]]:
-        """(index in ``cells``, row) of each cell as it finishes, or (index, the exception)
-        of a cell that could not be set up or judged.
+        """Solve a batch of cells under the timing protocol, each outcome as it comes.
 
         Each cell's problem is loaded and its solver resolved (announced as ``load``), then
         a :class:`~qpbench.bench.schedule.Schedule` of the cells, with units (problem file,
@@ -157,7 +228,21 @@ class CellSolver:
         cell's index and repeat. A cell is done, and judged, after ``limits.repeats`` timed
         solves, or fewer once they have taken ``limits.repeat_budget_s`` in all, or after a
         failed solve (never repeated). Its row judges the first timed answer; ``time_s`` is
-        the minimum over its interleaved repeats, ``time_median_s`` their median."""
+        the minimum over its interleaved repeats, ``time_median_s`` their median.
+
+        Parameters
+        ----------
+        cells : sequence of Cell
+            The batch's cells.
+        limits : Limits
+            The repeats and repeat budget of each cell.
+
+        Yields
+        ------
+        tuple of (int, dict or Exception)
+            The index in ``cells`` and the cell's row, or the exception of a cell that could not
+            be set up or judged.
+        """
         ready: dict[int, tuple[SolverSpec, ImpactProblem | FrictionalProblem,
                                np.ndarray | None, str]] = {}
         try:
@@ -212,8 +297,33 @@ class CellSolver:
     def row(self, cell: Cell, spec: SolverSpec, problem: ImpactProblem | FrictionalProblem,
             outputs: list[SolverOutput], warm_start: np.ndarray | None, warm_source: str
             ) -> dict[str, Any]:
-        """The row of a cell from its timed ``outputs``: qpbench's judgement of the first
-        answer and the times of all (``time_s`` their minimum)."""
+        """Make the row of a cell from its timed ``outputs``.
+
+        The row is qpbench's judgement of the first answer and the times of all (``time_s`` their
+        minimum, ``time_median_s`` their median, ``time_max_s`` their maximum; the formulation and
+        backend times their minima), with the warm start, the repeats, the memory cap and the
+        provenance. A MemoryError under the memory cap becomes ``out-of-memory``.
+
+        Parameters
+        ----------
+        cell : Cell
+            The cell.
+        spec : SolverSpec
+            The cell's solver.
+        problem : ImpactProblem or FrictionalProblem
+            The cell's problem.
+        outputs : list of SolverOutput
+            The outputs of the cell's timed solves (at least one).
+        warm_start : numpy.ndarray or None
+            The warm start handed to the solver; None for a cold start.
+        warm_source : str
+            Where the warm start came from (``previous``, ``none``, or ``cold``).
+
+        Returns
+        -------
+        dict
+            The cell's results row.
+        """
         row = judge(spec, problem, outputs[0], cell.accuracy)
         if (self.memory_limit_mb > 0
                 and str(row.get("solver_status", "")).startswith("error: MemoryError")):
@@ -240,9 +350,27 @@ class CellSolver:
         return row
 
     def solve(self, cell: Cell, limits: Limits) -> dict[str, Any]:
-        """The row of ``cell`` alone (a batch of one; its repeats then follow one another,
-        as nothing else is there to run between them); the exception of a cell that could
-        not be set up or judged is raised."""
+        """Solve ``cell`` alone (a batch of one).
+
+        Its repeats then follow one another, as nothing else is there to run between them.
+
+        Parameters
+        ----------
+        cell : Cell
+            The cell.
+        limits : Limits
+            The repeats and repeat budget of the cell.
+
+        Returns
+        -------
+        dict
+            The cell's results row.
+
+        Raises
+        ------
+        Exception
+            The exception of a cell that could not be set up or judged.
+        """
         [(_, outcome)] = list(self.solve_batch([cell], limits))
         if isinstance(outcome, Exception):
             raise outcome
@@ -251,12 +379,23 @@ class CellSolver:
 
 def serve(receive: Callable[[], dict[str, Any] | None],
           send: Callable[[dict[str, Any]], None]) -> None:
-    """Answers each request ``{"cells": [...], "limits": ...}`` (or ``{"cell": ...}``, a batch
-    of one; until ``receive`` gives None) with ``load`` and ``begin``/``end`` events and one
-    ``row`` per cell (or ``{"event": "error"}`` for a cell that could not be set up), each
-    naming the cell's index in the batch. A message that cannot be sent (the runner closed
-    its end: it stopped or was interrupted) ends the process quietly (SystemExit 0), with no
-    traceback in its log."""
+    """Answer the runner's requests until ``receive`` gives None.
+
+    Each request ``{"cells": [...], "limits": ...}`` (or ``{"cell": ...}``, a batch of one) is
+    answered with ``load`` and ``begin``/``end`` events and one ``row`` per cell (or
+    ``{"event": "error"}`` for a cell that could not be set up), each naming the cell's index
+    in the batch. Every backend is imported and prepared, and ``ready`` sent, before the first
+    request; the memory cap is applied at the first request that sets one. A message that
+    cannot be sent (the runner closed its end: it stopped or was interrupted) ends the process
+    quietly (SystemExit 0), with no traceback in its log.
+
+    Parameters
+    ----------
+    receive : callable
+        Gives the next request, or None when the runner has no more.
+    send : callable
+        Sends one message to the runner.
+    """
 
     def send_or_leave(message: dict[str, Any]) -> None:
         try:
@@ -284,8 +423,20 @@ def serve(receive: Callable[[], dict[str, Any] | None],
 
 
 def report(solver: CellSolver, index: int, outcome: dict[str, Any] | Exception) -> None:
-    """Sends the row of the batch's ``index``-th cell, or for an exception the row of an
-    allocation that failed under the memory cap (``out-of-memory``) or an ``error`` event."""
+    """Send the outcome of the batch's ``index``-th cell to the runner.
+
+    A row is sent as it is; an exception becomes the row of an allocation that failed under
+    the memory cap (``out-of-memory``) or an ``error`` event.
+
+    Parameters
+    ----------
+    solver : CellSolver
+        The solver whose ``say`` sends the message.
+    index : int
+        The cell's index in the batch.
+    outcome : dict or Exception
+        The cell's row, or the exception of a cell that could not be set up or judged.
+    """
     if isinstance(outcome, dict):
         solver.say("row", cell=index, row=outcome)
     elif isinstance(outcome, MemoryError) and solver.memory_limit_mb > 0:
@@ -346,9 +497,23 @@ def main() -> None:
 
 def child_main(connection: Connection, log_path: str, extra_solvers: str = "",
                search_path: list[str] | None = None) -> None:
-    """Entry point of a worker forked by the multiprocessing fork server: messages on
-    ``connection``; stdout and stderr go to ``log_path``; the runner's current
-    $QPBENCH_EXTRA_SOLVERS and module search path are taken over."""
+    """Run a worker forked by the multiprocessing fork server.
+
+    Messages go over ``connection``; stdout and stderr go to ``log_path``, whose name is
+    removed once opened; the runner's current $QPBENCH_EXTRA_SOLVERS and module search path
+    are taken over.
+
+    Parameters
+    ----------
+    connection : multiprocessing.connection.Connection
+        The worker's end of the pipe to the runner.
+    log_path : str
+        The log file the runner created; when it is gone the worker exits at once.
+    extra_solvers : str, optional
+        The runner's $QPBENCH_EXTRA_SOLVERS; ``""`` (unset) by default.
+    search_path : list of str, optional
+        The runner's module search path, appended to this process's; None adds nothing.
+    """
     try:  # never created here: a log that is gone means the runner has stopped this worker
         log = os.open(log_path, os.O_WRONLY | os.O_APPEND)
     except OSError:
