@@ -17,10 +17,14 @@ COUPLED = 0.1
 # the change in the step before (a drift keeps its length, a slow contraction shrinks it).
 DRIFT_RATIO = 0.999
 
-# Floating-point freedoms of the factor and its solves: sums may be reordered (so that their
-# inner products vectorise) and fused; NaN and infinity keep their meaning, so that a failing
-# pivot is still caught.
-REDUCTIONS = {"reassoc", "contract"}
+# Floating-point freedoms of the factor and its solves: a product and the sum it enters may be
+# fused into one multiply-add (every x86-64 CPU with FMA3 fuses the same pairs), but no sum is
+# reordered: a reordering is the compiler's to choose by the CPU's vector width, and the answer
+# would then depend on the CPU. The inner products keep LANES partial sums of their own instead
+# (:func:`.factor._subtract_products`), which vectorise the same on every CPU. NaN and infinity
+# keep their meaning, so that a failing pivot is still caught.
+REDUCTIONS = {"contract"}
+LANES = 8
 # The functions that every step of policy iteration runs are compiled without numba's
 # reference counting (its ``_nrt`` option), which otherwise adds an atomic increment and
 # decrement for every array a function binds, slices or passes on. Such a function cannot

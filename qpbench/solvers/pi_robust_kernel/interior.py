@@ -36,6 +36,16 @@ from qpbench.solvers.pi_robust_kernel.structures import Options, OrderedLcp, _wo
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
+def _inner(left: np.ndarray, right: np.ndarray) -> float:
+    """``sum_i left_i right_i``, in index order: a loop, not ``@`` (which calls the BLAS, whose
+    summation order depends on the CPU)."""
+    total = 0.0
+    for i in range(left.size):
+        total += left[i] * right[i]
+    return total
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     """The largest ``alpha <= 1`` with ``value + alpha * change >= 0``."""
     alpha = 1.0
@@ -137,7 +147,7 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     for iteration in range(1, options.ipm_iters + 1):
         iterations = iteration - 1
         infeasibility = root * _matvec(A, root * impulses) + scaled_b - slack
-        mu = float(impulses @ slack) / n
+        mu = _inner(impulses, slack) / n
         original_l = impulses * root
         original_w = (infeasibility + slack) / root
         res = 0.0
@@ -180,7 +190,7 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
         dl = _envelope_solve(normal, normal_first, n, -slack - infeasibility)
         dw = root * _matvec(A, root * dl) + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
-        mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
+        mu_affine = _inner(impulses + alpha * dl, slack + alpha * dw) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = _envelope_solve(normal, normal_first, n, rhs)

@@ -1,0 +1,90 @@
+"""pi-robust gives the same answers, bit for bit, whatever CPU its kernel is compiled for.
+
+numba compiles the kernel for the CPU it runs on. Sums that the compiler may reorder would be
+reordered by the CPU's vector width (AVX2's four doubles, AVX-512's eight), and on problems
+where block pivoting follows the rounding, the path and the answer would change with the CPU.
+Here the kernel is compiled again in fresh processes, each for another CPU (``NUMBA_CPU_NAME``,
+with a cache of its own), and every answer on problems of the hard families must equal this
+process's, byte for byte. The targets: an AMD CPU with 512-bit vectors, an Intel one, and an
+AVX2-only CPU of each vendor's older kind, all different from most hosts.
+
+Run as a script (``python tests/test_pi_robust_cpu_targets.py``) it prints the digests of its
+answers, one line per problem, which is what the test compares.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qpbench.problem.generate import generate
+from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+# two targets per run, compiled side by side (about a minute each on two cores)
+FOREIGN_TARGETS = ("znver4", "haswell")
+HOST_TWINS = {"znver4": "sapphirerapids", "haswell": "znver2"}
+
+
+def problems() -> list[ImpactProblem]:
+    """Problems whose solves take many pivots on nearly singular blocks: mass ratios,
+    near-duplicate contacts, grids, a box packing, a cradle and K4."""
+    chosen: list[ImpactProblem] = []
+    for family, sizes, count in (("mass-ratio", (5, 7, 10), 4), ("near-duplicate", (4, 6), 2),
+                                 ("grid", (5, 10), 2), ("box", (100,), 1),
+                                 ("cradle", (50,), 1), ("k4", (None,), 2)):
+        for size in sizes:
+            chosen.extend(generate(family, size, seed=1, count=count))
+    return chosen
+
+
+def digests() -> list[str]:
+    """``name digest`` per problem: the SHA-1 of pi-robust's answer at 1e-8, as bytes."""
+    spec = get("pi-robust/lcp")
+    assert spec.prepare is not None
+    spec.prepare()
+    lines = []
+    for problem in problems():
+        output = call_solver(spec, problem, 1e-8)
+        assert output.impulses is not None, output.status
+        answer = np.ascontiguousarray(output.impulses, dtype=np.float64)
+        lines.append(f"{problem.name} {hashlib.sha1(answer.tobytes()).hexdigest()}")
+    return lines
+
+
+def host_cpu_name() -> str:
+    """LLVM's name of this machine's CPU (what numba compiles for by default)."""
+    from llvmlite import binding  # (llvmlite comes with numba)
+
+    return binding.get_host_cpu_name()
+
+
+@pytest.mark.slow
+def test_pi_robust_answers_do_not_depend_on_the_cpu_compiled_for(tmp_path: Path) -> None:
+    host = host_cpu_name()
+    targets = [HOST_TWINS[target] if target == host else target for target in FOREIGN_TARGETS]
+    runs = []
+    for target in targets:
+        environment = dict(os.environ, NUMBA_CPU_NAME=target, NUMBA_CPU_FEATURES="",
+                           NUMBA_CACHE_DIR=str(tmp_path / target))
+        runs.append(subprocess.Popen([sys.executable, __file__], env=environment,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    here = digests()
+    for target, run in zip(targets, runs, strict=True):
+        out, err = run.communicate(timeout=900)
+        assert run.returncode == 0, err[-2000:]
+        there = out.splitlines()
+        differing = [f"{mine} != {theirs}" for mine, theirs in zip(here, there, strict=True)
+                     if mine != theirs]
+        assert not differing, f"compiled for {target} (host {host}):\n" + "\n".join(differing)
+
+
+if __name__ == "__main__":
+    print("\n".join(digests()))
