@@ -132,14 +132,47 @@ class BlockSolver:
         self.factorizations_over_dofs = 0  # of them, blocks factored through L (Woodbury)
 
     def counts(self) -> dict[str, int]:
-        """The factorizations so far, and how many of them ran over the degrees of freedom."""
+        """The factorizations so far, and how many of them ran over the degrees of freedom.
+
+        Returns
+        -------
+        dict[str, int]
+            ``factorizations``, every block factored (or, up to ``small`` contacts, formed
+            for LU) since construction, and ``factorizations_over_dofs``, those of them
+            factored through Q's factor L in Woodbury form.
+        """
         return {"factorizations": self.factorizations,
                 "factorizations_over_dofs": self.factorizations_over_dofs}
 
     def solve(self, policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray
               ) -> np.ndarray:
-        """x_F for the policy (boolean ``policy``, its indices ``index``); raises LinAlgError
-        when the block cannot be factored."""
+        """Solve ``(Q_FF + rho D_F) x_F = rhs`` on the policy's free contacts F.
+
+        The factor of the block is taken from the cache under the key (policy, rho), or made
+        and counted; it becomes the most recently used, and the least recently used beyond
+        ``keep`` are dropped. D_F is ``lcp.safe_diag`` (zeros replaced).
+
+        Parameters
+        ----------
+        policy : np.ndarray
+            Boolean, n entries: the free contacts F (part of the cache key).
+        index : np.ndarray
+            The indices of F, ``np.flatnonzero(policy)``.
+        rho : float
+            The prox weight (part of the cache key).
+        rhs : np.ndarray
+            The right side, one entry per free contact (in the order of ``index``).
+
+        Returns
+        -------
+        np.ndarray
+            x_F, one entry per free contact.
+
+        Raises
+        ------
+        np.linalg.LinAlgError
+            When the block cannot be factored (or, up to ``small`` contacts, is singular).
+        """
         key = (np.packbits(policy).tobytes(), rho)
         factor = self.cache.pop(key, None)
         if factor is None:
@@ -513,8 +546,23 @@ class LemkeAnswer(NamedTuple):
 
 
 def lemke_of(lcp: Lcp, tol: float, lemke_limit: int) -> LemkeAnswer | None:
-    """Lemke's method on the LCP, within ``50 n + 100`` pivots; None above ``lemke_limit``
-    contacts."""
+    """Lemke's method on the LCP, within ``50 n + 100`` pivots; None above ``lemke_limit``.
+
+    Parameters
+    ----------
+    lcp : Lcp
+        The LCP of n contacts (densified by Lemke's tableau).
+    tol : float
+        qpbench's relative residual to reach.
+    lemke_limit : int
+        The most contacts on which Lemke's method runs.
+
+    Returns
+    -------
+    LemkeAnswer or None
+        Lemke's l, whether it converged, its status, its pivots and whether it ended on a
+        certified ray; None when the LCP has more than ``lemke_limit`` contacts.
+    """
     if lcp.n > lemke_limit:
         return None
     impulses, converged, status, pivots = lemke.lemke(lcp, tol, max_pivots=50 * lcp.n + 100)
@@ -546,8 +594,23 @@ NO_START = np.empty(0)  # the kernel's "start from zero"
 
 
 def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses;
-    indices as 32-bit integers, as SciPy stores them (no copy then), for the kernel."""
+    """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses.
+
+    Indices are 32-bit integers, as SciPy stores them (no copy then), for the kernel.
+
+    Parameters
+    ----------
+    Q : sp.spmatrix
+        The matrix; converted to CSC when it is in another format.
+
+    Returns
+    -------
+    indptr, indices : np.ndarray
+        The column starts and row indices, int32 (the CSC matrix's own arrays when they are
+        int32 already).
+    data : np.ndarray
+        The entries, column by column (the CSC matrix's own array, not a copy).
+    """
     Q = Q if sp.isspmatrix_csc(Q) else sp.csc_matrix(Q)
     return (Q.indptr.astype(np.int32, copy=False), Q.indices.astype(np.int32, copy=False),
             Q.data)
@@ -565,8 +628,22 @@ class Settings(NamedTuple):
 
 @functools.lru_cache(maxsize=64)
 def settings_for(eps: float) -> Settings:
-    """The accuracy table's row for level ``eps``, read once per level (tolerances here are
-    relative to the problem's scale, so they do not depend on it)."""
+    """The accuracy table's row for level ``eps``, read once per level.
+
+    Tolerances here are relative to the problem's scale, so they do not depend on it.
+
+    Parameters
+    ----------
+    eps : float
+        qpbench's accuracy level, a bound on the relative residual.
+
+    Returns
+    -------
+    Settings
+        The row split into the kernel's packed options, the Python path's keyword arguments
+        (without ``start_sweeps`` and the limits) and the three limits. Cached: callers must
+        not change it.
+    """
     options = accuracy.options_for(NAME, eps, 1.0)
     limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
                                                 "compiled_work_limit")}
@@ -591,14 +668,43 @@ def _unconfirmed(problem: ImpactProblem, settings: Settings, answer: tuple,
 
 def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
                 warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
-    """``kernel``'s answer from Q's CSC arrays, b, diag(Q), the start (empty: from zero),
+    """Call a compiled entry point of the kernel on ``problem``.
+
+    ``kernel`` gets Q's CSC arrays, b, diag(Q), the start (empty: from zero),
     ``after_start``, the ordering threshold, the work limit and the packed options.
 
     The relaxed solve runs this inside the stopwatch, straight after the posing has emptied
     the caches, and :func:`solve` makes the same call itself, so it touches as little Python
     as it can: Q is CSC by construction (``ImpactProblem.Q``), b and diag(Q) float arrays,
     and Q's index arrays go as SciPy made them (32-bit at these sizes, the type
-    :func:`prepare` compiles the kernel for)."""
+    :func:`prepare` compiles the kernel for).
+
+    Parameters
+    ----------
+    kernel : Callable[..., tuple]
+        The entry point, ``pi_robust_kernel.entry.envelope_pi_robust`` or
+        ``relaxed_pi_robust``.
+    problem : ImpactProblem
+        The posed problem (for the relaxed entry, ``FrictionalProblem.relaxed()``).
+    settings : Settings
+        The accuracy level's row (:func:`settings_for`): its work limit and packed options.
+    warm_start : np.ndarray or None
+        A start, flattened to float; None starts from zero.
+    *after_start : np.ndarray
+        Arguments the entry point takes after the start (the relaxed entry's friction
+        coefficients mu).
+
+    Returns
+    -------
+    tuple
+        The entry point's answer: for ``envelope_pi_robust`` (l, converged, path, solves,
+        interior iterations, factorizations, certified); ``relaxed_pi_robust`` puts r first.
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When a factor fails in the kernel.
+    """
     Q = problem.Q
     return kernel(Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
                   NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
@@ -664,12 +770,30 @@ def _after_kernel_failure(problem: ImpactProblem, settings: Settings, answer: tu
 
 def solve_relaxed(problem: FrictionalProblem, eps: float,
                   warm_start: np.ndarray | None = None) -> SolverOutput | None:
-    """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``), its
-    warm start mapped in, swept contact by contact (each contact's (z+, z-) as one block) and
-    its answer r mapped back inside the one compiled call
+    """pi-robust on Anitescu's relaxation of ``problem`` (posed: ``problem.relaxed()``).
+
+    Its warm start is mapped in, swept contact by contact (each contact's (z+, z-) as one
+    block) and its answer r mapped back inside the one compiled call
     (``pi_robust_kernel.entry.relaxed_pi_robust``); when that fails in full,
     :func:`_after_kernel_failure` on the relaxed problem, mapped back; None when the compiled
-    path declines, so that the ccp twin's general path runs."""
+    path declines, so that the ccp twin's general path runs.
+
+    Parameters
+    ----------
+    problem : FrictionalProblem
+        The frictional problem of n contacts.
+    eps : float
+        qpbench's accuracy level.
+    warm_start : np.ndarray or None, optional
+        A start r = (l_N, l_T) of 2n entries; None (the default) starts from zero.
+
+    Returns
+    -------
+    SolverOutput or None
+        The answer r on ``problem``, its status, solves and path; None when the relaxed
+        problem has no contacts or more than ``compiled_limit``, when a factor fails, or when
+        the kernel's answer is neither confirmed nor a failure in full.
+    """
     relaxed = problem.relaxed()
     settings = settings_for(eps)
     contacts = relaxed.n_contacts

@@ -92,8 +92,22 @@ def _gauss_seidel(A: Csc, b: np.ndarray, diag: np.ndarray, impulses: np.ndarray,
 
 @njit(cache=True)
 def clean_start(warm_start: np.ndarray, n: int) -> np.ndarray:
-    """The start: ``max(warm_start, 0)`` when it has n entries, all finite, else zeros (as
-    ``qpbench.solvers.lcp.Lcp.start``, in compiled code: no NumPy call overhead)."""
+    """The start: ``max(warm_start, 0)`` when it has n entries, all finite, else zeros.
+
+    As ``qpbench.solvers.lcp.Lcp.start``, in compiled code: no NumPy call overhead.
+
+    Parameters
+    ----------
+    warm_start : np.ndarray
+        The caller's start l (empty: none).
+    n : int
+        The number of contacts.
+
+    Returns
+    -------
+    np.ndarray
+        A new n-entry start, never a view of ``warm_start``.
+    """
     if warm_start.size != n:
         return np.zeros(n)
     for value in warm_start:

@@ -63,11 +63,28 @@ def residual_rounding_bound(csc: Csc, b: np.ndarray, scale: float,
                             impulses: np.ndarray) -> float:
     """Bound how far any other summation order of ``Q l + b`` can move the residual.
 
-    Returns ``2 gamma max_i (sum_k |Q_ik l_k| + |b_i|) / scale`` with
+    The bound is ``2 gamma max_i (sum_k |Q_ik l_k| + |b_i|) / scale`` with
     ``gamma = (m + 2) u / (1 - (m + 2) u)``, m the most entries in a column and u = 2^-53
     (Higham 2002, section 3.1: another product order, or fused multiply-adds, changes each sum
     by at most gamma times its sum of magnitudes). D l, min, abs, max and the division round
     identically in every implementation.
+
+    Parameters
+    ----------
+    csc : Csc
+        Q's CSC arrays ``(indptr, indices, data)`` as posed.
+    b : np.ndarray
+        The LCP's constant term (n entries).
+    scale : float
+        The residual's scale (``metrics.scale``).
+    impulses : np.ndarray
+        l (n entries).
+
+    Returns
+    -------
+    float
+        The bound, in the residual's (scaled) units: added to :func:`natural_residual`, no
+        summation order can give a larger residual.
     """
     return _rounding_bound_into(csc, b, scale, impulses, np.empty(b.size))
 
@@ -150,7 +167,18 @@ def _matvec(csc: Csc, x: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
 def matvec_into(csc: Csc, x: np.ndarray, product: np.ndarray) -> None:
-    """``product = Q x`` over Q's CSC arrays (the columns of zero entries of x skipped)."""
+    """Form ``product = Q x`` over Q's CSC arrays (the columns of zero entries of x skipped).
+
+    Parameters
+    ----------
+    csc : Csc
+        Q's CSC arrays ``(indptr, indices, data)``.
+    x : np.ndarray
+        The vector to multiply (n entries).
+    product : np.ndarray
+        Where Q x is written (n entries, overwritten); summed column by column, in the order
+        of scipy's CSC product.
+    """
     indptr, indices, data = csc
     product[:] = 0.0
     for column in range(x.size):

@@ -59,14 +59,38 @@ PACKED = ("tol", "rho", *Prox._fields, "pi_budget", "finish_budget", "finish_bel
 
 
 def options_of(settings: dict[str, Any]) -> np.ndarray:
-    """The kernel's options, packed in the order PACKED, from pi-robust's accuracy-table row
-    (other keys ignored)."""
+    """Pack the kernel's options into one float array, in the order of ``PACKED``.
+
+    Parameters
+    ----------
+    settings : dict[str, Any]
+        pi-robust's accuracy-table row (``accuracy.options_for("pi-robust", ...)``); it must
+        hold every name of ``PACKED``, other keys are ignored. Booleans and integers are
+        stored as floats.
+
+    Returns
+    -------
+    np.ndarray
+        The ``len(PACKED)`` option values as float64, read back by :func:`unpacked`.
+    """
     return np.array([float(settings[name]) for name in PACKED])
 
 
 @njit(cache=True)
 def unpacked(values: np.ndarray) -> Options:
-    """:class:`Options` from the array :func:`options_of` packs (positions as in PACKED)."""
+    """:class:`Options` from the array :func:`options_of` packs (positions as in PACKED).
+
+    Parameters
+    ----------
+    values : np.ndarray
+        The packed options (float64, ``len(PACKED)`` entries); counts are truncated to int,
+        and ``active_set`` is true when its entry is non-zero.
+
+    Returns
+    -------
+    Options
+        The options, their prox safeguards as :class:`Prox`.
+    """
     prox = Prox(values[2], values[3], values[4], int(values[5]), int(values[6]),
                 values[7] != 0.0, int(values[8]))
     return Options(values[0], values[1], prox, int(values[9]), int(values[10]), values[11],
