@@ -8,7 +8,12 @@
   polish (minimum-norm solve of ``Q_AA l_A = -b_A`` on ``A = {D l > w}``).
 
 ``agreement = ||v+_a - v+_b||_M / ||v-||_M``; the reference is verified when it
-is at most REFERENCE_TOLERANCE. A problem whose references disagree is flagged
+is at most REFERENCE_TOLERANCE. Where the two disagree, or the better one's residual is above
+REFERENCE_TOLERANCE (the finest accuracy level), the LCP is solved and certified in exact
+rational arithmetic from the better one's active set
+(``qpbench.problem.extended_reference``): that solution becomes the reference, checked
+against the closer of the two, and its residual floor (the least residual known of a double
+vector) is recorded. A problem whose references still disagree is flagged
 (``Reference.verified`` is False) and its v_error is never computed.
 """
 
@@ -22,6 +27,7 @@ import qpsolvers
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
+from qpbench.problem.extended_reference import ExtendedReference, extended_reference
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem, Reference
 from qpbench.problem.scaling import jacobi_scaled
@@ -208,7 +214,9 @@ def compute_reference(problem: ImpactProblem) -> Reference:
     -------
     Reference
         v+ and l of the method with the smaller residual, the other's v+ as the check, and
-        their agreement.
+        their agreement; an :class:`ExtendedReference` (v+ and l certified in exact arithmetic,
+        with the residual floor) where they disagree or the residual is above
+        REFERENCE_TOLERANCE and the exact solve succeeds.
 
     Raises
     ------
@@ -245,10 +253,19 @@ def compute_reference(problem: ImpactProblem) -> Reference:
     v_dual = problem.v_plus(impulses)
     agreement = _agreement(problem, v_dual, v_primal)
     if metrics.residual(problem, impulses_primal) < metrics.residual(problem, impulses):
-        return Reference(v_primal, impulses_primal, primal_method, v_dual, method, agreement,
-                         REFERENCE_TOLERANCE)
-    return Reference(v_dual, impulses, method, v_primal, primal_method, agreement,
-                     REFERENCE_TOLERANCE)
+        reference = Reference(v_primal, impulses_primal, primal_method, v_dual, method,
+                              agreement, REFERENCE_TOLERANCE)
+    else:
+        reference = Reference(v_dual, impulses, method, v_primal, primal_method, agreement,
+                              REFERENCE_TOLERANCE)
+    if reference.verified and metrics.residual(problem, reference.impulses) <= REFERENCE_TOLERANCE:
+        return reference
+    # disagreement, or a residual above the finest level: the LCP certified exactly
+    extended = extended_reference(problem, [(v_primal, impulses_primal, primal_method),
+                                            (v_dual, impulses, method)], REFERENCE_TOLERANCE)
+    if extended is not None and (extended.verified or not reference.verified):
+        return extended
+    return reference
 
 
 def attach_reference(problem: ImpactProblem) -> ImpactProblem:
@@ -262,9 +279,13 @@ def attach_reference(problem: ImpactProblem) -> ImpactProblem:
     Returns
     -------
     ImpactProblem
-        ``problem``, with ``reference_agreement`` and ``reference_verified`` in its metadata.
+        ``problem``, with ``reference_agreement`` and ``reference_verified`` in its metadata,
+        and ``reference_residual_floor`` when the reference was certified in exact arithmetic
+        (:class:`ExtendedReference`: the least residual a double vector is known to reach).
     """
     problem.reference = compute_reference(problem)
     problem.metadata["reference_agreement"] = problem.reference.agreement
     problem.metadata["reference_verified"] = problem.reference.verified
+    if isinstance(problem.reference, ExtendedReference):
+        problem.metadata["reference_residual_floor"] = problem.reference.floor
     return problem
