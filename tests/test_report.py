@@ -12,14 +12,15 @@ import pytest
 from bench_problems import write_tiny_problems
 from friction_cases import ball_on_floor
 
-from qpbench.bench import stats
+from qpbench.bench import reduced_reference, stats
 from qpbench.bench.report import write_report
 from qpbench.bench.results import ResultStore
-from qpbench.bench.runner import complete_row
+from qpbench.bench.runner import complete_row, fingerprint
 from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
 from qpbench.errors import InputError
 from qpbench.problem import files
+from qpbench.problem.siconos_import import import_siconos
 from qpbench.studies import targets
 
 LEVELS = (1e-4, 1e-6, 1e-8)
@@ -317,3 +318,72 @@ def test_the_wrapper_table_pairs_a_native_pair_with_its_twins(synthetic_report: 
     assert rows == [
         "| `lone-native/dual` | qpsolvers | `lone/dual` | 16 | 100.0% | 100.0% | 16 | 2 |",
         "| `lone-native/dual` | cvxpy | `cvxpy-lone/dual` | 16 | 100.0% | 75.0% | 12 | 10 |"]
+
+
+# --- the imported problems described as Acary, Bremond and Huber do ------------------------
+# one contact, W = [[2, 0.5], [0.5, 1]] in Siconos' (N, T) order, q = (-1, 0.3), mu = 0.5: a
+# dense NumericsMatrix (column-major); eigenvalues 1.5 +- sqrt(0.5), so cond(W) = 2.78
+FC2D_ONE_CONTACT = "2\n1\n0\n2\n2\n2\t2\n2 0.5\n0.5 1\n-1 0.3\n0.5\n"
+# an LCP of two contacts with M = [[1, 1], [1, 1]] (PSD, rank 1), q = (-1, 0), M dense
+LCP_RANK_ONE = "2\n0\n2\n2\n2\t2\n1 1\n1 1\n-1 0\n"
+
+
+@pytest.fixture(scope="module")
+def imported_results(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Real solves of a Siconos fc2d problem (by nsgs) and a Siconos LCP (by Lemke), imported
+    and built as ``qpbench build-set`` builds them, stored with their fingerprints."""
+    folder = tmp_path_factory.mktemp("imported")
+    (folder / "fc2d_one_contact.dat").write_text(FC2D_ONE_CONTACT)
+    (folder / "lcp_rank_one.dat").write_text(LCP_RANK_ONE)
+    limits = Limits(timeout_s=10.0)
+    solver = CellSolver()
+    rows = []
+    for name, key in (("fc2d_one_contact", "nsgs/nsgs"), ("lcp_rank_one", "lemke/lcp")):
+        problem = reduced_reference.attach(import_siconos(folder / f"{name}.dat"))
+        path = files.save(problem, folder / "problems" / name)
+        summary = {**problem.summary(), "problem_hash": fingerprint(problem)}
+        for accuracy in (1e-4, 1e-8):
+            cell = Cell(str(path), name, *key.split("/"), accuracy, "cold")
+            rows.append(complete_row(solver.solve(cell, limits), cell, summary, limits))
+    store = ResultStore(folder / "bench.parquet")
+    store.write_part(rows)
+    store.compact()
+    return store.path
+
+
+def test_the_report_describes_each_imported_problem_as_abh_do(imported_results: Path,
+                                                               tmp_path: Path) -> None:
+    text = write_report(imported_results, tmp_path).read_text()
+    table = _table_rows(text, "## Imported problems (Siconos, FCLIB)")
+    assert list(table) == ["fc2d_one_contact", "lcp_rank_one"]
+    assert table["fc2d_one_contact"] == {
+        "problem": "fc2d_one_contact", "source": "fc2d_one_contact.dat", "format": "reduced",
+        "contacts": "1", "dofs": "-", "density": "-", "rank deficiency": "0",
+        "cond(W)": "2.78", "mu": "0.5"}
+    # M of rank 1: one degree of freedom for two contacts, so a density of 2 and W singular
+    assert table["lcp_rank_one"] == {
+        "problem": "lcp_rank_one", "source": "lcp_rank_one.dat", "format": "lcp",
+        "contacts": "2", "dofs": "1", "density": "2", "rank deficiency": "1",
+        "cond(W)": "inf", "mu": "0"}
+    page = (tmp_path / "index.html").read_text()
+    assert "<section id='imported'>" in page and "<td>2.78</td>" in page
+
+
+def test_an_imported_problem_whose_file_changed_is_listed_but_not_described(
+        imported_results: Path, tmp_path: Path) -> None:
+    frame = ResultStore(imported_results).read()
+    frame.loc[frame["problem"] == "lcp_rank_one", "problem_hash"] = "0" * 16
+    store = ResultStore(tmp_path / "changed.parquet")
+    store.write_part(frame.to_dict("records"))
+    store.compact()
+    text = write_report(store.path, tmp_path / "out").read_text()
+    table = _table_rows(text, "## Imported problems (Siconos, FCLIB)")
+    assert table["lcp_rank_one"]["contacts"] == "2"
+    assert table["lcp_rank_one"]["cond(W)"] == "-"
+    assert table["fc2d_one_contact"]["cond(W)"] == "2.78"
+    assert "1 of 2 problems not described" in text
+
+
+def test_a_table_without_imported_problems_has_no_such_section(results: Path,
+                                                              tmp_path: Path) -> None:
+    assert "## Imported problems" not in write_report(results, tmp_path).read_text()

@@ -20,7 +20,7 @@ from bench_problems import write_tiny_problems
 from qpbench.bench import isolation, runner
 from qpbench.bench.executors import SerialExecutor
 from qpbench.bench.results import ResultStore
-from qpbench.bench.settings import CELL_KEY, Limits, RunSettings
+from qpbench.bench.settings import CELL_KEY, Cell, Limits, RunSettings
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem import files
 
@@ -226,6 +226,52 @@ def test_retry_solves_timed_out_cells_again_and_replaces_their_rows(
     assert counts["run"] == 1
     rows = ResultStore(output).read()
     assert list(rows["status"]) == ["solved"] and list(rows["time_limit_s"]) == [30.0]
+
+
+def test_a_pair_past_the_limit_is_not_started_at_tighter_levels_and_resumes_alike(
+        tmp_path: Path, misbehaving_solvers: None) -> None:
+    """test-hang runs past the limit at 1e-4, so its cells at 1e-6 and 1e-8 of that problem
+    are timeouts never started; test-exact solves every level; a resume keeps the rows, and
+    ``--retry timeout`` starts the loosest level again and ends the tighter ones alike."""
+    write_tiny_problems(tmp_path / "problems", count=1)
+    output = tmp_path / "r.parquet"
+    problems = [str(tmp_path / "problems")]
+    settings = RunSettings(solvers=("test-hang/lcp", "test-exact/lcp"),
+                           accuracies=(1e-4, 1e-6, 1e-8), limits=Limits(timeout_s=0.5))
+
+    def hang_rows() -> pd.DataFrame:
+        rows = ResultStore(output).read()
+        return rows[rows["solver"] == "test-hang"].set_index("accuracy").sort_index()
+
+    counts = runner.run(problems, settings, output, SerialExecutor(), progress=False)
+    assert counts["run"] == 6 and counts["timeout"] == 3 and counts["solved"] == 3
+    rows = hang_rows()
+    assert set(rows["status"]) == {"timeout"}
+    assert rows.loc[1e-4, "solver_status"].startswith("killed after 0.5 s")
+    for level in (1e-6, 1e-8):
+        assert rows.loc[level, "solver_status"] == (
+            f"{isolation.NOT_STARTED}the pair ran past 0.5 s at the looser level 1e-04 of this "
+            "problem")
+        assert math.isnan(rows.loc[level, "time_s"]) and rows.loc[level, "repeats"] == 0
+
+    assert runner.run(problems, settings, output, SerialExecutor(), progress=False)["run"] == 0
+    counts = runner.run(problems, settings, output, SerialExecutor(), progress=False,
+                        retry=("timeout",))
+    assert counts["run"] == 3 and counts["timeout"] == 3
+    assert len(ResultStore(output).read()) == 6
+    assert hang_rows()["solver_status"].str.startswith(isolation.NOT_STARTED).sum() == 2
+
+
+def test_a_cell_is_not_started_only_at_tighter_levels_of_the_same_problem_pair_and_mode(
+        ) -> None:
+    overran = Cell("a.npz", "a", "s", "dual", 1e-6, "cold")
+    others = [Cell("a.npz", "a", "s", "dual", 1e-4, "cold"),  # looser: runs
+              Cell("a.npz", "a", "s", "dual", 1e-8, "cold"),  # tighter: not started
+              Cell("a.npz", "a", "s", "dual", 1e-8, "warm"),  # another mode
+              Cell("a.npz", "a", "s", "primal", 1e-8, "cold"),  # another formulation
+              Cell("a.npz", "a", "t", "dual", 1e-8, "cold"),  # another solver
+              Cell("b.npz", "b", "s", "dual", 1e-8, "cold")]  # another problem
+    assert isolation.tighter_levels(overran, others) == [others[1]]
 
 
 def test_a_resume_solves_killed_cells_again_and_keeps_the_other_statuses(

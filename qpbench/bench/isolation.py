@@ -5,7 +5,8 @@ across batches of cells and is replaced when it dies (the rest of a batch then r
 the new process). How it died is the row's status
 (:func:`classify_death`, :func:`failure_row`), named by what happened:
 
-* ``timeout``: the runner killed it at the wall-clock limit;
+* ``timeout``: the runner killed it at the wall-clock limit (and the cells of the same
+  problem, pair and mode at tighter levels are not started: :func:`tighter_levels`);
 * ``out-of-memory``: only on evidence: an allocation failure (MemoryError, ``bad_alloc``)
   reported under the address-space cap, or the kernel's OOM killer having killed a process
   while the cell ran (its ``oom_kill`` count in /proc/vmstat rose) when the worker died of
@@ -428,7 +429,10 @@ class IsolatedWorker:
         A death or a timeout is the row of the cell that was running (the one whose set-up,
         solver call or judging was under way); the rows received before are kept, and the
         batch's other unfinished cells run again, from their warm-up, in a new worker
-        process. A caller that stops early (closing the iterator) kills the worker.
+        process. A solver call (warm-up or timed) that ran past the limit also ends the
+        batch's cells of the same problem, pair and mode at tighter levels without starting
+        them (:func:`tighter_levels`, :func:`not_started_row`). A caller that stops early
+        (closing the iterator) kills the worker.
 
         Parameters
         ----------
@@ -450,16 +454,23 @@ class IsolatedWorker:
         pending = list(cells)
         try:
             while pending:
-                answered = yield from self._one_process(pending, limits)
+                answered, overran = yield from self._one_process(pending, limits)
                 pending = [cell for number, cell in enumerate(pending) if number not in answered]
+                if overran is not None:
+                    skipped = tighter_levels(overran, pending)
+                    for cell in skipped:
+                        yield cell, not_started_row(cell, overran, limits)
+                    pending = [cell for cell in pending if cell not in skipped]
         except BaseException:  # an interrupt, or the caller closing this iterator early
             self.stop()
             raise
 
     def _one_process(self, cells: Sequence[Cell], limits: Limits
-                     ) -> Generator[tuple[Cell, dict[str, Any]], None, set[int]]:
+                     ) -> Generator[tuple[Cell, dict[str, Any]], None,
+                                    tuple[set[int], Cell | None]]:
         """:meth:`solve_batch` in one worker process, until the batch is done or the process
-        died or was killed at the limit; returns the indices of the cells answered."""
+        died or was killed at the limit; returns the indices of the cells answered and the
+        cell whose solver call ran past the limit (None when none did)."""
         if not self.alive():
             self.stop()
             self.start()
@@ -491,7 +502,7 @@ class IsolatedWorker:
                         cells[charged], TIMEOUT,
                         f"killed after {allowance:g} s in {phase or 'setup or judging'}",
                         time_s=limits.timeout_s if phase else math.nan, memory_limit_mb=cap)
-                    return answered
+                    return answered, (cells[charged] if phase else None)
                 event = message.get("event")
                 index = int(message.get("cell", 0))
                 if event == "load":
@@ -527,7 +538,59 @@ class IsolatedWorker:
             yield cells[charged], failure_row(
                 cells[charged], *classify_death(code, tail, cap, oom_killer_ran),
                 memory_limit_mb=cap)
-        return answered
+        return answered, None
+
+
+# --- a pair past the limit is not started again at a tighter level ------------------------
+NOT_STARTED = "not started: "  # how the solver_status of such a row begins
+
+
+def tighter_levels(overran: Cell, cells: Sequence[Cell]) -> list[Cell]:
+    """Select the cells a solver call past the time limit ends without starting them.
+
+    A solver that could not reach a level within the limit is not started at a tighter level
+    of the same problem: those are the cells of ``cells`` of ``overran``'s problem file,
+    solver, formulation and mode at a smaller accuracy.
+
+    Parameters
+    ----------
+    overran : Cell
+        The cell whose solver call (warm-up or timed) was killed at the limit.
+    cells : sequence of Cell
+        The cells not yet answered.
+
+    Returns
+    -------
+    list of Cell
+        Those cells, in the order of ``cells``.
+    """
+    return [cell for cell in cells
+            if (cell.problem_file, cell.solver, cell.formulation, cell.mode)
+            == (overran.problem_file, overran.solver, overran.formulation, overran.mode)
+            and cell.accuracy < overran.accuracy]
+
+
+def not_started_row(cell: Cell, overran: Cell, limits: Limits) -> dict[str, Any]:
+    """Make the row of a cell ended by :func:`tighter_levels`: a ``timeout`` never started.
+
+    Parameters
+    ----------
+    cell : Cell
+        The cell not started.
+    overran : Cell
+        The cell of the same pair whose solver call ran past the limit at a looser level.
+    limits : Limits
+        The run's limits (the time limit is named in the row).
+
+    Returns
+    -------
+    dict
+        A :func:`failure_row` of status ``timeout``, ``time_s`` NaN (nothing was timed) and a
+        ``solver_status`` beginning with NOT_STARTED that names the looser level.
+    """
+    return failure_row(cell, TIMEOUT, f"{NOT_STARTED}the pair ran past {limits.timeout_s:g} s "
+                       f"at the looser level {overran.accuracy:.0e} of this problem",
+                       memory_limit_mb=limits.memory_limit_mb)
 
 
 def signal_name(number: int) -> str:

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import html_report, plots, sim_precision, stats
+from qpbench.bench import html_report, imported_problems, plots, sim_precision, stats
 from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.errors import InputError
 from qpbench.solvers import accuracy as accuracy_table
@@ -46,7 +46,18 @@ INDEX_POINTER = ("At a glance, interactive and offline: [index.html](index.html)
 
 # --- formatting ------------------------------------------------------------------------------
 def number(value: Any) -> str:
-    """Three significant digits; '-' for missing."""
+    """Format a value with three significant digits; '-' for missing.
+
+    Parameters
+    ----------
+    value : Any
+        A number, a missing value (None, NaN, ``pd.NA``) or anything else (shown as ``str``).
+
+    Returns
+    -------
+    str
+        The value's text; ``inf`` for an infinite float.
+    """
     if value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA:
         return "-"
     if isinstance(value, float | np.floating):
@@ -55,7 +66,18 @@ def number(value: Any) -> str:
 
 
 def level(accuracy: float) -> str:
-    """An accuracy level as ``1e-08``."""
+    """Format an accuracy level as ``1e-08``.
+
+    Parameters
+    ----------
+    accuracy : float
+        The level.
+
+    Returns
+    -------
+    str
+        The level's text.
+    """
     return f"{float(accuracy):.0e}"
 
 
@@ -64,6 +86,18 @@ def _maybe_level(value: Any) -> str:
 
 
 def percent(value: Any) -> str:
+    """Format a share as a percentage with one decimal: 0.5 as ``50.0%``; '-' for missing.
+
+    Parameters
+    ----------
+    value : Any
+        A share in [0, 1], None or NaN.
+
+    Returns
+    -------
+    str
+        The percentage's text.
+    """
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
     return f"{100.0 * float(value):.1f}%"
@@ -71,7 +105,22 @@ def percent(value: Any) -> str:
 
 def markdown_table(frame: pd.DataFrame, formats: dict[str, Formatter] | None = None,
                    index: bool = False) -> str:
-    """A GitHub Markdown table of ``frame`` (``formats``: column -> formatter)."""
+    """Write ``frame`` as a GitHub Markdown table.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        The rows.
+    formats : dict of str to callable, optional
+        column -> formatter of its cells; :func:`number` for the others.
+    index : bool, optional
+        Show the index as the first columns; False by default.
+
+    Returns
+    -------
+    str
+        The table's lines (``|`` in a cell escaped), or ``_(no rows)_`` for an empty frame.
+    """
     formats = formats or {}
     if index:
         frame = frame.reset_index()
@@ -515,7 +564,21 @@ def _defects() -> str:
 
 
 def extra_sections(folders: Iterable[Path]) -> list[tuple[str, str]]:
-    """(title, markdown) from every ``*.json`` with a ``"markdown"`` key in ``folders``."""
+    """Collect the sections other parts of qpbench left as JSON files in ``folders``.
+
+    Every ``*.json`` with a ``"markdown"`` key gives one section; its title is its ``title``,
+    else the Markdown's own heading, else the file's name. Unreadable files are skipped.
+
+    Parameters
+    ----------
+    folders : iterable of pathlib.Path
+        The folders to search, each file read once.
+
+    Returns
+    -------
+    list of tuple of (str, str)
+        (title, markdown) of each section, by folder then file name.
+    """
     found: list[tuple[str, str]] = []
     seen: set[Path] = set()
     for folder in folders:
@@ -541,8 +604,18 @@ SIM_PRECISION_FILE = "sim_precision.json"
 
 
 def sim_precision_report(folders: Iterable[Path]) -> dict[str, Any] | None:
-    """The first ``sim_precision.json`` (``qpbench sim-precision``) in ``folders``, or None
-    when there is none or it is not one."""
+    """Read the first ``sim_precision.json`` (``qpbench sim-precision``) in ``folders``.
+
+    Parameters
+    ----------
+    folders : iterable of pathlib.Path
+        The folders to search, in order.
+
+    Returns
+    -------
+    dict of str to Any or None
+        The report; None when there is none or it is not one.
+    """
     for folder in folders:
         try:
             content = json.loads((folder / SIM_PRECISION_FILE).read_text(encoding="utf-8"))
@@ -554,8 +627,20 @@ def sim_precision_report(folders: Iterable[Path]) -> dict[str, Any] | None:
 
 
 def sim_precision_figure(report: dict[str, Any], out: Path) -> str | None:
-    """``report``'s work-precision figure drawn into ``out/figures``, as a Markdown image line
-    to follow its section; None when there is nothing to draw."""
+    """Draw ``report``'s work-precision figure into ``out/figures``.
+
+    Parameters
+    ----------
+    report : dict of str to Any
+        The report of :func:`qpbench.bench.sim_precision.sim_precision`.
+    out : pathlib.Path
+        The report's folder.
+
+    Returns
+    -------
+    str or None
+        A Markdown image line to follow its section; None when there is nothing to draw.
+    """
     if sim_precision.figure(report, out / "figures" / "sim_precision.png") is None:
         return None
     return ("\n![Final-state error against the inner solves' total time, per pair and "
@@ -567,9 +652,20 @@ FUZZ_PASSING = ("ok", "solve-failed", "input-error")
 
 
 def fuzz_section(folders: Iterable[Path]) -> str | None:
-    """The counts of the first ``fuzz.json`` (written by ``qpbench fuzz``) in ``folders``:
-    cases, failures and outcomes per kind, the attributes covered and the first failures;
-    None when there is none or it is not a fuzz report."""
+    """Summarise the first ``fuzz.json`` (written by ``qpbench fuzz``) in ``folders``.
+
+    Cases, failures and outcomes per kind, the attributes covered and the first failures.
+
+    Parameters
+    ----------
+    folders : iterable of pathlib.Path
+        The folders to search, in order.
+
+    Returns
+    -------
+    str or None
+        The section's Markdown; None when there is none or it is not a fuzz report.
+    """
     for folder in folders:
         try:
             content = json.loads((folder / FUZZ_FILE).read_text(encoding="utf-8"))
@@ -688,12 +784,34 @@ def _most_reliable(summary: pd.DataFrame) -> list[str]:
 def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str] | None = None,
                  budget_s: float | None = None, sections: Sequence[SummarySection] = ()
                  ) -> Path:
-    """Writes ``folder/REPORT.md`` (default: beside the results) and its PNGs; returns the path.
+    """Write ``folder/REPORT.md``, its PNG figures and ``index.html``.
 
     Frictionless and frictional rows are reported apart (a table of either alone works);
     ``sections`` (title, its Markdown from the cold frictionless rows and the SGM shift) close
     the frictionless part, after the comparison of every pair, as the studies of our own
-    solver bring theirs (``qpbench.studies.targets``)."""
+    solver bring theirs (``qpbench.studies.targets``).
+
+    Parameters
+    ----------
+    results : str or os.PathLike
+        The results table (its part files are read too).
+    folder : str or os.PathLike, optional
+        The report's folder, created when missing; None: the results' folder.
+    budget_s : float, optional
+        The time budget per solve of the accuracy-within-budget table; None: the SGM shift.
+    sections : sequence of SummarySection, optional
+        Sections the caller brings; none by default.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of REPORT.md.
+
+    Raises
+    ------
+    InputError
+        When the results table does not exist, cannot be read or has no rows.
+    """
     results = Path(results)
     if not results.exists() and not ResultStore(results).part_files():
         raise InputError(str(results), "no such results file")
@@ -711,6 +829,11 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
     out: list[str] = ["# qpbench report\n\n", INDEX_POINTER, _overview(everything, results),
                       _lead(frame, frictional, folder), *top]
     out.append("\n## Machine and versions\n\n" + _provenance(everything))
+    imported = imported_problems.describe_imported(everything)
+    if not imported.empty:
+        out.append(f"\n## {imported_problems.TITLE}\n\n{imported_problems.INTRO}\n\n"
+                   + markdown_table(imported, {column: str for column in imported.columns})
+                   + imported_problems.note(imported))
     out.extend(rest)
     out.append("\n## Friction\n\n" + _friction(frictional, folder))
     out.append("\n## Status honesty\n\nHow often a solver's own success claim agrees with "

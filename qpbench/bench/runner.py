@@ -39,9 +39,30 @@ from qpbench.problem.impact import ImpactProblem
 
 def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limits: Limits,
                  solver: dict[str, str] | None = None) -> dict[str, Any]:
-    """Adds the cell key, the problem's summary, the solver's backend and version (``solver``,
+    """Complete a solve's results row with its cell, problem, solver, limits and provenance.
+
+    Adds the cell key, the problem's summary, the solver's backend and version (``solver``,
     for rows of dead workers), the limits, and (for rows of dead workers) this process's
-    provenance to a row."""
+    provenance to a row; the row's own columns win over the summary and provenance.
+
+    Parameters
+    ----------
+    row : dict
+        The columns the worker (or the harness, for a dead worker) wrote for the cell.
+    cell : Cell
+        The cell the row belongs to.
+    summary : dict
+        The problem's ``summary()`` with its ``problem_hash``.
+    limits : Limits
+        The limits the cell was solved under.
+    solver : dict of str to str, optional
+        ``backend`` and ``solver_version`` of the cell's solver; None adds nothing.
+
+    Returns
+    -------
+    dict
+        The complete row, as stored in the results table.
+    """
     return {
         **provenance(),
         **summary,
@@ -61,9 +82,21 @@ def complete_row(row: dict[str, Any], cell: Cell, summary: dict[str, Any], limit
 
 # --- the problem set ---------------------------------------------------------------------
 def fingerprint(problem: ImpactProblem | FrictionalProblem) -> str:
-    """A short SHA-256 of the numbers that define the problem (G, M^-1, v-, c, nrel; and T,
-    mu, d_rel of a frictional one): results of a problem are only resumed for the same
-    numbers."""
+    """Hash the numbers that define a problem.
+
+    A short SHA-256 of G, M^-1, v-, c, nrel (and T, mu, d_rel of a frictional one): results of
+    a problem are only resumed for the same numbers.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem to hash.
+
+    Returns
+    -------
+    str
+        The first 16 hex digits of the digest.
+    """
     digest = hashlib.sha256()
     normal = problem.normal if isinstance(problem, FrictionalProblem) else problem
     G = normal.G.tocsc()
@@ -80,8 +113,25 @@ def fingerprint(problem: ImpactProblem | FrictionalProblem) -> str:
 
 def problem_index(paths: Iterable[str | os.PathLike[str]]
                   ) -> list[tuple[str, str, str, str]]:
-    """(file, problem name, fingerprint, kind) for every problem file named or found;
-    InputError on a name used twice (names identify rows)."""
+    """Index every problem file named or found under ``paths``.
+
+    Each file is loaded to read its name, fingerprint and kind.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Problem files and directories holding them.
+
+    Returns
+    -------
+    list of tuple of (str, str, str, str)
+        (file, problem name, fingerprint, kind) of each problem, in the order found.
+
+    Raises
+    ------
+    InputError
+        On a problem name used twice (names identify rows).
+    """
     index: list[tuple[str, str, str, str]] = []
     seen: dict[str, str] = {}
     for path in files.find(paths):
@@ -96,9 +146,23 @@ def problem_index(paths: Iterable[str | os.PathLike[str]]
 
 
 def changed_problems(index: list[tuple[str, str, str, str]], stored: Any) -> set[str]:
-    """The names of the problems of ``index`` stored with other numbers (another fingerprint):
-    rebuilt by other code, or captured from a scene on another CPU, whose rounding moves a
-    long simulation's trajectory in the last bits."""
+    """Find the problems stored with other numbers than those of the index.
+
+    A problem stored under another fingerprint was rebuilt by other code, or captured from a
+    scene on another CPU, whose rounding moves a long simulation's trajectory in the last bits.
+
+    Parameters
+    ----------
+    index : list of tuple of (str, str, str, str)
+        (file, name, fingerprint, kind) of each problem, from :func:`problem_index`.
+    stored : pandas.DataFrame
+        The stored results' ``problem`` and ``problem_hash`` columns (possibly empty).
+
+    Returns
+    -------
+    set of str
+        The names of the problems of ``index`` stored with another fingerprint.
+    """
     if stored.empty or "problem_hash" not in stored:
         return set()
     known: dict[str, set[str]] = {}
@@ -110,8 +174,22 @@ def changed_problems(index: list[tuple[str, str, str, str]], stored: Any) -> set
 
 
 def check_same_lock(stored: Any, output: Path) -> None:
-    """Refuses to resume a table whose rows were made with another set of package versions
-    (another ``lock_hash``): one table must compare like with like."""
+    """Refuse to resume a table made with another set of package versions.
+
+    One table must compare like with like, so rows of another ``lock_hash`` stop the run.
+
+    Parameters
+    ----------
+    stored : pandas.DataFrame
+        The stored results' ``lock_hash`` column (possibly empty).
+    output : pathlib.Path
+        The results table, named in the error.
+
+    Raises
+    ------
+    InputError
+        When a stored row has a lock hash other than this environment's.
+    """
     if stored.empty or "lock_hash" not in stored:
         return
     current = lock_label()
@@ -124,7 +202,18 @@ def check_same_lock(stored: Any, output: Path) -> None:
 
 
 def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
-    """problem file -> ``problem.summary()`` (name, family, source, sizes, rank deficiency)."""
+    """Load each problem file and summarise it.
+
+    Parameters
+    ----------
+    problem_files : iterable of str
+        The problem files.
+
+    Returns
+    -------
+    dict of str to dict
+        problem file -> ``problem.summary()`` (name, family, source, sizes, rank deficiency).
+    """
     return {path: files.load(path).summary() for path in problem_files}
 
 
@@ -146,9 +235,17 @@ def _raise_terminated(number: int, frame: FrameType | None) -> None:
 
 @contextlib.contextmanager
 def terminate_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) as Ctrl-C
+    """Take SIGTERM as Ctrl-C within the block.
+
+    Within the block, SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) as Ctrl-C
     does, so that a run stopped by ``kill`` keeps its rows too; the previous handler is put
-    back after. Only the main thread can take signals: elsewhere this does nothing."""
+    back after. Only the main thread can take signals: elsewhere this does nothing.
+
+    Yields
+    ------
+    None
+        Control to the block.
+    """
     if not _in_main_thread():
         yield
         return
@@ -161,9 +258,17 @@ def terminate_as_interrupt() -> Iterator[None]:
 
 @contextlib.contextmanager
 def interrupts_held() -> Iterator[None]:
-    """Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
+    """Hold off SIGINT and SIGTERM within the block.
+
+    Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
     raised as KeyboardInterrupt when the block ends (so the block, writing the table, is never
-    cut short). Does nothing outside the main thread."""
+    cut short). Does nothing outside the main thread.
+
+    Yields
+    ------
+    None
+        Control to the block.
+    """
     if not _in_main_thread():
         yield
         return
@@ -183,15 +288,49 @@ def interrupts_held() -> Iterator[None]:
 def run(problem_paths: list[str], settings: RunSettings, output: str | os.PathLike[str],
         executor: Any, progress: bool = True, batch_rows: int = 20,
         batch_seconds: float = 10.0, retry: Iterable[str] = ()) -> dict[str, int]:
-    """Runs every cell not yet in ``output`` (or stored with a status of RETRIED_ON_RESUME,
-    ``killed``, or of ``retry``, e.g. ``timeout`` after raising the limit) and stores its row;
-    returns counts (``cells``, ``skipped``, ``run`` and one count per status of the cells run).
+    """Run every pending cell of the matrix and store its row in ``output``.
+
+    Runs every cell not yet in ``output`` (or stored with a status of RETRIED_ON_RESUME,
+    ``killed``, or of ``retry``, e.g. ``timeout`` after raising the limit) and stores its row.
+    Problems stored with another fingerprint are solved again; a table of another package lock
+    is refused.
 
     Rows are written in batches (``batch_rows`` rows or ``batch_seconds``), each batch one
     atomically renamed part file; when the cells are done, and also when the run ends early
     (an interrupt, SIGTERM, an error), the workers are stopped, the rows received are written
     and the parts compacted into ``output``, with interrupts held off meanwhile; an interrupt
     then propagates as KeyboardInterrupt.
+
+    Parameters
+    ----------
+    problem_paths : list of str
+        Problem files and directories holding them.
+    settings : RunSettings
+        The solvers, accuracy levels, modes, kinds and limits of the matrix.
+    output : str or os.PathLike
+        The results table (Parquet), read to resume and written at the end.
+    executor : Executor
+        Where the cells run (:func:`qpbench.bench.executors.make_executor`).
+    progress : bool, optional
+        Show a progress bar on stderr; True by default.
+    batch_rows : int, optional
+        Rows per part file; 20 by default.
+    batch_seconds : float, optional
+        Seconds after which a part file is written however few its rows; 10 by default.
+    retry : iterable of str, optional
+        Stored statuses whose cells are solved again; none by default.
+
+    Returns
+    -------
+    dict of str to int
+        ``cells`` (the matrix), ``skipped`` (already stored), ``run``, and one count per status
+        of the cells run.
+
+    Raises
+    ------
+    QpbenchError
+        When no problem file is found, a solver is unknown or unusable, the problems' names clash
+        (InputError) or the stored table was made with another package lock (InputError).
     """
     # imports every solver backend: not at module level, so that qpbench.cli.run starts the
     # fork server first and its imports overlap with this process's
@@ -255,9 +394,23 @@ BATCH_PROBLEMS = 3
 
 
 def batches(cells_to_run: Iterable[Cell], problems: int = BATCH_PROBLEMS) -> list[list[Cell]]:
-    """The cells in consecutive batches of at most ``problems`` problem files each (cells come
-    problem-major, so a batch holds every pending cell of its problems: all their pairs and
-    levels)."""
+    """Split the cells into consecutive batches of at most ``problems`` problem files each.
+
+    Cells come problem-major, so a batch holds every pending cell of its problems: all their
+    pairs and levels.
+
+    Parameters
+    ----------
+    cells_to_run : iterable of Cell
+        The cells, problem-major.
+    problems : int, optional
+        Problem files per batch; BATCH_PROBLEMS by default.
+
+    Returns
+    -------
+    list of list of Cell
+        The batches, in the cells' order.
+    """
     grouped: list[list[Cell]] = []
     files_in_batch: set[str] = set()
     for cell in cells_to_run:
@@ -272,10 +425,26 @@ def batches(cells_to_run: Iterable[Cell], problems: int = BATCH_PROBLEMS) -> lis
 
 def solve_serially(cells_to_run: Iterable[Cell], limits: Limits,
                    worker: IsolatedWorker | None = None) -> Iterator[tuple[Cell, dict[str, Any]]]:
-    """(cell, row) for each cell as it finishes, batch after batch (:func:`batches`), on one
-    isolated worker, which interleaves each batch's timed solves (docs/design.md section 7).
-    A worker of its own is closed at the end and killed at once when the caller stops early
-    (an interrupt); a worker handed in is killed only then."""
+    """Solve the cells batch after batch on one isolated worker.
+
+    The worker interleaves each batch's timed solves (docs/design.md section 7). A worker of
+    its own is closed at the end and killed at once when the caller stops early (an
+    interrupt); a worker handed in is killed only then.
+
+    Parameters
+    ----------
+    cells_to_run : iterable of Cell
+        The cells, problem-major.
+    limits : Limits
+        The wall-clock, memory and repeat limits of each solve.
+    worker : IsolatedWorker, optional
+        The worker to use; None starts one of its own.
+
+    Yields
+    ------
+    tuple of (Cell, dict)
+        Each cell and its results row as it finishes.
+    """
     own = worker is None
     worker = worker or IsolatedWorker()
     try:
