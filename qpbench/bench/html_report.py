@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import imported_problems, sim_precision, stats
+from qpbench.bench import below_floor, imported_problems, sim_precision, stats
 from qpbench.bench.html_assets import SCRIPT, STYLE, TEMPLATE
 from qpbench.bench.results import split_kinds
 from qpbench.solvers.run import NO_SOLUTION
@@ -473,7 +473,8 @@ def _lead_html(main: pd.DataFrame, summarised: list[tuple[str, float, pd.DataFra
                   "written here), the fastest of ours, and how many times faster ours is. Time "
                   "= shifted geometric mean of time_s over the family's problems with the "
                   "family's own shift, failures charged the time limit; - : no pair solves. "
-                  "Frictional problems without a solution are left out.</p>"]
+                  "Frictional problems without a solution are left out, and so are the cells "
+                  "below a problem's double-precision floor (<code>below-floor</code>).</p>"]
     cost = ["<section id='accuracy-cost'><h2>What accuracy costs, where it costs</h2>"
             f"<p>The pairs whose time at {_level(stats.GROWTH_LEVEL)} (or the tightest level) is "
             f"at least {stats.ITERATIVE_GROWTH:g} x their time at the loosest level (geometric "
@@ -595,16 +596,20 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str,
     str
         The page's HTML.
     """
-    frictionless, frictional = split_kinds(everything)
-    main = frictionless[_strings(frictionless, "mode") == "cold"]
-    if main.empty:
-        main = frictionless
+    frictionless, answered_frictional = split_kinds(everything)
+    answered = frictionless[_strings(frictionless, "mode") == "cold"]
+    if answered.empty:
+        answered = frictionless
+    # cells double precision cannot decide are charged to no solver (see run.judge); the
+    # scatter plots still draw their answers
+    main = stats.without_below_floor(answered)
+    frictional = stats.without_below_floor(answered_frictional)
     data: dict[str, Any] = {"main": None, "friction": None, "accuracy_cost": None}
     summarised = summaries(main) if not main.empty else None
     sections = _lead_html(main, summarised, frictional, data)
     if summarised is not None:
         rows = frontier(main, summarised)
-        data["main"] = dataset(main)
+        data["main"] = dataset(answered)
         data["frontier"] = [{k: row[k] for k in ("family", "level", "time")} for row in rows]
         data["table"] = aggregate(main, summarised)
         data["profiles"] = profiles(main)
@@ -658,10 +663,10 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str,
         sections.append("<section id='answer'><h2>Fastest pair overall, per family</h2>"
                         "<p class='none'>No frictionless problems in these results.</p>"
                         "</section>")
-    if frictional.empty:
+    if answered_frictional.empty:
         friction = "<p class='none'>No frictional problems in these results.</p>"
     else:
-        data["friction"] = dataset(frictional, "coulomb_residual")
+        data["friction"] = dataset(answered_frictional, "coulomb_residual")
         friction = _friction_html(frictional)
     sections.append(f"<section id='friction'><h2>Friction</h2>{friction}</section>")
     if simulations is not None:
@@ -679,11 +684,12 @@ def page(everything: pd.DataFrame, source: str, plotly_js: str,
                                                  for k, v in provenance(everything)])
                     + "</section>")
     levels = sorted({float(a) for a in everything["accuracy"].dropna()}, reverse=True)
+    floor = below_floor.note(everything)
     summary = (f"<code>{_text(source)}</code>: {len(everything)} solves of "
                f"{everything['problem'].nunique()} problems by "
                f"{stats.solver_keys(everything).nunique()} solver/formulation pairs at levels "
                f"{', '.join(_level(a) for a in levels)}. The text summary with every table is "
-               "<a href='REPORT.md'>REPORT.md</a>.")
+               "<a href='REPORT.md'>REPORT.md</a>." + (f" {_text(floor)}" if floor else ""))
     payload = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     return TEMPLATE.format(summary=summary, sections="".join(sections), style=STYLE,
                            plotly=plotly_js.replace("</script", "<\\/script"), data=payload,

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.atomic import atomic_path
-from qpbench.bench import html_report, imported_problems, plots, sim_precision, stats
+from qpbench.bench import below_floor, html_report, imported_problems, plots, sim_precision, stats
 from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.errors import InputError
 from qpbench.solvers import accuracy as accuracy_table
@@ -158,7 +158,8 @@ def _overview(frame: pd.DataFrame, source: Path) -> str:
         "solves whose isolated worker process died, ran past the time limit or hit the memory "
         "cap.",
     ]
-    return "\n".join(lines) + "\n"
+    floor = below_floor.note(frame)
+    return "\n".join(lines + (["", floor] if floor else [])) + "\n"
 
 
 def _provenance(frame: pd.DataFrame) -> str:
@@ -371,8 +372,9 @@ def _lead(frame: pd.DataFrame, frictional: pd.DataFrame, folder: Path) -> str:
              "fastest of ours, and `external / ours`, how many times faster ours is. Time = "
              "shifted geometric mean of time_s [s] over the family's problems with the "
              "family's own shift, failures charged the time limit; - : no pair solves. "
-             "Frictional problems without a solution are left out; `ccp` answers are judged "
-             "by the relaxed model's residual.\n"]
+             "Frictional problems without a solution are left out, and so are the cells "
+             "below a problem's double-precision floor (`below-floor`); `ccp` answers are "
+             "judged by the relaxed model's residual.\n"]
     if not main.empty:
         parts.append(_comparison(main, "Accuracy "))
     if not solvable.empty:
@@ -820,7 +822,8 @@ def write_report(results: str | os.PathLike[str], folder: str | os.PathLike[str]
         raise InputError(str(results), "the results table has no rows")
     folder = Path(folder) if folder is not None else results.parent
     folder.mkdir(parents=True, exist_ok=True)
-    frame, frictional = split_kinds(everything)
+    # cells double precision cannot decide are charged to no solver (see run.judge)
+    frame, frictional = (stats.without_below_floor(rows) for rows in split_kinds(everything))
     top, rest = _frictionless(frame, folder, budget_s, sections) if not frame.empty else (
         ["\n_No frictionless problems in these results._\n"], [])
 

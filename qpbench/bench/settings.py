@@ -14,8 +14,9 @@ from qpbench.errors import QpbenchError
 
 MODES = ("cold", "warm")
 
-# the verdicts of qpbench.solvers.run.judge on an answer (no-solution: the problem has none)
-VERDICTS = ("solved", "inaccurate", "failed", "no-solution")
+# the verdicts of qpbench.solvers.run.judge on an answer (no-solution: the problem has none;
+# below-floor: the level is below the least residual a double vector is known to reach on it)
+VERDICTS = ("solved", "inaccurate", "failed", "no-solution", "below-floor")
 # statuses the harness gives a cell whose solve did not return an answer to judge
 CRASHED = "crashed"  # the worker died of its own fault: a fatal signal or an exit code
 KILLED = "killed"  # the worker died of a signal sent from outside (SIGKILL, SIGTERM, ...)

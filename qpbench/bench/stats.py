@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench.settings import CRASHED, OUT_OF_MEMORY, TIMEOUT
-from qpbench.solvers.run import NO_SOLUTION
+from qpbench.solvers.run import BELOW_FLOOR, NO_SOLUTION
 
 SHIFT_FACTOR = 10.0
 OWN_BACKEND = "qpbench"  # the backend name of the solvers written here
@@ -342,7 +342,8 @@ def own_mark(group: pd.DataFrame) -> str:
 def honesty(frame: pd.DataFrame) -> pd.DataFrame:
     """Tabulate how often each pair's own claim of success agrees with qpbench's verdict.
 
-    Over solves that returned (no crash, timeout or out-of-memory): the share where its own
+    Over solves judged on merit (``solved``, ``inaccurate`` or ``failed``: no crash, timeout or
+    out-of-memory, and no undecided ``no-solution`` or ``below-floor``): the share where its own
     claim of success agreed with qpbench's verdict, and the two ways it can disagree (claimed
     success but failed; claimed failure but solved). Our own solvers are marked (``ours``):
     their honesty is 100% by construction, not an achievement.
@@ -419,6 +420,63 @@ def without_unsolvable(frame: pd.DataFrame) -> pd.DataFrame:
     """
     hopeless = set(frame.loc[frame["status"].astype(str) == NO_SOLUTION, "problem"])
     return frame[~frame["problem"].isin(hopeless)]
+
+
+# the cell double precision cannot decide: a problem at an accuracy level
+FLOOR_CELL = ["problem", "accuracy"]
+
+
+def below_floor_cells(frame: pd.DataFrame) -> pd.DataFrame:
+    """List the (problem, level) cells below the problem's double-precision residual floor.
+
+    A cell is below the floor when one of its rows has the verdict ``below-floor``
+    (``qpbench.solvers.run.judge``: the level is below the least residual a double vector is
+    known to reach on the problem).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns problem, accuracy and rows (the cell's rows, of every pair and mode), sorted
+        by problem, then level loosest first; no rows when no cell is below a floor.
+    """
+    marked = frame.loc[frame["status"].astype(str) == BELOW_FLOOR, FLOOR_CELL]
+    cells = marked.drop_duplicates()
+    if cells.empty:
+        return pd.DataFrame({"problem": pd.Series(dtype=str),
+                             "accuracy": pd.Series(dtype=float),
+                             "rows": pd.Series(dtype=int)})
+    rows = frame[FLOOR_CELL].merge(cells, on=FLOOR_CELL).groupby(FLOOR_CELL).size()
+    found = rows.rename("rows").reset_index()
+    return found.sort_values(["problem", "accuracy"], ascending=[True, False],
+                             ignore_index=True)
+
+
+def without_below_floor(frame: pd.DataFrame) -> pd.DataFrame:
+    """Drop the rows of the cells below a problem's double-precision residual floor.
+
+    Every row of such a (problem, level) cell goes (a timeout in it included), never counted
+    against a solver nor for one; the problem's other levels stay.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The rows of the other cells.
+    """
+    cells = below_floor_cells(frame)
+    if cells.empty:
+        return frame
+    keys = pd.MultiIndex.from_frame(frame[FLOOR_CELL])
+    return frame[~keys.isin(pd.MultiIndex.from_frame(cells[FLOOR_CELL]))]
 
 
 def pair_backends(frame: pd.DataFrame) -> dict[str, str]:

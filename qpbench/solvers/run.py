@@ -29,6 +29,12 @@ from qpbench.solvers.base import (
 # the verdict on a problem that has no solution (a wedged contact with e > 0): no solver is
 # charged for it, and it counts neither as a success nor as a failure
 NO_SOLUTION = "no-solution"
+# the verdict at an accuracy level below the problem's residual floor (the least residual any
+# double vector is known to reach on it, ``reference_residual_floor`` in its metadata): double
+# precision cannot decide there, so no solver is charged for it either, and it counts neither as
+# a success nor as a failure
+BELOW_FLOOR = "below-floor"
+FLOOR_KEY = "reference_residual_floor"
 
 
 def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, accuracy: float,
@@ -98,6 +104,30 @@ def _error_status(error: Exception | None) -> str:
     return f"error: {type(error).__name__}: {error}{where}"
 
 
+def residual_floor(problem: ImpactProblem | FrictionalProblem) -> float:
+    """The least qpbench residual any double vector is known to reach on ``problem``.
+
+    Read from its metadata (``reference_residual_floor``, recorded by
+    ``qpbench.problem.reference.attach_reference`` when the reference was certified in exact
+    arithmetic); 0 when none is recorded or the value is not a positive finite number.
+
+    Parameters
+    ----------
+    problem : ImpactProblem or FrictionalProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        The floor; 0.0 when unknown.
+    """
+    value = problem.metadata.get(FLOOR_KEY)
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+        return 0.0
+    floor = float(value)
+    return floor if math.isfinite(floor) and floor > 0.0 else 0.0
+
+
 def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: SolverOutput,
           accuracy: float) -> dict[str, Any]:
     """The result row of one solve: qpbench's metrics and verdict next to the solver's claim.
@@ -109,8 +139,18 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
     ``qpbench.problem.friction_metrics``.
 
     ``status`` is qpbench's verdict (``solved`` / ``inaccurate`` / ``failed``, or
-    ``no-solution`` for a problem known to have none);
-    ``solver_status`` is the backend's own; ``status_honest`` is whether its claim agreed.
+    ``no-solution`` for a problem known to have none, or ``below-floor`` when ``accuracy`` is
+    below :func:`residual_floor`); ``solver_status`` is the backend's own; ``status_honest`` is
+    whether its claim agreed with ``residual <= accuracy``.
+
+    A ``below-floor`` row keeps every metric of the answer, finite or not, but its ``success``
+    is False: no double vector is known to reach that level, and the residual is evaluated in
+    double from terms as large as those that set the floor, so one under the level there is
+    rounding, not merit. The verdict is undecided, like ``no-solution``; the statistics leave
+    the row's (problem, level) out altogether (``qpbench.bench.stats.without_below_floor``),
+    and False keeps any count of successes that does not from taking it. The solver's claim
+    (``claimed_success``) is kept as it gave it, and ``status_honest`` compares it with the
+    measured residual as on any row; the honesty table counts only decided verdicts.
 
     Parameters
     ----------
@@ -139,12 +179,17 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
         finite = metrics.is_finite(output.impulses, problem)
     if not measured.pop("solvable", True):
         status = NO_SOLUTION
+    elif accuracy < residual_floor(problem):
+        status = BELOW_FLOOR
     elif measured["success"]:
         status = "solved"
     elif finite:
         status = "inaccurate"
     else:
         status = "failed"
+    honest = bool(output.claimed_success == measured["success"])
+    if status == BELOW_FLOOR:
+        measured["success"] = False
     outer = output.info.get("outer_iterations")
     return {
         "solver": spec.name,
@@ -155,7 +200,7 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
         "status": status,
         "solver_status": output.status,
         "claimed_success": output.claimed_success,
-        "status_honest": bool(output.claimed_success == measured["success"]),
+        "status_honest": honest,
         **measured,
         "iterations": output.iterations,
         "outer_iterations": int(outer) if isinstance(outer, int | np.integer) else None,

@@ -70,7 +70,7 @@ from qpbench.simulation.operators import InnerSolveFailed
 from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import all_solvers, usable_solvers
-from qpbench.solvers.run import judge
+from qpbench.solvers.run import BELOW_FLOOR, judge
 from qpbench.studies.head_to_head import pass_range, ranked, target_sentence
 
 OWN = "pi-robust/lcp"
@@ -377,7 +377,9 @@ def _shift(rows: Sequence[dict[str, Any]]) -> float:
 def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per solver: median and SGM of the charged times, cold and in sequence, and success rates.
 
-    A failure is charged the largest time of the measurement.
+    A failure is charged the largest time of the measurement. A step below its problem's
+    double-precision residual floor (verdict ``below-floor`` in either mode: no solver can be
+    judged there) is left out, as the report leaves such cells out.
 
     Parameters
     ----------
@@ -389,6 +391,8 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     list of dict
         One entry per solver, in order of first appearance.
     """
+    rows = [row for row in rows
+            if BELOW_FLOOR not in (row["cold_status"], row["sequence_status"])]
     times = [row[f"{mode}_time_s"] for row in rows for mode in ("cold", "sequence")]
     finite = [t for t in times if isinstance(t, float) and math.isfinite(t)]
     charge = max(finite, default=1.0)
