@@ -13,7 +13,8 @@ import pytest
 from qpbench.cli import main
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
-from qpbench.studies import head_to_head
+from qpbench.problem.generate import generate
+from qpbench.studies import head_to_head, head_to_head_sets
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,7 +51,7 @@ def test_each_candidate_familys_fastest_pair_is_a_candidate_too() -> None:
 
 
 def row(solver: str, own: bool, problem: str, time: float, success: bool = True) -> dict:
-    return {"problem": problem, "set": "box packings", "solver": solver, "own": own,
+    return {"problem": problem, "set": "box packings 1k-4k", "solver": solver, "own": own,
             "contacts": 10, "status": "solved" if success else "failed", "success": success,
             "residual": 0.0, "time_s": time}
 
@@ -65,7 +66,7 @@ def test_a_sets_speedup_is_the_fastest_external_sgm_over_pi_robusts() -> None:
     assert entry["external"]["solver"] == "daqp/dual"
     assert entry["speedup"] == pytest.approx(4.0)
     assert entry["target_met"]
-    assert "| box packings | 2 |" in head_to_head.markdown([entry], 5)
+    assert "| box packings 1k-4k | 2 |" in head_to_head.markdown([entry], 5)
 
 
 def test_the_report_names_options_tuned_on_a_sets_own_problems() -> None:
@@ -103,8 +104,6 @@ def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
 
 
 def test_a_capture_of_any_7x7_grid_scene_is_in_the_7x7_set() -> None:
-    from qpbench.problem.generate import generate
-
     problem = generate("k3", None, seed=0)[0]
     for scene in ("grid7_itr_0", "grid7_itr_31"):
         problem.family = f"scene:{scene}"
@@ -113,12 +112,26 @@ def test_a_capture_of_any_7x7_grid_scene_is_in_the_7x7_set() -> None:
     assert head_to_head.set_of(problem) == "grid scene captures"
 
 
-def test_a_dump_is_in_the_grid_dump_set_and_a_k3_in_none() -> None:
+def test_a_dump_is_in_the_grid_dump_set_a_k3_in_the_k3_set_and_a_k4_scene_in_none() -> None:
     assert head_to_head.set_of(import_dump(ROOT / "problems/dumps/grid5_itr_0.out")) \
         == "fork 5x5 grid dumps"
-    from qpbench.problem.generate import generate
+    problem = generate("k3", None, seed=0)[0]
+    assert head_to_head.set_of(problem) == "k3"
+    problem.family = "scene:K4"
+    assert head_to_head.set_of(problem) is None
 
-    assert head_to_head.set_of(generate("k3", None, seed=0)[0]) is None
+
+def test_a_grid_or_box_packings_set_is_its_size_bucket() -> None:
+    """Grids and box packings are compared per size bucket; a size in no bucket is a set of its
+    own, named by its size."""
+    assert head_to_head.set_of(generate("grid", 4, seed=3)[0]) == "grids 4-9"
+    assert head_to_head.set_of(generate("grid", 12, seed=3)[0]) == "grids 10-14"
+    assert head_to_head.set_of(generate("grid", 25, seed=3)[0]) == "grids 25"
+    assert head_to_head_sets.size_bucket("box", 1_000) == "box packings 1k-4k"
+    assert head_to_head_sets.size_bucket("box", 16_000) == "box packings 8k-16k"
+    assert head_to_head_sets.size_bucket("box", 100) == "box packings 100"
+    assert head_to_head_sets.larger_buckets("grids 10-14") == ["grids 16-20", "grids 30-40"]
+    assert head_to_head_sets.larger_buckets("box packings 8k-16k") == []
 
 
 def test_the_command_measures_a_folder_against_the_named_table(tmp_path: Path,
@@ -224,15 +237,15 @@ def test_a_pair_far_slower_than_the_fastest_external_one_leaves_the_set() -> Non
     running = head_to_head.Running(limit=30.0)
     rows = [row("pi-robust/lcp", True, "a", 1e-5), row("osqp/dual", False, "a", 1e-3),
             row("daqp/dual", False, "a", 2e-2)]
-    running.update(rows, "box packings")
-    assert running.running("box packings", "daqp/dual")  # 20x: still in the running
+    running.update(rows, "box packings 1k-4k")
+    assert running.running("box packings 1k-4k", "daqp/dual")  # 20x: still in the running
     rows += [row("pi-robust/lcp", True, "b", 1e-5), row("osqp/dual", False, "b", 1e-3),
              row("daqp/dual", False, "b", 4.2e-2)]
-    running.update(rows, "box packings")
-    assert not running.running("box packings", "daqp/dual")
-    assert running.running("box packings", "osqp/dual")
+    running.update(rows, "box packings 1k-4k")
+    assert not running.running("box packings 1k-4k", "daqp/dual")
+    assert running.running("box packings 1k-4k", "osqp/dual")
     assert running.running("fork 5x5 grid dumps", "daqp/dual")  # another set: still in it
-    assert running.out["box packings"]["daqp/dual"] == {
+    assert running.out["box packings 1k-4k"]["daqp/dual"] == {
         "problems": 2, "slower": pytest.approx(31.0), "than": "osqp/dual"}
     [entry] = head_to_head.summarize(rows, running.out)
     assert [pair["solver"] for pair in entry["pairs"]] == ["pi-robust/lcp", "osqp/dual"]
@@ -251,9 +264,9 @@ def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> Non
     running = head_to_head.Running(limit=30.0)
     rows = [row("osqp/dual", False, "a", 1e-5, success=False), row("daqp/dual", False, "a", 1e-5,
                                                                    success=False)]
-    running.update(rows, "box packings")
+    running.update(rows, "box packings 1k-4k")
     rows += [row("osqp/dual", False, "b", 1e-5, success=False), row("daqp/dual", False, "b", 1.0)]
-    running.update(rows, "box packings")
+    running.update(rows, "box packings 1k-4k")
     assert running.out == {}
     # a problem without a solution is solved by no pair and counts for none
     frictional = [{**row("daqp/ccp", False, name, 1e-5), "set": "frictional (ccp)"}
@@ -263,6 +276,12 @@ def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> Non
         one.update(status=head_to_head.NO_SOLUTION, success=False)
     running.update(frictional, "frictional (ccp)")
     assert running.out["frictional (ccp)"]["piqp/ccp"]["problems"] == 1
+    # so does a problem whose residual floor is above the level: below-floor decides nothing
+    for one in frictional[::2]:
+        one.update(status=head_to_head.BELOW_FLOOR)
+    below = head_to_head.Running(limit=30.0)
+    below.update(frictional, "frictional (ccp)")
+    assert below.out["frictional (ccp)"]["piqp/ccp"]["problems"] == 1
 
 
 def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,
@@ -297,3 +316,61 @@ def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.
     everything = head_to_head.head_to_head(folder, bench, repeats=1, passes=1,
                                            out_of_running=math.inf, batch_problems=1)
     assert sum(one["solver"] == "osqp/dual" for one in everything["rows"]) == 3
+
+
+def test_a_pair_that_left_a_size_bucket_is_not_measured_on_the_larger_ones() -> None:
+    """daqp is 40x osqp's time on the 4x4 to 9x9 grids: it leaves that set and every larger
+    grid bucket, where it was never measured; the box packings are another family."""
+    running = head_to_head.Running(limit=30.0)
+    rows = [{**row(solver, False, "grid-4-s0", time), "set": "grids 4-9"}
+            for solver, time in (("osqp/dual", 1e-4), ("daqp/dual", 4e-3))]
+    running.update(rows, "grids 4-9")
+    for larger in ("grids 10-14", "grids 16-20", "grids 30-40"):
+        assert not running.running(larger, "daqp/dual")
+        assert running.out[larger]["daqp/dual"]["measured_on"] == "grids 4-9"
+    assert running.running("grids 10-14", "osqp/dual")
+    assert running.running("box packings 1k-4k", "daqp/dual")
+    left = {"solver": "daqp/dual", **running.out["grids 16-20"]["daqp/dual"]}
+    assert head_to_head.left_sentence(left) == (
+        "`daqp/dual` measured no further after 1 problem of grids 4-9 (40.0x `osqp/dual`'s "
+        "time there)")
+
+
+def test_a_hard_familys_own_fastest_pair_runs_on_its_set_only(monkeypatch: pytest.MonkeyPatch,
+                                                              tmp_path: Path) -> None:
+    """osqp is the fastest external pair on k3 in the main table but not among the impact
+    candidates: it runs on the k3 set and nowhere else. The problems are measured in the order
+    of the sets (smaller grid bucket first, whatever their file names), and the report lists
+    the generated problems' seeds, read from their files."""
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    for problem in [*generate("grid", 12, seed=41), *generate("grid", 4, seed=41),
+                    *generate("k3", None, seed=40, count=2)]:
+        files.save(problem, folder / problem.name)
+    files.save(import_dump(ROOT / "problems/dumps/grid5_itr_0.out"), folder / "grid5.npz")
+    bench = pd.DataFrame(bench_rows("daqp", "daqp", "grid", [1e-4])
+                         + bench_rows("daqp", "daqp", "k3", [1e-4])
+                         + bench_rows("osqp", "osqp", "k3", [1e-5]))
+
+    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0):  # noqa: ANN001, ANN202
+        return [{"problem": problem.name, "set": head_to_head.set_of(problem),
+                 "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
+                 "contacts": problem.n_contacts, "status": "solved", "success": True,
+                 "residual": 0.0, "iterations": 1, "outer_iterations": None,
+                 "time_s": 1e-4, "time_cold_cache_s": 1e-4} for spec, problem in pairs]
+
+    monkeypatch.setattr(head_to_head, "measure_batch", timed)
+    result = head_to_head.head_to_head(folder, bench, repeats=1, passes=1, candidates=1)
+    assert result["candidates"]["impact"] == ["daqp/dual"]
+    assert result["candidates"]["families"] == {"k3": ["osqp/dual"]}
+    assert {one["set"] for one in result["rows"] if one["solver"] == "osqp/dual"} == {"k3"}
+    order = list(dict.fromkeys(one["set"] for one in result["rows"]))
+    assert order == ["fork 5x5 grid dumps", "grids 4-9", "grids 10-14", "k3"]
+    assert result["seeds"] == {"grid": [41], "k3": [40, 41]}
+    assert "Seeds of the generated problems" in result["markdown"]
+    assert "grid 41; k3 40-41." in result["markdown"]
+
+
+def test_seeds_are_listed_as_runs_of_consecutive_numbers() -> None:
+    assert head_to_head_sets.seed_ranges([9, 5, 7, 6, 6]) == "5-7, 9"
+    assert head_to_head_sets.seed_ranges([123456]) == "123456"

@@ -184,3 +184,15 @@ def test_function_local_imports_are_few_and_each_says_why() -> None:
     local = [one for one in IMPORTS if one.in_function]
     assert len({(one.source, one.line) for one in local}) <= MAX_FUNCTION_LOCAL
     assert [f"{one.source} line {one.line}" for one in local if not one.commented] == []
+
+
+def test_design_names_every_module() -> None:
+    """docs/design.md's table of folders and modules (section 3) names every module file, so
+    that a newcomer finds each concept's place from the design."""
+    design = (PACKAGE.parent / "docs" / "design.md").read_text()
+    table = "\n".join(line for line in design.splitlines() if line.startswith("| `qpbench"))
+    unnamed = [str(path.relative_to(PACKAGE.parent)) for path in MODULES.values()
+               if path.name not in ("__init__.py", "__main__.py")
+               and f"`{path.name}`" not in table
+               and f"`{path.relative_to(PACKAGE.parent)}`" not in table]
+    assert not unnamed, f"modules docs/design.md's table does not name: {unnamed}"

@@ -104,3 +104,24 @@ def test_a_bad_scene_or_solver_stops_the_build_before_any_output(tmp_path: Path)
     with pytest.raises(QpbenchError, match="unknown solver 'nope'"):
         problem_sets.build(set_file, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_seed_offset_is_added_to_every_familys_seeds(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture) -> None:
+    """The same set file gives fresh problems: seed + offset + i, recorded in each file; dumps
+    and scenes are unchanged."""
+    set_file = tmp_path / "fresh.toml"
+    set_file.write_text('[families]\nk4 = { count = 2, seed = 1 }\n'
+                        'grid = { sizes = [3], count = 1 }\n'
+                        f'[dumps]\npaths = ["{PROBLEMS / "dumps" / "2_balls.json"}"]\n')
+    assert main(["build-set", str(set_file), "--seed-offset", "500", "-o",
+                 str(tmp_path / "out")]) == 0
+    names = sorted(path.stem for path in files.find([str(tmp_path / "out")]))
+    assert names == ["2_balls", "grid-3-s500", "k4-4-s501", "k4-4-s502"]
+    assert files.load(tmp_path / "out" / "k4-4-s502.npz").metadata["seed"] == 502
+    capsys.readouterr()
+    assert main(["build-set", str(set_file), "--seed-offset", "-1", "-o",
+                 str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    assert "--seed-offset must be at least 0, got -1" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "bad").exists()

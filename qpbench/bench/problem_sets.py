@@ -2,7 +2,7 @@
 
 ```toml
 [families]                       # family -> sizes (default: the family's) and seeds per size
-grid = { sizes = [3, 5], count = 2, seed = 0 }
+grid = { sizes = [3, 5], count = 2, seed = 0 }   # seeds 0 and 1 (plus build's seed_offset)
 incline = { count = 2 }          # frictional families (qpbench.problem.friction_generate) too
 
 [dumps]
@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from qpbench.bench import reduced_reference
-from qpbench.errors import InputError, UnsupportedError
+from qpbench.errors import InputError, QpbenchError, UnsupportedError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.memory import OutOfMemory, out_of_memory, require
 from qpbench.problem import fclib, files, friction_reference
@@ -168,12 +168,14 @@ def _check_entries(path: Path, table: dict[str, Any], element: str,
             raise InputError(str(path), f"must be {what}, got {value!r}"[:200], element, key)
 
 
-def _family_problems(definition: dict[str, Any], existing: set[str]
+def _family_problems(definition: dict[str, Any], existing: set[str], seed_offset: int = 0
                      ) -> Iterator[ImpactProblem | FrictionalProblem]:
+    """The problems of the ``families`` section not in ``existing``: per family and size,
+    ``count`` problems from seed ``seed + seed_offset`` on."""
     for family, options in definition.get("families", {}).items():
         sizes = options.get("sizes", [None])
         make = generate_frictional if family in FRICTION_FAMILIES else generate
-        first = options.get("seed", 0)
+        first = options.get("seed", 0) + seed_offset
         for size in sizes:
             # one problem at a time: make(seed=s + i, count=1) is make(seed=s, count=n)[i]
             for seed in range(first, first + options.get("count", 1)):
@@ -283,11 +285,13 @@ def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[st
 
 
 def build(set_file: str | Path, output: str | Path,
-          on_problem: Callable[[str], None] | None = None) -> list[Path]:
+          on_problem: Callable[[str], None] | None = None, seed_offset: int = 0) -> list[Path]:
     """Write every problem of the set to ``output``, skipping those already there.
 
     Families, dumps, Siconos and FCLIB files, then scenes, each problem with its reference
     (module docstring); a reference that is not verified is said in one line on stderr.
+    ``seed_offset`` is added to every family's seeds (problem i of a family size gets seed
+    ``seed + seed_offset + i``), so that one set file gives problems never seen before.
 
     Parameters
     ----------
@@ -297,6 +301,8 @@ def build(set_file: str | Path, output: str | Path,
         The folder of problem files, created when missing.
     on_problem : callable, optional
         Called with each problem's name after its file is written; None calls nothing.
+    seed_offset : int, optional
+        Added to every family's seeds; 0 (default) builds the seeds the set file names.
 
     Returns
     -------
@@ -306,9 +312,12 @@ def build(set_file: str | Path, output: str | Path,
     Raises
     ------
     QpbenchError
-        On a bad set file or scene (InputError), an unknown inner solver, or a problem or
-        scene too large for the memory available (OutOfMemory).
+        On a bad set file or scene (InputError), an unknown inner solver, a problem or
+        scene too large for the memory available (OutOfMemory), or a negative
+        ``seed_offset``.
     """
+    if seed_offset < 0:
+        raise QpbenchError(f"the seed offset must be at least 0, got {seed_offset}")
     set_file, output = Path(set_file), Path(output)
     definition = read_set(set_file)
     root = set_file.parent
@@ -318,7 +327,7 @@ def build(set_file: str | Path, output: str | Path,
     existing = {path.stem for path in output.glob(f"*{files.SUFFIX}")}
     written = []
     sources = (
-        _family_problems(definition, existing),
+        _family_problems(definition, existing, seed_offset),
         _dump_problems(definition, root, existing),
         _imported_problems(definition, root, existing),
         _scene_problems(scenes, existing, output),

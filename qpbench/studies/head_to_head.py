@@ -1,25 +1,33 @@
 """Head to head, no warm start: pi-robust against the fastest external pairs on the sets
 that matter, timed interleaved and, beside it, with the CPU caches flushed (cold).
 
-The sets (``problems/head_to_head.toml``, built with ``qpbench build-set``): the SCISim
-research fork's 50 dumps of its 5x5 grid scene, the first impacts of its 50 7x7 grid scenes,
-impacts captured from its 5x5 and 3x3 grid scenes, box packings of 1,000 and 4,000 balls, and
-the frictional families (pi-robust as the inner solver of ``staggered`` and on ``ccp``). A
-problem's set is named by its family (:func:`set_of`).
+The sets (``problems/head_to_head.toml``, built with ``qpbench build-set``; ``make bench``
+adds a seed offset drawn at run time, so that the generated problems are ones nobody tuned on,
+and the report lists their seeds, read from the problem files): the SCISim research fork's 50
+dumps of its 5x5 grid scene, the first impacts of its 50 7x7 grid scenes, impacts captured
+from its 5x5 and 3x3 grid scenes, generated grids and box packings (a set per size bucket),
+the hard families (a set each) and the frictional families (pi-robust as the inner solver
+of ``staggered`` and on ``ccp``). A problem's set is named by its family and, for grids and
+box packings, its size (``qpbench.studies.head_to_head_sets``).
 
 The external pairs: for impact problems the ``candidates`` fastest external pairs of the main
 benchmark (``results/bench.parquet``: shifted geometric mean of charged times at 1e-8 over
 the families ``dump``, ``grid``, ``box`` and the captured grid scenes) and the fastest on each
 of those families alone (a pair fastest on one set may rank lower over all four), for frictional
 problems the fastest external ``staggered`` and ``ccp`` pairs there, so that the choice is
-made by measurement, not by hand. pi-robust's own pairs are ``pi-robust/lcp`` (impact) and
-``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
+made by measurement, not by hand. On the set of a hard family, that family's fastest external
+pair in the main table runs too (only there: ``candidates["families"]``). pi-robust's own
+pairs are ``pi-robust/lcp`` (impact) and ``pi-robust/staggered`` and ``pi-robust/ccp``
+(frictional).
 
 An external pair whose times on a set's problems so far, summed, are more than
 ``out_of_running`` times those of the fastest external pair there is measured no further on
 that set (:class:`Running`): it cannot be the fastest, and on the large box packings a dense
-solver's minute-long solves were most of the benchmark's time. The report names every such
-pair, after how many problems it left and how much slower it was.
+solver's minute-long solves were most of the benchmark's time. A pair that left a size bucket
+is not measured on the family's larger buckets either (the problems are taken smaller bucket
+first): a dense factorization's time grows faster with the contacts than a sparse one's, and
+one solve of it on the largest packings would take longer than the whole study. The report
+names every such pair, where and after how many problems it left and how much slower it was.
 
 Every solve goes through the one stopwatch (``call_solver``) under the timing protocol
 (docs/design.md section 7, ``qpbench.bench.repeats.time_interleaved``): the problems are taken
@@ -32,7 +40,8 @@ flushing the CPU caches (outside the stopwatch), in the same schedule. The whole
 runs ``passes`` times, one pass after another: the machine's speed drifts over minutes (a
 shared host), so each pass alone gives a speedup, and their spread shows how far the drift
 moves it. The set's figures below are each problem's fastest over all passes; every answer is
-judged by qpbench's residual at ``accuracy``; problems without a solution (``no-solution``) are
+judged by qpbench's residual at ``accuracy``; problems without a solution (``no-solution``), and
+those whose residual floor in double precision is above ``accuracy`` (``below-floor``), are
 left out of the sets' figures, as the report does. Per set and pair: the shifted geometric mean
 (``qpbench.bench.stats``: shift on the set's own time scale) of times charged with the largest
 time of the set where a solve failed, and ``speedup = SGM(fastest external) / SGM(pi-robust)``
@@ -74,9 +83,20 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import get
-from qpbench.solvers.run import NO_SOLUTION, judge
+from qpbench.solvers.run import BELOW_FLOOR, NO_SOLUTION, judge
+from qpbench.studies.head_to_head_sets import (
+    HARD_FAMILIES,
+    SETS,
+    generated_seeds,
+    larger_buckets,
+    seed_ranges,
+    set_of,
+    set_rank,
+)
 
 ACCURACY = 1e-8
+# verdicts that charge no solver (see ``qpbench.solvers.run.judge``): left out of every figure
+UNDECIDED = (NO_SOLUTION, BELOW_FLOOR)
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
 # contacts of a batch of problems timed together, at most (a larger problem is timed alone)
 BATCH_CONTACTS = 1_000
@@ -103,40 +123,6 @@ TUNED_ON = {
 }
 # the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
-SETS = ("fork 5x5 grid dumps", "fork 7x7 grid scenes", "grid scene captures", "box packings",
-        "frictional (staggered)", "frictional (ccp)")
-
-
-def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
-    """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to.
-
-    A frictional problem's set is that of the pair's ``formulation`` (``frictional
-    (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one model).
-
-    Parameters
-    ----------
-    problem : ImpactProblem or FrictionalProblem
-        The problem; an impact problem's set is named by its family.
-    formulation : str, optional
-        The pair's formulation, for a frictional problem; empty by default.
-
-    Returns
-    -------
-    str or None
-        One of SETS; None for a problem of no set.
-    """
-    if isinstance(problem, FrictionalProblem):
-        return f"frictional ({formulation})"
-    family = str(problem.family or "")
-    if family == "dump":
-        return "fork 5x5 grid dumps"
-    if family.startswith("scene:grid7_"):
-        return "fork 7x7 grid scenes"
-    if family.startswith("scene:grid"):
-        return "grid scene captures"
-    if family == "box":
-        return "box packings"
-    return None
 
 
 # the columns of the main benchmark's table that fastest_external ranks by
@@ -150,8 +136,10 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
 
     {"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES, and the
     fastest on each of those families where it is not among them already, "frictional": the
-    ``candidates // 3`` (at least one) fastest external pairs of each frictional formulation},
-    by :func:`ranked` at ``accuracy``.
+    ``candidates // 3`` (at least one) fastest external pairs of each frictional formulation,
+    "families": per hard family (HARD_FAMILIES) whose fastest external pair is not among
+    "impact", that pair (measured on the family's set only)}, by :func:`ranked` at
+    ``accuracy``.
 
     Parameters
     ----------
@@ -164,13 +152,14 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
 
     Returns
     -------
-    dict of str to list of str
-        ``impact`` and ``frictional`` pair keys, fastest first.
+    dict
+        ``impact`` and ``frictional`` pair keys, fastest first, and ``families``: family ->
+        pair keys.
     """
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
     frictional = level["kind"].astype(str) == "frictional"
-    chosen: dict[str, list[str]] = {}
+    chosen: dict[str, Any] = {}
     impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
     chosen["impact"] = ranked(impact)[:candidates]
     for family in CANDIDATE_FAMILIES:  # a family's own fastest, should it rank lower overall
@@ -181,6 +170,12 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACC
     for formulation in FRICTIONAL_FORMULATIONS:
         fastest = ranked(level[frictional & (level["formulation"].astype(str) == formulation)])
         chosen["frictional"] += fastest[:max(1, candidates // 3)]
+    chosen["families"] = {}
+    for family in HARD_FAMILIES:
+        rows = level[~frictional & (level["family"].astype(str) == family)]
+        fastest = [key for key in ranked(rows)[:1] if key not in chosen["impact"]]
+        if fastest:
+            chosen["families"][family] = fastest
     return chosen
 
 
@@ -272,7 +267,10 @@ class Running:
     whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
     one of those problems (those without a solution, which the figures leave out, aside);
     ``out[set][pair]`` keeps after how many problems it left, how many times slower it was and
-    than which pair. No pair leaves while none has solved them all."""
+    than which pair. No pair leaves while none has solved them all. A pair that leaves a size
+    bucket leaves the family's larger buckets too (:func:`larger_buckets`), before it is
+    measured there: ``out`` keeps the same record for them, with ``measured_on`` naming the
+    bucket where it left."""
 
     limit: float
     out: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
@@ -313,7 +311,7 @@ class Running:
         for one in rows:
             solver = one["solver"]
             if one["set"] != set_name or one["own"] or not self.running(set_name, solver) \
-                    or one["status"] == NO_SOLUTION:
+                    or one["status"] in UNDECIDED:
                 continue
             totals[solver] = totals.get(solver, 0.0) + one["time_s"]
             solved_all[solver] = solved_all.get(solver, True) and bool(one["success"])
@@ -324,9 +322,12 @@ class Running:
         fastest = min(finishers, key=totals.__getitem__)
         for solver, total in totals.items():
             if total > self.limit * totals[fastest]:
-                self.out.setdefault(set_name, {})[solver] = {
-                    "problems": len(problems[solver]), "slower": total / totals[fastest],
-                    "than": fastest}
+                left = {"problems": len(problems[solver]), "slower": total / totals[fastest],
+                        "than": fastest}
+                self.out.setdefault(set_name, {})[solver] = left
+                for larger in larger_buckets(set_name):
+                    self.out.setdefault(larger, {}).setdefault(
+                        solver, {**left, "measured_on": set_name})
 
 
 def fastest_over_passes(frame: pd.DataFrame) -> pd.DataFrame:
@@ -370,14 +371,16 @@ def summarize(rows: Sequence[dict[str, Any]],
     Returns
     -------
     list of dict
-        One summary per set measured, in the order of SETS.
+        One summary per set measured, in the order of SETS (sets not there after them, by
+        name).
     """
     out = out or {}
     frame = pd.DataFrame([one for one in rows if one["solver"] not in out.get(one["set"], {})])
-    frame = frame[frame["status"] != NO_SOLUTION]  # charged to no solver (see judge)
+    frame = frame[~frame["status"].isin(UNDECIDED)]  # charged to no solver (see judge)
     passes = sorted(set(frame["pass"])) if "pass" in frame else []
     summary = []
-    for name in [s for s in SETS if s in set(frame["set"])]:
+    measured = set(frame["set"])
+    for name in [*(one for one in SETS if one in measured), *sorted(measured - set(SETS))]:
         group = frame[frame["set"] == name]
         entry = _set_summary(name, fastest_over_passes(group))
         cold_cache = cold_cache_summary(name, group)
@@ -472,7 +475,7 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
 
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
              out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
-             cold_repeats: int = 0) -> str:
+             cold_repeats: int = 0, seeds: dict[str, list[int]] | None = None) -> str:
     """The head-to-head as a Markdown section: the protocol, a table per set, the pairs' figures.
 
     Parameters
@@ -487,6 +490,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         The limit of :class:`Running`; HEAD_TO_HEAD_OUT_OF_RUNNING by default.
     cold_repeats : int, optional
         Cache-flushed calls per solve; 0 (default) when not measured.
+    seeds : dict of str to list of int or None, optional
+        The generated problems' seeds per family (:func:`generated_seeds`), listed at the
+        end; None (default) or empty for none.
 
     Returns
     -------
@@ -512,9 +518,10 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         "a failed solve is charged the set's largest time; SGM shifted on the set's "
         "own time scale. External pairs: the fastest of the main benchmark "
         "(`bench.parquet`) on the grid, dump and box families and per frictional "
-        "formulation; one whose times on a set's problems so far, summed, are more than "
-        f"{out_of_running:g} times the fastest external pair's there is measured no further "
-        "on that set (it cannot be the fastest; named below). "
+        "formulation, and on a hard family's set that family's fastest; one whose times on a "
+        f"set's problems so far, summed, are more than {out_of_running:g} times the fastest "
+        "external pair's there is measured no further on that set, nor on the larger size "
+        "buckets of its family (it cannot be the fastest; named below). "
         "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
         + (" in the table and in every pass" if passes > 1 else "")
@@ -561,10 +568,33 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         lines.append(f"- {entry['set']}: " + ", ".join(
             f"`{pair['solver']}` {1e3 * pair['sgm_s']:.3f} ({100 * pair['success_rate']:.0f}%)"
             for pair in entry["pairs"]) + "".join(
-            f"; `{left['solver']}` measured no further after {left['problems']} "
-            f"problem{'s' if left['problems'] > 1 else ''} ({left['slower']:.1f}x "
-            f"`{left['than']}`'s time there)" for left in entry.get("out_of_running", [])))
+            f"; {left_sentence(left)}" for left in entry.get("out_of_running", [])))
+    if seeds:
+        lines.append("\nSeeds of the generated problems (read from their files; `make bench` "
+                     "draws them afresh each run, `qpbench build-set --seed-offset`): "
+                     + "; ".join(f"{family} {seed_ranges(numbers)}"
+                                 for family, numbers in sorted(seeds.items())) + ".")
     return "\n".join(lines) + "\n"
+
+
+def left_sentence(left: dict[str, Any]) -> str:
+    """Where and why an external pair was measured no further on a set, in Markdown.
+
+    Parameters
+    ----------
+    left : dict
+        An entry of a set's ``out_of_running``: ``solver``, ``problems``, ``slower``,
+        ``than``, and ``measured_on`` when it left a smaller size bucket.
+
+    Returns
+    -------
+    str
+        The clause.
+    """
+    where = f" of {left['measured_on']}" if "measured_on" in left else ""
+    return (f"`{left['solver']}` measured no further after {left['problems']} "
+            f"problem{'s' if left['problems'] > 1 else ''}{where} ({left['slower']:.1f}x "
+            f"`{left['than']}`'s time there)")
 
 
 def flushed(entry: dict[str, Any]) -> str:
@@ -678,7 +708,8 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                  batch_problems: int = HEAD_TO_HEAD_BATCH_PROBLEMS) -> dict[str, Any]:
     """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary, Markdown.
 
-    The problems are timed in batches (:func:`problem_batches` of ``batch_problems``), every
+    The problems are taken in the order of their sets in SETS (:func:`set_rank`) and timed in
+    batches (:func:`problem_batches` of ``batch_problems``), every
     running pair on every problem of a batch in one interleaved schedule
     (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside); external pairs
     leave a set after a batch as :class:`Running` says, with ``limit = out_of_running``
@@ -709,14 +740,17 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     -------
     dict
         The settings, the pairs chosen (``candidates``), ``rows``, ``summary``, ``markdown``,
-        the problem count and the sets not measured.
+        the problem count, the generated problems' seeds per family and the sets not measured.
     """
     chosen = fastest_external(bench, candidates)
-    problems = [problem for problem in files.load_all(files.find([str(folder)]))
-                if set_of(problem) is not None]
+    problems = sorted((problem for problem in files.load_all(files.find([str(folder)]))
+                       if set_of(problem) is not None), key=set_rank)
     specs = {"impact": [get(key) for key in (*OWN_IMPACT, *chosen["impact"])],
              "frictional": [get(key, "frictional")
                             for key in (*OWN_FRICTIONAL, *chosen["frictional"])]}
+    # a hard family's own fastest pair, on that family's set (named by the family) only
+    own_set_specs = {family: [get(key) for key in keys]
+                     for family, keys in chosen["families"].items()}
     rows: list[dict[str, Any]] = []
     running = Running(out_of_running)
     batches = problem_batches(problems, batch_problems)
@@ -728,8 +762,9 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                 if progress is not None:
                     progress(f"pass {pass_number + 1}/{passes} [{done}/{len(problems)}] "
                              f"{batch[-1].name}")
-                pairs = [(spec, problem) for problem in batch for spec in specs[
-                    "frictional" if isinstance(problem, FrictionalProblem) else "impact"]
+                pairs = [(spec, problem) for problem in batch for spec in (
+                    specs["frictional"] if isinstance(problem, FrictionalProblem)
+                    else specs["impact"] + own_set_specs.get(str(set_of(problem)), []))
                     if spec.solve is not None
                     and running.running(set_of(problem, spec.formulation), spec.key)]
                 measured = measure_batch(pairs, repeats, pass_number=pass_number,
@@ -738,12 +773,13 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                 for set_name in {one["set"] for one in measured}:
                     running.update(rows, set_name)
     summary = summarize(rows, running.out)
+    seeds = generated_seeds(problems)
     return {"accuracy": ACCURACY, "repeats": repeats, "cold_repeats": cold_repeats,
             "batch_problems": batch_problems, "flush_bytes": flush_bytes() if cold_repeats
             else 0, "passes": passes, "candidates": chosen,
             "staggered_max_outer": STAGGERED_MAX_OUTER, "out_of_running": out_of_running,
             "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
-            "markdown": markdown(summary, repeats, passes, out_of_running, cold_repeats)
-            if rows else "",
-            "problems": len(problems),
+            "markdown": markdown(summary, repeats, passes, out_of_running, cold_repeats,
+                                 seeds) if rows else "",
+            "problems": len(problems), "seeds": seeds,
             "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}
