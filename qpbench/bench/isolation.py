@@ -22,9 +22,9 @@ outlives the run, however the run ends.
 
 Workers are forked by a multiprocessing fork server, so, as with any multiprocessing
 program, a Python script that starts one must do so under ``if __name__ == "__main__":``
-(the ``qpbench`` command and pytest need nothing). Measured on the development machine: a
-new worker after a crash is ready in about 0.15 s; the harness adds about 4 ms per cell
-(messages, judging) to the solver's time.
+(the ``qpbench`` command and pytest need nothing). A new worker after a crash is forked from
+the server's preloaded process, not started afresh; what the harness adds per cell (messages,
+judging) falls outside every solver's stopwatch.
 """
 
 from __future__ import annotations
