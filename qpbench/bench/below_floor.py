@@ -11,6 +11,7 @@ from __future__ import annotations
 import pandas as pd
 
 from qpbench.bench import stats
+from qpbench.bench.formatting import level
 
 NAMED_PROBLEMS = 10  # problems the sentence names; the rest are counted
 
@@ -33,7 +34,7 @@ def note(frame: pd.DataFrame) -> str:
     if cells.empty:
         return ""
     levels = cells.groupby("problem", sort=True)["accuracy"].apply(
-        lambda found: ", ".join(f"{float(value):.0e}" for value in found))
+        lambda found: ", ".join(level(value) for value in found))
     named = [f"{problem} at {text}" for problem, text in levels.head(NAMED_PROBLEMS).items()]
     rest = len(levels) - len(named)
     if rest:

@@ -11,12 +11,12 @@ read. A problem whose file is gone, unreadable, or holds other numbers than thos
 from __future__ import annotations
 
 import functools
-import math
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from qpbench.bench.formatting import number
 from qpbench.bench.runner import fingerprint
 from qpbench.errors import QpbenchError
 from qpbench.problem import fclib, files
@@ -39,17 +39,8 @@ INTRO = ("The problems imported from Siconos' and FCLIB's files, described as Ac
          "of an LCP.")
 
 
-def _text(value: Any, digits: int = 3) -> str:
-    """``value`` with ``digits`` significant digits; ``-`` for a missing one."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "-"
-    if isinstance(value, float):
-        return "inf" if math.isinf(value) else f"{value:.{digits}g}"
-    return str(value)
-
-
 def _mu(low: float, high: float) -> str:
-    return _text(high) if low == high else f"{_text(low)} .. {_text(high)}"
+    return number(high) if low == high else f"{number(low)} .. {number(high)}"
 
 
 @functools.lru_cache(maxsize=256)
@@ -109,10 +100,10 @@ def describe_imported(frame: pd.DataFrame) -> pd.DataFrame:
             row.update({
                 "format": file_format,
                 "contacts": str(size),
-                "dofs": _text(description["dofs"]),
-                "density": _text(description["density"]),
-                "rank deficiency": _text(description["rank_deficiency"]),
-                "cond(W)": _text(description["cond"]),
+                "dofs": number(description["dofs"]),
+                "density": number(description["density"]),
+                "rank deficiency": number(description["rank_deficiency"]),
+                "cond(W)": number(description["cond"]),
                 "mu": _mu(description["mu_min"], description["mu_max"]),
             })
         entries.append((str(first["family"]), size, str(name), row))

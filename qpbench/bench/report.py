@@ -27,6 +27,7 @@ import pandas as pd
 
 from qpbench.atomic import atomic_path
 from qpbench.bench import below_floor, html_report, imported_problems, plots, sim_precision, stats
+from qpbench.bench.formatting import level, number, percent
 from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.errors import InputError
 from qpbench.solvers import accuracy as accuracy_table
@@ -45,62 +46,8 @@ INDEX_POINTER = ("At a glance, interactive and offline: [index.html](index.html)
 
 
 # --- formatting ------------------------------------------------------------------------------
-def number(value: Any) -> str:
-    """Format a value with three significant digits; '-' for missing.
-
-    Parameters
-    ----------
-    value : Any
-        A number, a missing value (None, NaN, ``pd.NA``) or anything else (shown as ``str``).
-
-    Returns
-    -------
-    str
-        The value's text; ``inf`` for an infinite float.
-    """
-    if value is None or (isinstance(value, float) and math.isnan(value)) or value is pd.NA:
-        return "-"
-    if isinstance(value, float | np.floating):
-        return "inf" if math.isinf(value) else f"{value:.3g}"
-    return str(value)
-
-
-def level(accuracy: float) -> str:
-    """Format an accuracy level as ``1e-08``.
-
-    Parameters
-    ----------
-    accuracy : float
-        The level.
-
-    Returns
-    -------
-    str
-        The level's text.
-    """
-    return f"{float(accuracy):.0e}"
-
-
 def _maybe_level(value: Any) -> str:
     return "-" if value is None or pd.isna(value) else level(value)
-
-
-def percent(value: Any) -> str:
-    """Format a share as a percentage with one decimal: 0.5 as ``50.0%``; '-' for missing.
-
-    Parameters
-    ----------
-    value : Any
-        A share in [0, 1], None or NaN.
-
-    Returns
-    -------
-    str
-        The percentage's text.
-    """
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "-"
-    return f"{100.0 * float(value):.1f}%"
 
 
 def markdown_table(frame: pd.DataFrame, formats: dict[str, Formatter] | None = None,

@@ -16,7 +16,8 @@ import pandas as pd
 
 from qpbench.bench import stats
 from qpbench.bench.defaults import TARGET_SPEEDUP
-from qpbench.bench.report import SummarySection, number, percent
+from qpbench.bench.formatting import number, percent
+from qpbench.bench.report import SummarySection
 
 HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "grid", "box", "mass-ratio",
                  "near-duplicate", "dump")
