@@ -160,13 +160,13 @@ def test_the_watchdog_ends_a_long_compiled_call_within_a_second(tmp_path: Path) 
     script = textwrap.dedent(f"""
         import numpy as np
         from qpbench.interrupts import interrupt_watchdog
-        matrix = np.random.default_rng(0).random((1500, 1500))
+        matrix = np.random.default_rng(0).random((2500, 2500))
         with interrupt_watchdog("svd") as watchdog:
             watchdog.sweep({str(tmp_path)!r})
             open({str(partial)!r}, "w").write("half")
             print("ready", flush=True)
             while True:
-                np.linalg.svd(matrix)  # seconds each, in LAPACK
+                np.linalg.svd(matrix)  # several seconds each, in LAPACK: past the grace
     """)
     process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, cwd=ROOT)
