@@ -3,9 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# Debian packages: what cyipopt builds against (IPOPT with MUMPS), and the browser the tests
-# of results/index.html drive headless (Playwright with the system chromium)
-APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config chromium python3-siconos
+# Debian packages: what cyipopt builds against (IPOPT with MUMPS), what scikit-sparse builds
+# against (SuiteSparse's CHOLMOD), and the browser the tests of results/index.html drive
+# headless (Playwright with the system chromium)
+APT_PACKAGES := coinor-libipopt-dev liblapack-dev libblas-dev pkg-config libsuitesparse-dev \
+	chromium python3-siconos
 
 .PHONY: setup apt-packages lock test bench bench-large lint clean-results
 

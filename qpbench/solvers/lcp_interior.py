@@ -25,10 +25,10 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from qpbench.problem import metrics
 from qpbench.solvers.lcp import Lcp
+from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
 
 def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
@@ -40,8 +40,9 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
 
 
 class NormalMatrix:
-    """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky or sparse SuperLU) and solves
-    with it; keeps the scaled LCP and its scaling ``root``."""
+    """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky, or sparse: one
+    :class:`~qpbench.solvers.sparse_cholesky.PatternFactor` for every iteration's matrix) and
+    solves with it; keeps the scaled LCP and its scaling ``root``."""
 
     over = "contacts"
 
@@ -50,6 +51,7 @@ class NormalMatrix:
         self.dense = lcp.dense
         self.Q_dense = lcp.op if self.dense else None
         self.Q_csc = None if self.dense else sp.csc_matrix(lcp.Q)
+        self.pattern: PatternFactor | None = None  # made at the first sparse factorization
         self.factor: object = None
 
     def factorize(self, diagonal: np.ndarray) -> None:
@@ -63,14 +65,16 @@ class NormalMatrix:
         Raises
         ------
         np.linalg.LinAlgError
-            When the matrix is not positive definite (dense) or exactly singular (sparse).
+            When the matrix is not numerically positive definite.
         """
         if self.dense:
             matrix = self.Q_dense.copy()
             matrix[np.diag_indices_from(matrix)] += diagonal
             self.factor = la.cho_factor(matrix, lower=True, check_finite=False)
         else:
-            self.factor = symmetric_splu(self.Q_csc + sp.diags(diagonal))
+            if self.pattern is None:
+                self.pattern = PatternFactor(self.Q_csc)
+            self.factor = self.pattern.factorize(diagonal)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """``(Q~ + diag(d))^-1 rhs`` with the last factor.
@@ -88,33 +92,6 @@ class NormalMatrix:
         if self.dense:
             return la.cho_solve(self.factor, rhs, check_finite=False)
         return self.factor.solve(rhs)
-
-
-def symmetric_splu(matrix: sp.spmatrix) -> spla.SuperLU:
-    """SuperLU's factor of a symmetric positive definite sparse matrix.
-
-    A symmetric ordering (minimum degree on A^T + A) and diagonal pivots.
-
-    Parameters
-    ----------
-    matrix : sp.spmatrix
-        The symmetric positive definite matrix.
-
-    Returns
-    -------
-    spla.SuperLU
-        Its factor, whose ``solve`` solves with it.
-
-    Raises
-    ------
-    np.linalg.LinAlgError
-        When it is exactly singular.
-    """
-    try:
-        return spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                         options={"SymmetricMode": True})
-    except RuntimeError as error:
-        raise np.linalg.LinAlgError(str(error)) from error
 
 
 def moving_rows(factor: sp.spmatrix) -> sp.csr_matrix:
@@ -141,20 +118,23 @@ class WoodburyFactor:
 
         (A^T A + D)^-1 = D^-1 - D^-1 A^T (I + A D^-1 A^T)^-1 A D^-1,
 
-    factoring ``K = I + A D^-1 A^T`` (sparse SuperLU, one row per row of A; K >= I is positive
-    definite whatever d > 0 is), then ``refinements`` steps of iterative refinement,
-    ``x += solve(rhs - (A^T A + D) x)``. Why refine: the subtraction loses about
-    ``log10(max(A^T A) / min(d))`` digits when d is small beside A^T A (policy blocks
-    ``Q_FF + rho D_F`` with rho = 1e-5), and each step wins them back."""
+    factoring ``K = I + A D^-1 A^T`` (:mod:`qpbench.solvers.sparse_cholesky`, one row per row
+    of A; K >= I is positive definite whatever d > 0 is), then ``refinements`` steps of
+    iterative refinement, ``x += solve(rhs - (A^T A + D) x)``. Why refine: the subtraction
+    loses about ``log10(max(A^T A) / min(d))`` digits when d is small beside A^T A (policy
+    blocks ``Q_FF + rho D_F`` with rho = 1e-5), and each step wins them back."""
 
     def __init__(self, A: sp.csr_matrix, diagonal: np.ndarray, refinements: int = 0,
-                 A_T: sp.csr_matrix | None = None) -> None:
-        """``A_T``: A's transpose in CSR, when the caller keeps it across factorizations."""
+                 A_T: sp.csr_matrix | None = None, pattern: PatternFactor | None = None
+                 ) -> None:
+        """``A_T``: A's transpose in CSR, and ``pattern``: ``PatternFactor(A,
+        symmetric=False)``, when the caller keeps them across factorizations."""
         self.A, self.A_T = A, sp.csr_matrix(A.T) if A_T is None else A_T
         self.diagonal, self.inverse = diagonal, 1.0 / diagonal
         self.refinements = refinements
-        self.factor = symmetric_splu(sp.identity(A.shape[0], format="csc")
-                                     + A @ sp.diags(self.inverse) @ self.A_T)
+        scales = np.sqrt(self.inverse)
+        self.factor = pattern.factorize(scales) if pattern is not None \
+            else gram_factor(A @ sp.diags(scales))
 
     def _inverse_times(self, rhs: np.ndarray) -> np.ndarray:
         """``D^-1 rhs - D^-1 A^T K^-1 A D^-1 rhs``."""
@@ -193,6 +173,7 @@ class FactoredNormalMatrix:
         self.lcp, self.root = lcp, root
         self.A = sp.csr_matrix(rows @ sp.diags(root))
         self.A_T = sp.csr_matrix(self.A.T)  # formed once, for every iteration's factor
+        self.pattern: PatternFactor | None = None  # made at the first factorization
         self.factor: WoodburyFactor | None = None
 
     @classmethod
@@ -227,7 +208,9 @@ class FactoredNormalMatrix:
         diagonal : np.ndarray
             d, shape (n,), positive.
         """
-        self.factor = WoodburyFactor(self.A, diagonal, A_T=self.A_T)
+        if self.pattern is None:
+            self.pattern = PatternFactor(self.A, symmetric=False)
+        self.factor = WoodburyFactor(self.A, diagonal, A_T=self.A_T, pattern=self.pattern)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """``(Q~ + diag(d))^-1 rhs`` with the last factor.

@@ -48,10 +48,10 @@ and adds published safeguards:
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
-by LU) or sparse SuperLU, a sparse block over the degrees of freedom its contacts move
-when there are fewer of them than contacts (``lcp_interior.WoodburyFactor``, refined
-once); the last factors of policy blocks are kept, so prox steps on a settled policy
-cost triangular solves only.
+by LU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a sparse
+block over the degrees of freedom its contacts move when there are fewer of them than
+contacts (``lcp_interior.WoodburyFactor``, refined once); the last factors of policy
+blocks are kept, so prox steps on a settled policy cost triangular solves only.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
 (``qpbench.solvers.pi_robust_kernel``: numba, contacts in reverse Cuthill-McKee order,
@@ -92,11 +92,11 @@ from qpbench.solvers.lcp_interior import (
     interior_point,
     jacobi_scaled,
     moving_rows,
-    symmetric_splu,
 )
 from qpbench.solvers.pi_robust_kernel import entry as kernel_entry
 from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
+from qpbench.solvers.sparse_cholesky import symmetric_factor
 
 NAME = "pi-robust"
 # iterative-refinement steps of a policy block solved over the degrees of freedom
@@ -200,7 +200,7 @@ class BlockSolver:
             if rows.shape[0] < index.size:
                 self.factorizations_over_dofs += 1
                 return WoodburyFactor(rows, shift, refinements=BLOCK_REFINEMENTS)
-        return symmetric_splu(self.Q_csc[:, index][index, :] + sp.diags(shift))
+        return symmetric_factor(self.Q_csc[:, index][index, :] + sp.diags(shift))
 
 
 def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray
