@@ -207,7 +207,7 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
                   "active_set": True, "drift_steps": 3, "pi_budget": 100, "finish_budget": 3,
                   "finish_below": 1e-3, "ipm_iters": 80, "start_sweeps": 5,
                   "dense_limit": 300, "lemke_limit": 400, "compiled_limit": 50_000,
-                  "compiled_work_limit": 1e7},
+                  "compiled_work_limit": 2.5e6},
     "pgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10},
     "lemke": {"tol": _relative, "max_contacts": 1_500, "max_pivots_per_contact": 50},
     "penalty": {"tol": _relative, "kappa": 1e9, "max_iters": 100, "dense_limit": 300},
