@@ -4,13 +4,24 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
-from qpbench.simulation.scaling import PARTS, box_pile, circle_pile, pile_markdown, pile_scaling
+from qpbench.problem.impact import ImpactProblem
+from qpbench.simulation.scaling import (
+    FACTORIZATION_TARGET,
+    PARTS,
+    box_pile,
+    circle_pile,
+    final_block_fields,
+    pile_markdown,
+    pile_scaling,
+)
+from qpbench.studies.factorization import active_block_factorization
 
 CLARABEL = choose_by_name("clarabel/dual")
 
@@ -51,7 +62,6 @@ def test_a_pile_counts_the_inner_solves_that_miss_the_accuracy_asked() -> None:
     table says so; pi-robust's own answers count none (clarabel/dual's miss 1e-8 on this
     pile)."""
     from qpbench.inner_solvers import chosen
-    from qpbench.problem.impact import ImpactProblem
     from qpbench.simulation.operators import ChosenSolve, SolvedImpulses
     from qpbench.solvers.registry import get
 
@@ -86,6 +96,9 @@ def test_scaling_writes_the_piles_beside_the_sparse_boxes(tmp_path: Path) -> Non
     piles = report["piles"]["kinds"]
     assert piles["circles"]["sizes"] == [50, 200] and piles["boxes"]["sizes"] == [20, 60]
     assert "### Dense piles" in report["markdown"] and "own cost" in report["markdown"]
+    for entry in piles.values():  # the command sets every pile against one factorization
+        assert all(row["factorization_s"] > 0 for row in entry["rows"])
+    assert "inner solves per step / factorization" in report["markdown"]
 
 
 def test_a_pile_past_its_solve_budget_stops_after_one_step_and_says_so() -> None:
@@ -109,3 +122,70 @@ def test_scaling_refuses_a_solve_budget_that_is_not_positive(tmp_path: Path,
     assert main(["scaling", "--sizes", "20,40", "--pile-solve-budget", "0",
                  "-o", str(output)]) == 2
     assert "--pile-solve-budget" in capsys.readouterr().err and not output.exists()
+
+
+def test_a_pile_sets_its_inner_solves_against_one_factorization_of_its_final_active_block(
+        ) -> None:
+    """Each row times one sparse factorization of the last step's active block (CHOLMOD and
+    SuperLU, the faster named) and divides the inner solves per step by it; per kind the
+    largest ratio is held against 3x, and the table and the kind's line show the figures."""
+    pi_robust = choose_by_name("pi-robust")
+    report = pile_scaling(pi_robust, {"circles": (30, 60), "boxes": (20, 40)}, steps=2,
+                          factor_block=active_block_factorization)
+    assert report["factorization_target"] == FACTORIZATION_TARGET == 3.0
+    text = pile_markdown(report, "pi-robust")
+    for entry in report["kinds"].values():
+        for row in entry["rows"]:
+            assert row["success"] and row["steps"] == 2
+            # a pressed pile keeps contacts active; the block stores its whole diagonal
+            assert 0 < row["active_contacts"] <= row["active_nonzeros"]
+            by_method = row["factorization_s_by_method"]
+            assert set(by_method) >= {"SuperLU/MMD_AT_PLUS_A"}
+            assert row["factorization_s"] == min(by_method.values()) > 0
+            assert by_method[row["factorization_method"]] == row["factorization_s"]
+            assert row["factorization_library"] == row["factorization_method"].split("/")[0]
+            assert row["solve_per_step_s"] == pytest.approx(row["solve_s"] / row["steps"])
+            assert row["solve_to_factorization"] == pytest.approx(
+                row["solve_per_step_s"] / row["factorization_s"])
+            assert (f"| {row['active_contacts']} | {1e3 * row['factorization_s']:.2f} "
+                    f"({row['factorization_library']}) "
+                    f"| {row['solve_to_factorization']:.2f}x |") in text
+        largest = max(row["solve_to_factorization"] for row in entry["rows"])
+        assert entry["max_solve_to_factorization"] == largest
+        assert entry["meets_factorization_target"] == (largest <= 3.0)
+        verdict = "meets" if entry["meets_factorization_target"] else "misses"
+        small, large = entry["rows"]
+        assert (f"{small['solve_to_factorization']:.2f}x at {small['bodies']}, "
+                f"{large['solve_to_factorization']:.2f}x at {large['bodies']} bodies** "
+                f"({verdict} the target <= 3x)") in text
+    assert "final active block (the contacts F with l > 0" in text
+
+
+def test_a_pile_without_a_factorization_shows_dashes_and_no_verdict() -> None:
+    report = pile_scaling(CLARABEL, {"boxes": (20, 40)}, steps=1)
+    assert "factorization_target" not in report
+    row = report["kinds"]["boxes"]["rows"][0]
+    assert "factorization_s" not in row and "solve_to_factorization" not in row
+    text = pile_markdown(report, "clarabel/dual")
+    assert "| - | - | - |" in text and "against one factorization" not in text
+
+
+def test_an_empty_final_active_block_has_no_factorization_and_no_ratio() -> None:
+    """A last answer with l = 0 everywhere leaves F empty: no factorization time, no ratio,
+    and the kind misses the target; a pile with no step done has no factorization either."""
+    def nothing_active(problem: ImpactProblem, impulses: np.ndarray) -> dict[str, Any]:
+        return active_block_factorization(problem, np.zeros_like(impulses))
+
+    report = pile_scaling(choose_by_name("pi-robust"), {"boxes": (20,)}, steps=1,
+                          factor_block=nothing_active)
+    entry = report["kinds"]["boxes"]
+    row = entry["rows"][0]
+    assert row["active_contacts"] == 0 and row["factorization_s"] is None
+    assert row["factorization_library"] is None and row["solve_to_factorization"] is None
+    assert set(row["factorization_s_by_method"].values()) == {None}
+    assert entry["max_solve_to_factorization"] is None
+    assert not entry["meets_factorization_target"]
+    text = pile_markdown(report, "pi-robust")
+    assert "| 0 | - | - |" in text and "**none at 20 bodies** (misses" in text
+    fields = final_block_fields(None, 0.5, active_block_factorization)
+    assert fields["factorization_s"] is None and fields["solve_to_factorization"] is None

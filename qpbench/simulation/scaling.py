@@ -13,6 +13,12 @@ with its growth from the smallest to the largest size against the same target. E
 is warmed up once by one untimed step of a small pile, and every pile is timed from its
 first step, so a large pile pays for no untimed step; a pile whose inner solves pass a time
 budget stops after fewer steps (at least one), and its row says so.
+
+The inner solves of a pile are also held against one sparse factorization of the final
+active block: the caller hands in a :data:`FactorBlock` (this package knows no solver), told
+the problem and impulses of the pile's last step done, after the timed steps; the inner-solve
+time per step over the factorization's time is the row's ``solve_to_factorization``, against
+``FACTORIZATION_TARGET`` (<= 3x).
 """
 
 from __future__ import annotations
@@ -25,11 +31,12 @@ from typing import Any
 
 import numpy as np
 
+from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes.builders import BOX_DT, BOX_RADIUS, box_scene
 from qpbench.scenes.model import Bodies, ImpactOperator, Scene, SolverChoice
 from qpbench.scenes.solver_names import SCISIM_TO_QPBENCH
 from qpbench.simulation.operators import ChooseSolve, InnerSolveFailed
-from qpbench.simulation.stepper import Simulator
+from qpbench.simulation.stepper import Simulator, StepEvent
 
 TARGET_RATIO = 1.5
 DEFAULT_SIZES = (1000, 10000)
@@ -43,6 +50,12 @@ PILE_WARMUP_BODIES = 100  # every kind's one untimed warm-up step is on a pile t
 # a pile's timed steps stop early once its inner solves have taken this long (at least one
 # step is always timed, and the steps done are reported)
 DEFAULT_PILE_SOLVE_BUDGET_S = 60.0
+# the inner solves per step of a pile against one sparse factorization of its final active block
+FACTORIZATION_TARGET = 3.0
+# times one sparse factorization of the final active block: told the last step's problem and
+# impulses, it gives the row's fields ``factorization_s`` (seconds, None when not measured),
+# ``factorization_library`` and any more (qpbench.studies.factorization.active_block_factorization)
+FactorBlock = Callable[[ImpactProblem, np.ndarray], dict[str, Any]]
 
 
 def measure(balls: int, steps: int, choose_solve: ChooseSolve, seed: int = 0
@@ -124,7 +137,8 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
             pile_sizes: dict[str, tuple[int, ...]] | None = None,
             pile_steps: int = DEFAULT_PILE_STEPS,
             pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
-            progress: Advance | None = None) -> dict[str, Any]:
+            progress: Advance | None = None,
+            factor_block: FactorBlock | None = None) -> dict[str, Any]:
     """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table.
 
     With ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``. ``progress``
@@ -149,6 +163,9 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
         DEFAULT_PILE_SOLVE_BUDGET_S by default.
     progress : Advance or None, optional
         The progress hook; None (default) for none.
+    factor_block : FactorBlock or None, optional
+        Times one sparse factorization of each pile's final active block; None (default) for
+        none.
 
     Returns
     -------
@@ -174,7 +191,7 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
     }
     if pile_sizes:
         report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps,
-                                       pile_solve_budget_s, told)
+                                       pile_solve_budget_s, told, factor_block)
     report["markdown"] = markdown(report)
     return report
 
@@ -356,14 +373,17 @@ def warm_up_pile(kind: str, bodies: int, choose_solve: ChooseSolve) -> None:
 
 
 def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
-                 solve_budget_s: float = math.inf) -> dict[str, Any]:
+                 solve_budget_s: float = math.inf,
+                 factor_block: FactorBlock | None = None) -> dict[str, Any]:
     """One pile, warmed up beforehand (``warm_up_pile``), its time split into parts.
 
     Up to ``steps`` timed steps from its first, split into the simulator's own parts (contact
     detection, assembly of the impact problem, the rest of the step: integration and
     bookkeeping) and the inner solves (the whole call into the impact operator, the solver's
     own formulation included). The steps stop early, after at least one, once the inner solves
-    have taken ``solve_budget_s``; the row says so.
+    have taken ``solve_budget_s``; the row says so. With ``factor_block``, after the timed
+    steps, one sparse factorization of the final active block of the last step done is timed
+    (:data:`FactorBlock`) and the inner-solve time per step set against it.
 
     Parameters
     ----------
@@ -377,12 +397,16 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
         The inner solve of the pile's operator.
     solve_budget_s : float, optional
         Seconds of inner solves after which no further step is timed; no budget by default.
+    factor_block : FactorBlock or None, optional
+        Times one sparse factorization of the final active block; None (default) for none.
 
     Returns
     -------
     dict
         The row: steps done and asked, seconds per part, costs per body per step in
-        microseconds, contacts per body, success or the failure, and the solves' accuracy.
+        microseconds, contacts per body, success or the failure, and the solves' accuracy;
+        with ``factor_block`` also its fields, ``solve_per_step_s`` and
+        ``solve_to_factorization`` (:func:`final_block_fields`).
     """
     simulator = Simulator(PILES[kind](bodies), choose_solve)
     timers = {name: _Timed(getattr(simulator, name))
@@ -392,15 +416,16 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
     contacts_found = 0
     done = 0
     failure = None
+    last: StepEvent | None = None
     start = time.perf_counter()
     while done < steps and (done == 0 or timers["_solve"].seconds < solve_budget_s):
         try:
-            event = simulator.step()
+            last = simulator.step()
         except InnerSolveFailed as error:
             failure = error.detail
             break
         done += 1
-        contacts_found += event.contacts.count
+        contacts_found += last.contacts.count
     wall = time.perf_counter() - start
     parts = {"contacts_s": timers["find_contacts"].seconds,
              "assembly_s": timers["impact_problem"].seconds,
@@ -408,7 +433,7 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
     parts["integration_s"] = max(0.0, wall - sum(parts.values()))
     own = parts["contacts_s"] + parts["assembly_s"] + parts["integration_s"]
     scale = 1e6 / (bodies * max(1, done))
-    return {
+    row = {
         "kind": kind, "bodies": bodies, "steps": done, "steps_asked": steps,
         "stopped_by_solve_budget": failure is None and done < steps,
         "wall_s": wall, **parts,
@@ -421,6 +446,40 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
         "success": failure is None, "failure": failure,
         **_accuracy_of(simulator),
     }
+    if factor_block is not None:
+        row.update(final_block_fields(last, parts["solve_s"] / max(1, done), factor_block))
+    return row
+
+
+def final_block_fields(last: StepEvent | None, solve_per_step_s: float,
+                       factor_block: FactorBlock) -> dict[str, Any]:
+    """One sparse factorization of the final active block, against the inner solves per step.
+
+    Parameters
+    ----------
+    last : StepEvent or None
+        The pile's last step done; None when no step was done.
+    solve_per_step_s : float
+        The inner solves' seconds per step done.
+    factor_block : FactorBlock
+        Times the factorization of the step's problem and impulses.
+
+    Returns
+    -------
+    dict
+        The fields of ``factor_block`` (only ``factorization_s`` and ``factorization_library``,
+        None, when the last step posed no impact problem), ``solve_per_step_s`` and
+        ``solve_to_factorization`` (``solve_per_step_s / factorization_s``; None without a
+        factorization time).
+    """
+    if last is not None and isinstance(last.problem, ImpactProblem):
+        fields = factor_block(last.problem, last.impulses)
+    else:
+        fields = {"factorization_s": None, "factorization_library": None}
+    factorization = fields.get("factorization_s")
+    return {**fields, "solve_per_step_s": solve_per_step_s,
+            "solve_to_factorization": (solve_per_step_s / factorization
+                                       if factorization else None)}
 
 
 def _accuracy_of(simulator: Simulator) -> dict[str, Any]:
@@ -435,12 +494,16 @@ def _accuracy_of(simulator: Simulator) -> dict[str, Any]:
 def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
                  steps: int = DEFAULT_PILE_STEPS,
                  solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
-                 progress: Advance | None = None) -> dict[str, Any]:
+                 progress: Advance | None = None,
+                 factor_block: FactorBlock | None = None) -> dict[str, Any]:
     """Every pile at every size, and per kind the growth of its costs per body per step.
 
     Each kind is warmed up once on a small pile; the growth of the simulator's own cost per
     body per step (largest size against the smallest, target <= 1.5x) and of the inner solves'
     is given per kind. ``progress`` is told after each warm-up and each pile (:data:`Advance`).
+    With ``factor_block``, each pile's inner solves per step are set against one sparse
+    factorization of its final active block (:func:`measure_pile`), and per kind the largest
+    such ratio against FACTORIZATION_TARGET.
 
     Parameters
     ----------
@@ -455,24 +518,33 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
         DEFAULT_PILE_SOLVE_BUDGET_S by default.
     progress : Advance or None, optional
         The progress hook; None (default) for none.
+    factor_block : FactorBlock or None, optional
+        Times one sparse factorization of each pile's final active block; None (default) for
+        none.
 
     Returns
     -------
     dict
         The steps, budget, warm-up size and target, and under ``kinds`` per kind its sizes,
-        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio`` and ``meets_target``.
+        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio`` and ``meets_target``; with
+        ``factor_block`` also ``factorization_target`` and per kind
+        ``max_solve_to_factorization`` (None when a row has no ratio) and
+        ``meets_factorization_target``.
     """
     told = progress or _silent
     warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
     report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
                               "warmup_bodies": warmup, "target_ratio": TARGET_RATIO,
                               "kinds": {}}
+    if factor_block is not None:
+        report["factorization_target"] = FACTORIZATION_TARGET
     for kind, kind_sizes in sizes.items():
         warm_up_pile(kind, warmup, choose_solve)
         told(1, f"{kind} pile warm-up, {warmup} bodies")
         rows = []
         for bodies in kind_sizes:
-            rows.append(measure_pile(kind, bodies, steps, choose_solve, solve_budget_s))
+            rows.append(measure_pile(kind, bodies, steps, choose_solve, solve_budget_s,
+                                     factor_block))
             told(1, f"{kind} pile, {bodies} bodies")
         first, last = rows[0], rows[-1]
         own_ratio = last["own_per_body_step_us"] / max(first["own_per_body_step_us"], 1e-300)
@@ -482,6 +554,13 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
             "sizes": list(kind_sizes), "rows": rows, "own_ratio": own_ratio,
             "solve_ratio": solve_ratio, "meets_target": bool(own_ratio <= TARGET_RATIO),
         }
+        if factor_block is not None:
+            ratios = [row["solve_to_factorization"] for row in rows]
+            largest = None if None in ratios else max(ratios)
+            report["kinds"][kind].update({
+                "max_solve_to_factorization": largest,
+                "meets_factorization_target": bool(largest is not None
+                                                   and largest <= FACTORIZATION_TARGET)})
     return report
 
 
@@ -506,8 +585,9 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
     Returns
     -------
     str
-        The ``### Dense piles`` subsection: a table of every pile, the verdict per kind, and a
-        line per pile the solve budget stopped.
+        The ``### Dense piles`` subsection: a table of every pile, the verdicts per kind (with
+        the inner solves against one factorization of the final active block, when measured),
+        and a line per pile the solve budget stopped.
     """
     budget = report.get("solve_budget_s", math.inf)
     budget_text = ("" if math.isinf(budget) else
@@ -528,12 +608,14 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
         "problem, integration and the rest of the step) is per body per step; the inner "
         "solves are beside it with their own growth. Every inner solve is judged by qpbench's "
         f"residual against the accuracy the simulator asks of it{asked}; an inaccurate one "
-        "(above that accuracy, yet usable) is counted, and the step goes on with its answer.",
+        "(above that accuracy, yet usable) is counted, and the step goes on with its answer."
+        + _factorization_text(report),
         "",
         "| pile | bodies | steps | contacts per body | contacts (us) | assembly (us) "
         "| integration (us) | own cost per body per step (us) | inner solves (us) "
-        "| inaccurate solves | largest residual |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| inaccurate solves | largest residual | final active block (contacts) "
+        "| one factorization (ms) | inner solves per step / factorization |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for kind, entry in report["kinds"].items():
         for row in entry["rows"]:
@@ -545,7 +627,7 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
                 f"| {row['assembly_per_body_step_us']:.2f} "
                 f"| {row['integration_per_body_step_us']:.2f} "
                 f"| {row['own_per_body_step_us']:.2f} | {row['solve_per_body_step_us']:.2f} "
-                f"| {_inaccurate_cell(row)} | {largest} |")
+                f"| {_inaccurate_cell(row)} | {largest} | {_factorization_cells(row)} |")
     lines.append("")
     for kind, entry in report["kinds"].items():
         small, large = entry["sizes"][0], entry["sizes"][-1]
@@ -553,7 +635,8 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
         lines.append(
             f"- {kind}: own cost per body per step, {large} vs {small} bodies: "
             f"**{entry['own_ratio']:.2f}x** ({verdict} the target <= "
-            f"{report['target_ratio']}x); inner solves {entry['solve_ratio']:.2f}x.")
+            f"{report['target_ratio']}x); inner solves {entry['solve_ratio']:.2f}x."
+            + _factorization_verdict(entry, report))
     for kind, entry in report["kinds"].items():
         for row in entry["rows"]:
             if row.get("stopped_by_solve_budget"):
@@ -563,3 +646,50 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
                     f"{row['solve_s']:.0f} s, past the {budget:g} s budget of a pile "
                     "(`--pile-solve-budget`); the simulator's own cost is per step done.")
     return "\n".join(lines) + "\n"
+
+
+def _factorization_text(report: dict[str, Any]) -> str:
+    """The sentence that says how the inner solves are set against one factorization (empty
+    when not measured)."""
+    if "factorization_target" not in report:
+        return ""
+    rows = [row for entry in report["kinds"].values() for row in entry["rows"]]
+    shifts = sorted({row["factor_shift"] for row in rows if "factor_shift" in row})
+    shift = f" = {', '.join(f'{value:g}' for value in shifts)} max diag Q" if shifts else ""
+    libraries = dict.fromkeys(method.split("/")[0] for row in rows
+                              for method in row.get("factorization_s_by_method", {}))
+    words = {"CHOLMOD": "CHOLMOD (simplicial LDL^T, approximate minimum degree)",
+             "SuperLU": "SuperLU (minimum degree on A^T + A, diagonal pivots)"}
+    by = " and by ".join(words.get(name, name) for name in libraries) or "each library"
+    return (" After its timed steps, each pile's final active block (the contacts F with l > 0 "
+            f"in the answer of its last step), Q_FF + eps I (eps{shift}, since Q_FF may be "
+            f"singular), is factored by {by}, each once untimed and then in alternating timed "
+            "rounds, the minimum kept; one factorization is the faster (named per row), and "
+            "the inner solves per step are set against it (target <= "
+            f"{report['factorization_target']:g}x at every size).")
+
+
+def _factorization_cells(row: dict[str, Any]) -> str:
+    """The cells of the final active block: its contacts, one factorization's time (the faster
+    library) and the inner solves per step against it; ``-`` where not measured."""
+    contacts = str(row["active_contacts"]) if "active_contacts" in row else "-"
+    if row.get("factorization_s") is None:
+        return f"{contacts} | - | -"
+    return (f"{contacts} | {1e3 * row['factorization_s']:.2f} ({row['factorization_library']}) "
+            f"| {row['solve_to_factorization']:.2f}x")
+
+
+def _factorization_verdict(entry: dict[str, Any], report: dict[str, Any]) -> str:
+    """The sentence of one kind's inner solves per step against one factorization of the final
+    active block, size by size, and whether each is within the target (empty when not
+    measured)."""
+    if "factorization_target" not in report:
+        return ""
+    target = report["factorization_target"]
+    figures = ", ".join(
+        f"{row['solve_to_factorization']:.2f}x at {row['bodies']}"
+        if row.get("solve_to_factorization") is not None else f"none at {row['bodies']}"
+        for row in entry["rows"])
+    verdict = "meets" if entry["meets_factorization_target"] else "misses"
+    return (f" Inner solves per step against one factorization of the final active block: "
+            f"**{figures} bodies** ({verdict} the target <= {target:g}x).")

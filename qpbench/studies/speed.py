@@ -3,10 +3,13 @@
 On each box packing ``generate("box", size=N, seed)`` (largest first) this measures,
 side by side in one process:
 
-* ``factorization_s``: the time of ONE sparse LU factorization of ``Q + eps I`` with
-  ``eps = FACTOR_SHIFT * max(diag Q)`` by SuperLU (``scipy.sparse.linalg.splu``), the
-  faster of two column orderings (``MMD_AT_PLUS_A`` in symmetric mode, as pi-robust's
-  sparse path factors its blocks, and SuperLU's default ``COLAMD``); minimum over repeats;
+* ``factorization_s``: the time of ONE sparse factorization of ``Q + eps I`` with
+  ``eps = FACTOR_SHIFT * max(diag Q)`` (``qpbench.studies.factorization``), the fastest of
+  three: CHOLMOD's simplicial LDL^T in approximate-minimum-degree order (as pi-robust's
+  sparse path factors its blocks; when scikit-sparse imports), and SuperLU's LU
+  (``scipy.sparse.linalg.splu``) with two column orderings (``MMD_AT_PLUS_A`` in symmetric
+  mode with diagonal pivots, and SuperLU's default ``COLAMD``); minimum over repeats, the
+  fastest method and its library named;
 * ``solve_s``: pi-robust's ``time_s`` at accuracy 1e-8 (``SolverOutput.time_s``, from
   Q and b to l, as ``qpbench run`` records it), minimum over repeats;
 * ``ratio = solve_s / factorization_s`` against the target ``TARGET_RATIO`` (5x), with
@@ -23,7 +26,6 @@ BLAS (``SINGLE_THREAD_ENV``), and the JSON says whether it was.
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -41,20 +43,54 @@ from qpbench.problem.reference import attach_reference
 from qpbench.solvers.base import SolverOutput
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
+from qpbench.studies.factorization import (
+    CHOLMOD,
+    FACTOR_SHIFT,
+    METHODS,
+    SUPERLU,
+    Factorize,
+    fastest,
+    shifted_block,
+    time_once,
+)
 
 SOLVER = "pi-robust"
 ACCURACY = 1e-8
 TARGET_RATIO = 5.0
-FACTOR_SHIFT = 1e-8
-ORDERINGS = {
-    "MMD_AT_PLUS_A": {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0,
-                      "options": {"SymmetricMode": True}},
-    "COLAMD": {"permc_spec": "COLAMD"},
-}
+COLAMD = "SuperLU/COLAMD"
+
+
+def colamd_splu(matrix: sp.csc_matrix) -> spla.SuperLU:
+    """SuperLU's LU of ``matrix`` in its default column order (COLAMD), partial pivoting.
+
+    Parameters
+    ----------
+    matrix : sp.csc_matrix
+        The matrix to factor.
+
+    Returns
+    -------
+    spla.SuperLU
+        Its factor.
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When it is exactly singular.
+    """
+    try:
+        return spla.splu(matrix, permc_spec="COLAMD")
+    except RuntimeError as error:
+        raise np.linalg.LinAlgError(str(error)) from error
+
+
+# the factorizations timed: CHOLMOD (when it imports) and SuperLU in symmetric mode, as
+# qpbench.studies.factorization, and SuperLU in its default column order
+FACTORIZATIONS: dict[str, Factorize] = {**METHODS, COLAMD: colamd_splu}
 
 
 def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
-    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC (SuperLU's input).
+    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC.
 
     Parameters
     ----------
@@ -66,40 +102,38 @@ def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
     sp.csc_matrix
         The shifted matrix, (n_contacts, n_contacts).
     """
-    shift = FACTOR_SHIFT * metrics.vector_scale(problem.diag_Q)
-    return sp.csc_matrix(problem.Q + shift * sp.identity(problem.n_contacts, format="csc"))
+    return shifted_block(problem)
 
 
-def factorize(matrix: sp.csc_matrix, ordering: str) -> float:
-    """The time (seconds) of one ``splu`` of ``matrix`` with ``ordering`` (ORDERINGS).
+def factorize(matrix: sp.csc_matrix, method: str) -> float:
+    """The time (seconds) of one factorization of ``matrix`` by ``method`` (FACTORIZATIONS).
 
     Parameters
     ----------
     matrix : sp.csc_matrix
         The matrix to factor (:func:`shifted_matrix`).
-    ordering : str
-        A key of ORDERINGS.
+    method : str
+        A key of FACTORIZATIONS.
 
     Returns
     -------
     float
-        Wall seconds of the factorization.
+        Wall seconds of the factorization; NaN when it failed (a pivot not numerically
+        positive, or an exactly singular matrix).
     """
-    start = time.perf_counter()
-    spla.splu(matrix, **ORDERINGS[ordering])
-    return time.perf_counter() - start
+    return time_once(matrix, FACTORIZATIONS[method])
 
 
 def timed_parts(problems: Sequence[ImpactProblem], repeats: int
                 ) -> tuple[dict[tuple[int, str], list[float]], dict[int, SolverOutput]]:
     """Every part timed on every problem under the timing protocol, and pi-robust's answers.
 
-    The parts are pi-robust (through ``call_solver``) and one ``splu`` per ordering of
-    ORDERINGS (of :func:`shifted_matrix`, built outside the timed window); every (problem, part)
-    is timed ``repeats`` times under the timing protocol of docs/design.md section 7
-    (``qpbench.bench.schedule.Schedule``): one untimed call of each first, then rounds of one
-    call each, in an order that rotates from round to round, so no part is timed twice in a
-    row.
+    The parts are pi-robust (through ``call_solver``) and one factorization per method of
+    FACTORIZATIONS (of :func:`shifted_matrix`, built outside the timed window); every
+    (problem, part) is timed ``repeats`` times under the timing protocol of docs/design.md
+    section 7 (``qpbench.bench.schedule.Schedule``): one untimed call of each first, then
+    rounds of one call each, in an order that rotates from round to round, so no part is timed
+    twice in a row.
 
     Parameters
     ----------
@@ -117,7 +151,7 @@ def timed_parts(problems: Sequence[ImpactProblem], repeats: int
     spec = get(SOLVER)
     matrices = [shifted_matrix(problem) for problem in problems]
     items = [(number, part) for number in range(len(problems))
-             for part in (SOLVER, *ORDERINGS)]
+             for part in (SOLVER, *FACTORIZATIONS)]
     times: dict[tuple[int, str], list[float]] = {item: [] for item in items}
     first: dict[int, SolverOutput] = {}
     for call in Schedule(items, repeats, unit=lambda item: item, warm_up=True):
@@ -180,23 +214,24 @@ def measure_all(sizes: Sequence[int], seed: int, repeats: int) -> list[dict[str,
     Returns
     -------
     list of dict
-        One row per packing: size, nonzeros, the fastest factorization and its ordering,
-        pi-robust's figures (:func:`solver_figures`), ``ratio`` and ``target_met``.
+        One row per packing: size, nonzeros, the fastest factorization, its method and
+        library and every method's time (:func:`qpbench.studies.factorization.fastest`),
+        pi-robust's figures (:func:`solver_figures`), ``ratio`` (None when every
+        factorization failed) and ``target_met``.
     """
     problems = [attach_reference(generate("box", size, seed=seed)[0]) for size in sizes]
     times, first = timed_parts(problems, repeats)
     rows = []
     for number, (size, problem) in enumerate(zip(sizes, problems, strict=True)):
-        factor = {name: min(times[(number, name)]) for name in ORDERINGS}
+        factor = fastest({name: times[(number, name)] for name in FACTORIZATIONS})
         solver = solver_figures(problem, first[number], times[(number, SOLVER)])
-        fastest = min(factor, key=factor.get)
-        ratio = solver["solve_s"] / factor[fastest]
+        ratio = (None if factor["factorization_s"] is None
+                 else solver["solve_s"] / factor["factorization_s"])
         rows.append({
             "problem": problem.name, "balls": size, "contacts": problem.n_contacts,
-            "nonzeros": int(problem.Q.nnz), "factorization_s": factor[fastest],
-            "factorization_ordering": fastest, "factorization_s_by_ordering": factor,
-            **solver, "ratio": ratio,
-            "target_met": bool(solver["success"] and ratio <= TARGET_RATIO)})
+            "nonzeros": int(problem.Q.nnz), **factor, **solver, "ratio": ratio,
+            "target_met": bool(solver["success"] and ratio is not None
+                               and ratio <= TARGET_RATIO)})
     return rows
 
 
@@ -219,24 +254,45 @@ def markdown(rows: Sequence[dict[str, Any]], repeats: int) -> str:
         "## pi-robust against one sparse factorization (box packings)\n",
         f"Target: `{SOLVER}`'s solve time at accuracy {ACCURACY:g} within {TARGET_RATIO:g}x "
         f"the time of ONE sparse factorization of Q + eps I (eps = {FACTOR_SHIFT:g} max diag Q; "
-        "SuperLU `splu`, the faster of the MMD_AT_PLUS_A and COLAMD orderings). Minimum of "
+        f"the fastest of {_methods_text()}). Minimum of "
         f"{repeats} repeats each, interleaved (one untimed call of each part first, then "
         "rounds of one call of every part of every packing, in a rotated order), "
         "single-threaded BLAS, one process.\n",
-        "| problem | contacts | nnz(Q) | factorization [ms] | pi-robust [ms] | ratio | "
-        "residual | v_error | target |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---|",
+        "| problem | contacts | nnz(Q) | factorization [ms] | "
+        + " | ".join(f"{method} [ms]" for method in FACTORIZATIONS)
+        + " | pi-robust [ms] | ratio | residual | v_error | target |",
+        "|---|---:|---:|---:|" + "---:|" * len(FACTORIZATIONS) + "---:|---:|---:|---:|---|",
     ]
     for row in rows:
         verdict = "met" if row["target_met"] else "not met"
         if not row["success"]:
             verdict += " (pi-robust failed)"
+        by_method = row["factorization_s_by_method"]
         lines.append(
             f"| {row['problem']} | {row['contacts']} | {row['nonzeros']} | "
-            f"{1e3 * row['factorization_s']:.2f} ({row['factorization_ordering']}) | "
-            f"{1e3 * row['solve_s']:.2f} | {row['ratio']:.2f}x | {row['residual']:.1e} | "
-            f"{row['v_error']:.1e} | {verdict} |")
+            f"{_milliseconds(row['factorization_s'])} ({row['factorization_method']}) | "
+            + " | ".join(_milliseconds(by_method.get(method)) for method in FACTORIZATIONS)
+            + f" | {1e3 * row['solve_s']:.2f} | {_times(row['ratio'])} | "
+            f"{row['residual']:.1e} | {row['v_error']:.1e} | {verdict} |")
     return "\n".join(lines) + "\n"
+
+
+def _methods_text() -> str:
+    """The factorizations timed, in words."""
+    words = {CHOLMOD: f"`{CHOLMOD}` (simplicial LDL^T in approximate-minimum-degree order)",
+             SUPERLU: f"`{SUPERLU}` (SuperLU `splu` in symmetric mode, diagonal pivots)",
+             COLAMD: f"`{COLAMD}` (SuperLU `splu`, its default column order)"}
+    return ", ".join(words[method] for method in FACTORIZATIONS)
+
+
+def _milliseconds(seconds: float | None) -> str:
+    """Seconds as milliseconds with two decimals; ``-`` for none (every call failed)."""
+    return "-" if seconds is None else f"{1e3 * seconds:.2f}"
+
+
+def _times(ratio: float | None) -> str:
+    """A ratio as ``2.50x``; ``-`` for none."""
+    return "-" if ratio is None else f"{ratio:.2f}x"
 
 
 def single_threaded() -> bool:
