@@ -66,8 +66,7 @@ def symmetric_splu(matrix: sp.spmatrix) -> spla.SuperLU:
 
 
 class _Cholmod:
-    """A CHOLMOD factor as a ``solve`` object; CHOLMOD's errors and warnings (a zero or
-    negative pivot) raised as ``np.linalg.LinAlgError``."""
+    """A CHOLMOD factor (scikit-sparse's ``Factor``) behind SuperLU's ``solve`` interface."""
 
     def __init__(self, factor: Any) -> None:
         self.factor = factor
