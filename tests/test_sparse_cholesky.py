@@ -86,3 +86,25 @@ def test_a_singular_matrix_raises_linalg_error(library: str) -> None:
     singular = sp.csc_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
     with pytest.raises(np.linalg.LinAlgError):
         symmetric_factor(singular)
+
+
+def test_an_updated_gram_factor_solves_as_a_fresh_one() -> None:
+    B = _contacts(60, 150, seed=5)
+    added, removed = _contacts(60, 4, seed=6), B[:, :3]
+    factor = gram_factor(B)
+    updated = sparse_cholesky.updated_gram_factor(factor, added, removed)
+    new = sp.hstack([B[:, 3:], added])
+    matrix = np.eye(60) + (new @ new.T).toarray()
+    rhs = np.random.default_rng(7).normal(size=60)
+    x = updated.solve(rhs)
+    backward = np.abs(matrix @ x - rhs).max() / (np.abs(matrix) @ np.abs(x)).max()
+    assert backward <= 1e-13
+    # the factor it started from is left as it was
+    original = np.eye(60) + (B @ B.T).toarray()
+    np.testing.assert_allclose(original @ factor.solve(rhs), rhs, atol=1e-10)
+
+
+def test_a_superlu_factor_is_not_updated(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sparse_cholesky, "cholmod", None)
+    B = _contacts(30, 60, seed=8)
+    assert sparse_cholesky.updated_gram_factor(gram_factor(B), B[:, :1], B[:, 1:2]) is None

@@ -30,6 +30,9 @@ from qpbench.problem import metrics
 from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
+# what a try_finish of interior_point returns for an iterate it chose not to try
+NOT_TRIED = np.empty(0)
+
 
 def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     """The largest alpha <= 1 with value + alpha * change >= 0."""
@@ -125,16 +128,21 @@ class WoodburyFactor:
     blocks ``Q_FF + rho D_F`` with rho = 1e-5), and each step wins them back."""
 
     def __init__(self, A: sp.csr_matrix, diagonal: np.ndarray, refinements: int = 0,
-                 A_T: sp.csr_matrix | None = None, pattern: PatternFactor | None = None
-                 ) -> None:
+                 A_T: sp.csr_matrix | None = None, pattern: PatternFactor | None = None,
+                 factor: object | None = None) -> None:
         """``A_T``: A's transpose in CSR, and ``pattern``: ``PatternFactor(A,
-        symmetric=False)``, when the caller keeps them across factorizations."""
+        symmetric=False)``, when the caller keeps them across factorizations; ``factor``: K's
+        factor, when the caller has made it (by updating another's)."""
         self.A, self.A_T = A, sp.csr_matrix(A.T) if A_T is None else A_T
         self.diagonal, self.inverse = diagonal, 1.0 / diagonal
         self.refinements = refinements
         scales = np.sqrt(self.inverse)
-        self.factor = pattern.factorize(scales) if pattern is not None \
-            else gram_factor(A @ sp.diags(scales))
+        if factor is not None:
+            self.factor = factor
+        elif pattern is not None:
+            self.factor = pattern.factorize(scales)
+        else:
+            self.factor = gram_factor(A @ sp.diags(scales))
 
     def _inverse_times(self, rhs: np.ndarray) -> np.ndarray:
         """``D^-1 rhs - D^-1 A^T K^-1 A D^-1 rhs``."""
@@ -255,7 +263,9 @@ def jacobi_scaled(lcp: Lcp) -> tuple[Lcp, np.ndarray]:
 def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
                    normal: NormalMatrix | FactoredNormalMatrix, tol: float, max_iters: int,
                    try_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None],
-                   finish_below: float, end_on_stall: bool = False, prox: float = 0.0
+                   finish_below: float, end_on_stall: bool = False, prox: float = 0.0,
+                   stall_finish: Callable[[np.ndarray, np.ndarray], np.ndarray | None]
+                   | None = None
                    ) -> tuple[np.ndarray, bool, int, int]:
     """Mehrotra's predictor-corrector on the Jacobi-scaled LCP, judged on the original.
 
@@ -291,14 +301,19 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     max_iters : int
         The most interior iterations.
     try_finish : callable
-        ``try_finish(l, w)`` on the original LCP: a converged l, or None.
+        ``try_finish(l, w)`` on the original LCP: a converged l, or None; or
+        :data:`NOT_TRIED`, when it chose not to try this iterate (the next one is offered
+        again, with the same ``finish_below``).
     finish_below : float
         The residual below which an iterate is first handed to ``try_finish``.
     end_on_stall : bool, optional
-        End on a stall (or the proximal floor) after one last ``try_finish``; False by
+        End on a stall (or the proximal floor) after one last ``stall_finish``; False by
         default.
     prox : float, optional
         The proximal shift of the scaled LCP; 0 (the default) solves the LCP itself.
+    stall_finish : callable or None, optional
+        What finishes the best iterate on a stall (as ``try_finish``, never
+        :data:`NOT_TRIED`); None (the default) for ``try_finish``.
 
     Returns
     -------
@@ -331,14 +346,15 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
             return original_l, True, iteration - 1, 0
         if res <= finish_below:
             finished = try_finish(original_l, original_w)
-            if finished is not None:
+            if finished is None:
+                finish_below = 0.1 * res  # try again once the residual is ten times smaller
+            elif finished is not NOT_TRIED:
                 return finished, True, iteration - 1, 1
-            finish_below = 0.1 * res  # try again once the residual is ten times smaller
         progress, stalled = (res, 0) if res < 0.9 * progress else (progress, stalled + 1)
         at_floor = prox > 0.0 and res > 100.0 * lcp.residual_of(
             original_l, (plain_w + prox * impulses) / root)
         if end_on_stall and (stalled >= 5 or at_floor):
-            finished = try_finish(best, best_w)
+            finished = (stall_finish or try_finish)(best, best_w)
             if finished is not None:
                 return finished, True, iteration - 1, 1
             return best, False, iteration - 1, 1

@@ -76,7 +76,6 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
@@ -86,22 +85,18 @@ from qpbench.solvers import accuracy, lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
+    NOT_TRIED,
     FactoredNormalMatrix,
     NormalMatrix,
-    WoodburyFactor,
     interior_point,
     jacobi_scaled,
-    moving_rows,
 )
+from qpbench.solvers.pi_robust_blocks import BlockSolver
 from qpbench.solvers.pi_robust_kernel import entry as kernel_entry
 from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
-from qpbench.solvers.sparse_cholesky import symmetric_factor
 
 NAME = "pi-robust"
-# iterative-refinement steps of a policy block solved over the degrees of freedom
-# (lcp_interior.WoodburyFactor)
-BLOCK_REFINEMENTS = 1
 # the proximal weight of the interior point where it runs first (Jacobi-scaled units: Q~ has a
 # unit diagonal); its answer then misses the LCP by at most 1e-10 max(l~). A larger weight
 # leaves a residual floor above the finest accuracy level on dense piles; a smaller one makes
@@ -112,95 +107,11 @@ INTERIOR_PROX = 1e-10
 # solution mostly fails, each costing factorizations; waiting for the floor leaves the answer
 # the interior point's own (docs/notes/pi-robust.md)
 FIRST_FINISH_BELOW = 1e-6
-
-
-class BlockSolver:
-    """Solves ``(Q_FF + rho D_F) x = r`` for a policy F, keeping the last ``keep`` factors."""
-
-    def __init__(self, lcp: Lcp, keep: int = 2, small: int = 64) -> None:
-        self.lcp = lcp
-        self.dense = lcp.dense
-        self.small = small  # blocks up to this size are solved by LU each time (cheapest)
-        self.Q_dense = lcp.op if self.dense else None
-        self.Q_csc = None if self.dense else sp.csc_matrix(lcp.Q)
-        # Q's factor L = M^-1/2 G, whose columns give a sparse block's Woodbury form
-        self.L = None if self.dense or not isinstance(lcp.problem, ImpactProblem) \
-            else lcp.problem.L
-        self.keep = keep
-        self.cache: dict[tuple[bytes, float], object] = {}
-        self.factorizations = 0
-        self.factorizations_over_dofs = 0  # of them, blocks factored through L (Woodbury)
-
-    def counts(self) -> dict[str, int]:
-        """The factorizations so far, and how many of them ran over the degrees of freedom.
-
-        Returns
-        -------
-        dict[str, int]
-            ``factorizations``, every block factored (or, up to ``small`` contacts, formed
-            for LU) since construction, and ``factorizations_over_dofs``, those of them
-            factored through Q's factor L in Woodbury form.
-        """
-        return {"factorizations": self.factorizations,
-                "factorizations_over_dofs": self.factorizations_over_dofs}
-
-    def solve(self, policy: np.ndarray, index: np.ndarray, rho: float, rhs: np.ndarray
-              ) -> np.ndarray:
-        """Solve ``(Q_FF + rho D_F) x_F = rhs`` on the policy's free contacts F.
-
-        The factor of the block is taken from the cache under the key (policy, rho), or made
-        and counted; it becomes the most recently used, and the least recently used beyond
-        ``keep`` are dropped. D_F is ``lcp.safe_diag`` (zeros replaced).
-
-        Parameters
-        ----------
-        policy : np.ndarray
-            Boolean, n entries: the free contacts F (part of the cache key).
-        index : np.ndarray
-            The indices of F, ``np.flatnonzero(policy)``.
-        rho : float
-            The prox weight (part of the cache key).
-        rhs : np.ndarray
-            The right side, one entry per free contact (in the order of ``index``).
-
-        Returns
-        -------
-        np.ndarray
-            x_F, one entry per free contact.
-
-        Raises
-        ------
-        np.linalg.LinAlgError
-            When the block cannot be factored (or, up to ``small`` contacts, is singular).
-        """
-        key = (np.packbits(policy).tobytes(), rho)
-        factor = self.cache.pop(key, None)
-        if factor is None:
-            factor = self._factor(index, rho)
-            self.factorizations += 1
-        self.cache[key] = factor  # the most recently used last
-        while len(self.cache) > self.keep:
-            self.cache.pop(next(iter(self.cache)))
-        if isinstance(factor, np.ndarray):
-            return np.linalg.solve(factor, rhs)
-        if self.dense:
-            return la.cho_solve(factor, rhs, check_finite=False)
-        return factor.solve(rhs)
-
-    def _factor(self, index: np.ndarray, rho: float) -> object:
-        shift = rho * self.lcp.safe_diag[index]
-        if self.dense:
-            block = self.Q_dense[np.ix_(index, index)]
-            block[np.diag_indices_from(block)] += shift
-            if index.size <= self.small:
-                return block
-            return la.cho_factor(block, lower=True, check_finite=False)
-        if self.L is not None:  # over the degrees of freedom when fewer of them move
-            rows = moving_rows(self.L[:, index])
-            if rows.shape[0] < index.size:
-                self.factorizations_over_dofs += 1
-                return WoodburyFactor(rows, shift, refinements=BLOCK_REFINEMENTS)
-        return symmetric_factor(self.Q_csc[:, index][index, :] + sp.diags(shift))
+# where the policy blocks are updated rather than factored (BlockSolver.updatable), a finish
+# costs little, so the first interior point hands its iterates on from this residual, with
+# this many solves (docs/notes/pi-robust.md)
+UPDATED_FINISH_BELOW = 1e-4
+UPDATED_FINISH_BUDGET = 30
 
 
 def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray
@@ -468,26 +379,39 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
                 "drift_steps": drift_steps}
     finishing_solves = [0]
 
-    def finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
+    def finish(candidate: np.ndarray, candidate_w: np.ndarray, budget: int = finish_budget
+               ) -> np.ndarray | None:
         result, done, _, used, _ = _prox_policy_iteration(
-            lcp, blocks, candidate, candidate_w < lcp.diag * candidate, budget=finish_budget,
+            lcp, blocks, candidate, candidate_w < lcp.diag * candidate, budget=budget,
             **settings)
         finishing_solves[0] += used
         return result if done else None
+
+    def first_finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
+        """The first interior point's finish: from ``UPDATED_FINISH_BELOW`` with
+        ``UPDATED_FINISH_BUDGET`` solves where the policy's blocks are updated rather than
+        factored (each try is cheap), else from ``FIRST_FINISH_BELOW`` as any finish."""
+        if blocks.updatable(candidate_w < lcp.diag * candidate):
+            return finish(candidate, candidate_w, max(finish_budget, UPDATED_FINISH_BUDGET))
+        if lcp.residual_of(candidate, candidate_w) > FIRST_FINISH_BELOW:
+            return NOT_TRIED
+        return finish(candidate, candidate_w)
 
     def interior(first: bool) -> tuple[np.ndarray | None, bool, int, str, str]:
         """(the interior point's l, None when a factorization failed; converged; its
         iterations; the failure; what its Newton matrix runs over). ``first`` (sparse, cold):
         proximal (``INTERIOR_PROX``), finished from each iterate below
-        ``FIRST_FINISH_BELOW``, then from its floor or a stall; else plain, finished from
-        each iterate below ``finish_below``."""
+        ``UPDATED_FINISH_BELOW`` whose policy blocks are updated, else below
+        ``FIRST_FINISH_BELOW`` (``first_finish``), then from its floor or a stall; else
+        plain, finished from each iterate below ``finish_below``."""
         normal = _normal_matrix(lcp)
         try:
             impulses, converged, iterations, _ = interior_point(
-                lcp, normal.lcp, normal.root, normal, tol, ipm_iters, finish,
-                min(finish_below, FIRST_FINISH_BELOW) if first else finish_below,
+                lcp, normal.lcp, normal.root, normal, tol, ipm_iters,
+                first_finish if first else finish,
+                min(finish_below, UPDATED_FINISH_BELOW) if first else finish_below,
                 end_on_stall=first,
-                prox=INTERIOR_PROX if first else 0.0)
+                prox=INTERIOR_PROX if first else 0.0, stall_finish=finish)
         except np.linalg.LinAlgError as error:
             return None, False, 0, f"interior point failed: {error}", normal.over
         return impulses, converged, iterations, "", normal.over

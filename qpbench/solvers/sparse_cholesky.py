@@ -222,3 +222,40 @@ class PatternFactor:
         if self.symmetric:
             return _Cholmod(_cholmod_call(self.analysis.cholesky, matrix))
         return _Cholmod(_cholmod_call(self.analysis.cholesky_AAt, matrix, beta=1.0))
+
+
+def updated_gram_factor(factor: object, added: sp.spmatrix, removed: sp.spmatrix
+                        ) -> _Cholmod | None:
+    """The factor of ``K + C_a C_a^T - C_r C_r^T`` from a CHOLMOD factor of K.
+
+    CHOLMOD's multiple-rank update and downdate of the factor's copy (Davis and Hager,
+    "Multiple-rank modifications of a sparse Cholesky factorization", SIAM J. Matrix Anal.
+    Appl. 22(4), 2001; "Row modifications of a sparse Cholesky factorization", 2005), in the
+    fill-reducing order of K's analysis: the cost grows with the columns changed and the
+    paths they take in the elimination tree, not with K's whole factor.
+
+    Parameters
+    ----------
+    factor : object
+        A factor made here (by :func:`gram_factor`, :class:`PatternFactor` or this function).
+    added, removed : sp.spmatrix
+        C_a and C_r, each with K's row count (either may have no columns).
+
+    Returns
+    -------
+    _Cholmod or None
+        The new factor (``factor`` itself is left as it was); None where ``factor`` is not a
+        CHOLMOD factor (SuperLU's cannot be updated: the caller factors afresh).
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When the downdate leaves a matrix that is not numerically positive definite.
+    """
+    if cholmod is None or not isinstance(factor, _Cholmod):
+        return None
+    copy = factor.factor.copy()
+    for columns, subtract in ((added, False), (removed, True)):
+        if columns.shape[1]:
+            _cholmod_call(copy.update_inplace, sp.csc_matrix(columns), subtract=subtract)
+    return _Cholmod(copy)
