@@ -31,7 +31,7 @@ try:  # CHOLMOD (SuiteSparse) through scikit-sparse; SuperLU when it is not inst
 except ImportError:  # pragma: no cover - the lock installs it
     cholmod = None
 
-# which library factors (the report and docs/design.md name it)
+# which library factors (the factorization study and the tests read it)
 LIBRARY = "SuperLU" if cholmod is None else "CHOLMOD"
 # CHOLMOD's settings: simplicial LDL^T in approximate-minimum-degree order (module docstring)
 CHOLMOD_MODE = "simplicial"
