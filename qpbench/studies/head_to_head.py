@@ -568,6 +568,10 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
               and not entry["target_met"]]
     lines.append("")
     lines.append(target_sentence(TARGET_SPEEDUP, held, missed, "set"))
+    if missed:
+        lines.append("\nWhere it does not, the section \"Where pi-robust's time goes\" breaks "
+                     "a solve's time down, and docs/notes/pi-robust.md says what was tried, "
+                     "with the scripts that measure it.")
     tuned = [f"- {entry['set']}: {TUNED_ON[entry['set']]}." for entry in summary
              if entry["set"] in TUNED_ON]
     if tuned:
