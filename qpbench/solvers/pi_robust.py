@@ -43,15 +43,19 @@ and adds published safeguards:
    interior point first, on the proximal LCP ``Q + 1e-10 D`` (which, unlike a dense
    pile's own, has a strictly feasible point), its Newton systems solved over the degrees
    of freedom through ``L = M^-1/2 G`` when fewer of them move than there are contacts
-   (``lcp_interior.FactoredNormalMatrix``), ended at its floor or a stall, then policy
-   iteration from its best iterate (see :func:`pi_robust`).
+   (``lcp_interior.FactoredNormalMatrix``), its iterates handed on from a residual of
+   ``UPDATED_FINISH_BELOW`` where the policy blocks are updated rather than factored
+   (``pi_robust_blocks``), ended at its floor or a stall, then policy iteration from its
+   best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
 by LU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a sparse
 block over the degrees of freedom its contacts move when there are fewer of them than
-contacts (``lcp_interior.WoodburyFactor``, refined once); the last factors of policy
-blocks are kept, so prox steps on a settled policy cost triangular solves only.
+contacts (``lcp_interior.WoodburyFactor``, refined once; ``pi_robust_blocks``); the last
+factors of policy blocks are kept, so prox steps on a settled policy cost triangular solves
+only, and a block a few contacts from the last one is made by a low-rank update of its
+factor.
 
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
 (``qpbench.solvers.pi_robust_kernel``: numba, contacts in reverse Cuthill-McKee order,
