@@ -43,6 +43,10 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem, Reference
 
+# the metadata key under which a problem keeps its floor (qpbench.problem.reference writes it,
+# qpbench.solvers.run reads it)
+FLOOR_KEY = "reference_residual_floor"
+
 # the most contacts on which the exact solve runs (its elimination fallback grows fast)
 EXTENDED_LIMIT = 600
 # the exact natural residual (relative to ||b||_inf) that certifies an LCP solution

@@ -27,7 +27,11 @@ import qpsolvers
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
-from qpbench.problem.extended_reference import ExtendedReference, extended_reference
+from qpbench.problem.extended_reference import (
+    FLOOR_KEY,
+    ExtendedReference,
+    extended_reference,
+)
 from qpbench.problem.formulations import primal_qp
 from qpbench.problem.impact import ImpactProblem, Reference
 from qpbench.problem.scaling import jacobi_scaled
@@ -287,5 +291,5 @@ def attach_reference(problem: ImpactProblem) -> ImpactProblem:
     problem.metadata["reference_agreement"] = problem.reference.agreement
     problem.metadata["reference_verified"] = problem.reference.verified
     if isinstance(problem.reference, ExtendedReference):
-        problem.metadata["reference_residual_floor"] = problem.reference.floor
+        problem.metadata[FLOOR_KEY] = problem.reference.floor
     return problem

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from qpbench.problem import friction_metrics, metrics
+from qpbench.problem.extended_reference import FLOOR_KEY
 from qpbench.problem.formulations import pose
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
@@ -34,7 +35,6 @@ NO_SOLUTION = "no-solution"
 # precision cannot decide there, so no solver is charged for it either, and it counts neither as
 # a success nor as a failure
 BELOW_FLOOR = "below-floor"
-FLOOR_KEY = "reference_residual_floor"
 
 
 def call_solver(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, accuracy: float,
