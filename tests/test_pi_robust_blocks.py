@@ -102,3 +102,16 @@ def test_an_iterate_not_tried_leaves_the_next_one_offered(pile: ImpactProblem) -
     assert len(declined) > len(failed) >= 1
     assert all(later <= 0.1 * earlier for earlier, later in zip(failed, failed[1:], strict=False))
     assert all(residual <= 1e-2 for residual in declined)
+
+
+def test_a_stall_that_is_not_tried_ends_unconverged(pile: ImpactProblem) -> None:
+    """Without a ``stall_finish``, a ``try_finish`` that declines every iterate declines the
+    stall's best one too, and the interior point ends on it unconverged, never handing back
+    the NOT_TRIED marker as an answer."""
+    lcp = Lcp.of(pile, dense_limit=300)
+    normal = _normal_matrix(lcp)
+    impulses, converged, _, finishing = interior_point(
+        lcp, normal.lcp, normal.root, normal, 1e-14, 80,
+        lambda impulses, w: NOT_TRIED, 1e-2, end_on_stall=True)
+    assert not converged and finishing == 1
+    assert impulses is not NOT_TRIED and impulses.shape == (lcp.n,)

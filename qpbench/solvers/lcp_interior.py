@@ -312,8 +312,8 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     prox : float, optional
         The proximal shift of the scaled LCP; 0 (the default) solves the LCP itself.
     stall_finish : callable or None, optional
-        What finishes the best iterate on a stall (as ``try_finish``, never
-        :data:`NOT_TRIED`); None (the default) for ``try_finish``.
+        What finishes the best iterate on a stall (as ``try_finish``; a :data:`NOT_TRIED`
+        there ends the run as a failed try would); None (the default) for ``try_finish``.
 
     Returns
     -------
@@ -355,7 +355,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
             original_l, (plain_w + prox * impulses) / root)
         if end_on_stall and (stalled >= 5 or at_floor):
             finished = (stall_finish or try_finish)(best, best_w)
-            if finished is not None:
+            if finished is not None and finished is not NOT_TRIED:
                 return finished, True, iteration - 1, 1
             return best, False, iteration - 1, 1
         normal.factorize(np.maximum(slack / impulses, floor) + prox)
