@@ -89,47 +89,12 @@ def colamd_splu(matrix: sp.csc_matrix) -> spla.SuperLU:
 FACTORIZATIONS: dict[str, Factorize] = {**METHODS, COLAMD: colamd_splu}
 
 
-def shifted_matrix(problem: ImpactProblem) -> sp.csc_matrix:
-    """Q + eps I with eps = FACTOR_SHIFT * max(diag Q), in CSC.
-
-    Parameters
-    ----------
-    problem : ImpactProblem
-        The box packing.
-
-    Returns
-    -------
-    sp.csc_matrix
-        The shifted matrix, (n_contacts, n_contacts).
-    """
-    return shifted_block(problem)
-
-
-def factorize(matrix: sp.csc_matrix, method: str) -> float:
-    """The time (seconds) of one factorization of ``matrix`` by ``method`` (FACTORIZATIONS).
-
-    Parameters
-    ----------
-    matrix : sp.csc_matrix
-        The matrix to factor (:func:`shifted_matrix`).
-    method : str
-        A key of FACTORIZATIONS.
-
-    Returns
-    -------
-    float
-        Wall seconds of the factorization; NaN when it failed (a pivot not numerically
-        positive, or an exactly singular matrix).
-    """
-    return time_once(matrix, FACTORIZATIONS[method])
-
-
 def timed_parts(problems: Sequence[ImpactProblem], repeats: int
                 ) -> tuple[dict[tuple[int, str], list[float]], dict[int, SolverOutput]]:
     """Every part timed on every problem under the timing protocol, and pi-robust's answers.
 
     The parts are pi-robust (through ``call_solver``) and one factorization per method of
-    FACTORIZATIONS (of :func:`shifted_matrix`, built outside the timed window); every
+    FACTORIZATIONS (of ``factorization.shifted_block``, built outside the timed window); every
     (problem, part) is timed ``repeats`` times under the timing protocol of docs/design.md
     section 7 (``qpbench.bench.schedule.Schedule``): one untimed call of each first, then
     rounds of one call each, in an order that rotates from round to round, so no part is timed
@@ -149,7 +114,7 @@ def timed_parts(problems: Sequence[ImpactProblem], repeats: int
         pi-robust's first timed output on each problem index.
     """
     spec = get(SOLVER)
-    matrices = [shifted_matrix(problem) for problem in problems]
+    matrices = [shifted_block(problem) for problem in problems]
     items = [(number, part) for number in range(len(problems))
              for part in (SOLVER, *FACTORIZATIONS)]
     times: dict[tuple[int, str], list[float]] = {item: [] for item in items}
@@ -162,7 +127,7 @@ def timed_parts(problems: Sequence[ImpactProblem], repeats: int
             if call.timed:
                 first.setdefault(number, output)
         else:
-            seconds = factorize(matrices[number], part)
+            seconds = time_once(matrices[number], FACTORIZATIONS[part])
         if call.timed:
             times[call.item].append(seconds)
     return times, first
