@@ -118,8 +118,7 @@ class BlockSolver:
             if index.size <= self.small:
                 return block
             return la.cho_factor(block, lower=True, check_finite=False)
-        # over the degrees of freedom when fewer of them move
-        if self.L is not None and moving_rows(self.L[:, index]).shape[0] < index.size:
+        if self._over_dofs(index):
             self.factorizations_over_dofs += 1
             return self._woodbury(policy, index, rho, shift)
         return symmetric_factor(self.Q_csc[:, index][index, :] + sp.diags(shift))
@@ -138,10 +137,13 @@ class BlockSolver:
             The LCP is sparse with Q's factor L, fewer degrees of freedom move under F than F
             has contacts, and the factors can be updated (CHOLMOD).
         """
-        if self.dense or self.L is None or sparse_cholesky.cholmod is None:
-            return False
-        index = np.flatnonzero(policy)
-        return bool(moving_rows(self.L[:, index]).shape[0] < index.size)
+        return sparse_cholesky.cholmod is not None and self._over_dofs(np.flatnonzero(policy))
+
+    def _over_dofs(self, index: np.ndarray) -> bool:
+        """Whether the block of the contacts ``index`` goes over the degrees of freedom: the LCP
+        is sparse with Q's factor L, and fewer degrees of freedom move than it has contacts."""
+        return (not self.dense and self.L is not None
+                and moving_rows(self.L[:, index]).shape[0] < index.size)
 
     def _woodbury(self, policy: np.ndarray, index: np.ndarray, rho: float, shift: np.ndarray
                   ) -> WoodburyFactor:
