@@ -39,7 +39,9 @@ and adds published safeguards:
    ``{w < D l}``: near the solution that finds the exact active set in one or
    two solves (an active-set polish), so the answer is not an interior point's
    approximation. On sparse problems (more than ``dense_limit`` contacts, each policy
-   solve a sparse factorization) without a warm start the order is reversed: the
+   solve a sparse factorization) without a warm start, or from one that is far (one
+   solve of its policy leaves more than ``NEAR_START_INFEASIBLE`` contacts infeasible,
+   as a settling pile's previous impulses do), the order is reversed: the
    interior point first, on the proximal LCP ``Q + 1e-10 D`` (which, unlike a dense
    pile's own, has a strictly feasible point), its Newton systems solved over the degrees
    of freedom through ``L = M^-1/2 G`` when fewer of them move than there are contacts
@@ -95,7 +97,7 @@ from qpbench.solvers.lcp_interior import (
     interior_point,
     jacobi_scaled,
 )
-from qpbench.solvers.pi_robust_blocks import BlockSolver
+from qpbench.solvers.pi_robust_blocks import UPDATE_CONTACTS, BlockSolver
 from qpbench.solvers.pi_robust_kernel import entry as kernel_entry
 from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
@@ -116,6 +118,12 @@ FIRST_FINISH_BELOW = 1e-6
 # this many solves (docs/notes/pi-robust.md)
 UPDATED_FINISH_BELOW = 1e-4
 UPDATED_FINISH_BUDGET = 30
+# a sparse problem's warm start is followed by policy iteration only when one solve of its
+# policy leaves at most this many contacts infeasible (then the next block is an update of
+# this one); else the interior point runs as from a cold start: a start a step off (a settling
+# pile) leaves hundreds, and policy iteration from it takes hundreds of prox steps, each a
+# factorization, where the interior point takes about ten (docs/notes/pi-robust.md)
+NEAR_START_INFEASIBLE = UPDATE_CONTACTS
 
 
 def _policy_solve(blocks: BlockSolver, policy: np.ndarray, rho: float, q: np.ndarray
@@ -253,8 +261,7 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
                            ) -> tuple[np.ndarray, bool, str, int, float]:
     """Prox steps from ``centre`` and ``policy`` within ``budget`` linear solves:
     (best l, converged, status, solves, best residual)."""
-    tol_l = 0.1 * tol * lcp.scale / lcp.safe_diag
-    tol_w = 0.1 * tol * lcp.scale
+    tol_l, tol_w = _tolerances(lcp, tol)
     res = lcp.residual(centre)
     best, best_res = centre, res
     solves = stalls = drifts = 0
@@ -297,6 +304,30 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
                 break
             rho *= rho_decrease
     return best, False, status, solves, best_res
+
+
+def _start_is_near(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, w: np.ndarray,
+                   tol: float, rho: float) -> bool:
+    """Whether policy iteration should go on from ``start``: one prox step's solve of its
+    policy ``{w <= D l}`` around it (:func:`_inner_lcp` with a budget of one solve) leaves at
+    most ``NEAR_START_INFEASIBLE`` contacts infeasible; not when that block's factorization
+    fails. The block's factor is kept, so policy iteration's first solve from there costs
+    triangular solves only."""
+    policy = w <= lcp.diag * start
+    try:
+        _, exchanged, _, _ = _inner_lcp(lcp, blocks, policy, rho,
+                                        lcp.b - rho * lcp.safe_diag * start,
+                                        *_tolerances(lcp, tol), backup_steps=0, budget=1,
+                                        active_set=False)
+    except np.linalg.LinAlgError:
+        return False
+    return int(np.count_nonzero(exchanged != policy)) <= NEAR_START_INFEASIBLE
+
+
+def _tolerances(lcp: Lcp, tol: float) -> tuple[np.ndarray, float]:
+    """(tol_l, tol_w): how far below zero a free contact's l and a fixed one's w may be for
+    a prox step's LCP to count as solved, a tenth of qpbench's ``tol`` in its units."""
+    return 0.1 * tol * lcp.scale / lcp.safe_diag, 0.1 * tol * lcp.scale
 
 
 def _drifted(centre: np.ndarray, drift: np.ndarray, previous_drift: np.ndarray,
@@ -365,14 +396,16 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
 
     Notes
     -----
-    Dense LCPs, and any from a warm start (``start`` not 0): policy iteration from ``start``,
-    then the interior point, its iterates finished by policy iteration. Sparse ones (above
-    ``dense_limit`` contacts, where each policy solve is a sparse factorization) from a cold
-    start: the interior point first, proximal (``INTERIOR_PROX``, so that dense piles, which
-    have no strictly feasible point, do not stall it), its Newton matrix over the degrees of
-    freedom when fewer of them move than there are contacts (:func:`_normal_matrix`), ended at
-    its floor or a stall, then policy iteration from its best iterate. When all of that fails,
-    Lemke's method (:func:`_lemke_fallback`).
+    Dense LCPs, and sparse ones from a near warm start (``start`` not 0,
+    :func:`_start_is_near`): policy iteration from ``start``, then the interior point, its
+    iterates finished by policy iteration (on sparse ones, the proximal interior point as
+    below). Sparse ones (above ``dense_limit`` contacts, where each policy solve is a sparse
+    factorization) from a cold or far start: the interior point first, proximal
+    (``INTERIOR_PROX``, so that dense piles, which have no strictly feasible point, do not
+    stall it), its Newton matrix over the degrees of freedom when fewer of them move than
+    there are contacts (:func:`_normal_matrix`), ended at its floor or a stall, then policy
+    iteration from its best iterate. When all of that fails, Lemke's method
+    (:func:`_lemke_fallback`).
     """
     w = lcp.w(start)
     if lcp.converged(start, tol, w):
@@ -420,15 +453,20 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             return None, False, 0, f"interior point failed: {error}", normal.over
         return impulses, converged, iterations, "", normal.over
 
-    if lcp.dense or np.any(start):
+    sparse_warm = not lcp.dense and bool(np.any(start))
+    near = sparse_warm and _start_is_near(lcp, blocks, start, w, tol, rho)
+    warm_solves = int(sparse_warm)  # the solve that tested the start's nearness
+    if lcp.dense or near:
         first, converged, status, solves, _ = _prox_policy_iteration(
             lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
+        warm_solves += solves
         if converged:
-            return first, True, "converged", solves, {
+            return first, True, "converged", warm_solves, {
                 "path": "policy iteration", **blocks.counts()}
+    if lcp.dense:
         impulses, converged, iterations, failure, over = interior(first=False)
-        path = "interior point + policy iteration"
-    else:
+        path, solves = "interior point + policy iteration", warm_solves
+    else:  # cold, or from a warm start that is far (or whose policy iteration failed)
         impulses, converged, iterations, failure, over = interior(first=True)
         first = start if impulses is None else impulses
         status = "converged" if converged else "interior point stalled or out of iterations"
@@ -438,6 +476,9 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
                 lcp, blocks, first, lcp.w(first) <= lcp.diag * first, budget=pi_budget,
                 **settings)
             impulses, path = first, "interior point, then policy iteration"
+        solves += warm_solves
+        if near:
+            path = "policy iteration from the start, then " + path
     status = failure or status
     solves += iterations + finishing_solves[0]
     info = {"path": path, "first_status": status, "interior_iterations": iterations,

@@ -1,0 +1,103 @@
+"""pi-robust on settling piles from the previous step's impulses, against a cold start.
+
+Usage: ``.venv/bin/python docs/notes/scripts/pi_robust_warm_piles.py LIMIT... [--quick]
+[--bodies N]``, e.g. ``-1 64 inf``. It simulates dense piles of N (1,000 unless given)
+circles (12 steps) and N boxes (8 steps) as ``qpbench scaling`` builds them, with the
+impulses of each step carried to the next (SCISim's ``cache_impulses``), and keeps every
+step's impact problem and its warm start. For each value of ``NEAR_START_INFEASIBLE`` (a
+warm start is followed by policy iteration when one solve of its policy leaves at most that
+many contacts infeasible; -1 never, inf always) it prints per problem the linear solves,
+failures and fastest ``time_s`` of the warm-started solve, beside the cold solve's, and the
+sums. Steps whose start already solves the problem (no solve at all, whatever the value) are
+counted apart. ``--quick``: the circles only, 6 steps, one repeat.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from pi_robust_common import ACCURACY, quick_flag, words
+
+from qpbench.inner_solvers import choose_by_name
+from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.metrics import residual
+from qpbench.simulation.scaling import PILES
+from qpbench.simulation.stepper import Simulator
+from qpbench.solvers import pi_robust
+from qpbench.solvers.registry import get
+from qpbench.solvers.run import call_solver
+
+
+def warm_started_impacts(kind: str, bodies: int, steps: int
+                         ) -> list[tuple[ImpactProblem, np.ndarray]]:
+    """(problem, warm start) of each step of a pile whose scene caches impulses, the first
+    step (no impulses to carry) left out."""
+    scene = PILES[kind](bodies)
+    scene = dataclasses.replace(scene, impact=dataclasses.replace(scene.impact,
+                                                                  cache_impulses=True))
+    simulator = Simulator(scene, choose_by_name("pi-robust"))
+    posed: list[tuple[ImpactProblem, np.ndarray]] = []
+    solve = simulator._solve
+
+    def recorded(problem: ImpactProblem, warm: np.ndarray | None) -> np.ndarray:
+        if warm is not None and np.any(warm):
+            posed.append((problem, warm.copy()))
+        return solve(problem, warm)
+
+    simulator._solve = recorded  # type: ignore[method-assign]
+    for _ in range(steps):
+        simulator.step()
+    return posed
+
+
+def timed(problem: ImpactProblem, warm: np.ndarray | None, repeats: int
+          ) -> tuple[int, bool, float]:
+    """(linear solves, failed, fastest time_s) of pi-robust at ``ACCURACY``."""
+    spec = get("pi-robust")
+    outputs = [call_solver(spec, problem, ACCURACY, warm) for _ in range(repeats)]
+    first = outputs[0]
+    failed = bool(residual(problem, first.impulses) > ACCURACY)
+    return first.iterations or 0, failed, min(output.time_s for output in outputs)
+
+
+def main() -> None:
+    quick = quick_flag()
+    arguments = words()
+    bodies = 1000
+    if "--bodies" in arguments:
+        at = arguments.index("--bodies")
+        bodies = int(arguments[at + 1])
+        del arguments[at:at + 2]
+    limits = [float(word) for word in arguments] or [-1.0, 64.0, np.inf]
+    repeats = 1 if quick else 2
+    piles = [("circles", bodies, 6 if quick else 12)] + ([] if quick else [("boxes", bodies, 8)])
+    get("pi-robust").prepare()
+    saved = pi_robust.NEAR_START_INFEASIBLE
+    header = " | ".join(f"warm, {limit:g}: solves, ms" for limit in limits)
+    for kind, bodies, steps in piles:
+        posed = warm_started_impacts(kind, bodies, steps)
+        print(f"\n{kind}, {bodies} bodies, steps 2-{steps}\n")
+        print(f"| step | contacts | cold: solves, ms | {header} |")
+        print("|---:|---:|---:|" + "---:|" * len(limits))
+        totals = np.zeros(len(limits) + 1)
+        started_solved = 0
+        for step, (problem, warm) in enumerate(posed, start=2):
+            cells = []
+            for column, limit in enumerate([None, *limits]):
+                pi_robust.NEAR_START_INFEASIBLE = saved if limit is None else limit
+                solves, failed, seconds = timed(problem, None if limit is None else warm,
+                                                repeats)
+                totals[column] += seconds
+                cells.append(f"{solves}, {1e3 * seconds:.1f}" + (" failed" if failed else ""))
+                if limit is not None and solves == 0 and column == 1:
+                    started_solved += 1
+            pi_robust.NEAR_START_INFEASIBLE = saved
+            print(f"| {step} | {problem.n_contacts} | " + " | ".join(cells) + " |", flush=True)
+        print(f"| all | | {1e3 * totals[0]:.1f} | "
+              + " | ".join(f"{1e3 * total:.1f}" for total in totals[1:]) + " |")
+        print(f"\nsteps whose warm start already solved the problem: {started_solved}")
+
+
+if __name__ == "__main__":
+    main()
