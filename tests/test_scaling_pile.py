@@ -158,6 +158,10 @@ def test_a_pile_sets_its_inner_solves_against_one_factorization_of_its_final_act
         assert (f"{small['solve_to_factorization']:.2f}x at {small['bodies']}, "
                 f"{large['solve_to_factorization']:.2f}x at {large['bodies']} bodies** "
                 f"({verdict} the target <= 3x)") in text
+        growth = ((large["factorization_s"] / large["bodies"])
+                  / (small["factorization_s"] / small["bodies"]))
+        assert (f"One factorization itself, per body, grows {growth:.2f}x from "
+                f"{small['bodies']} to {large['bodies']} bodies.") in text
     assert "final active block (the contacts F with l > 0" in text
 
 

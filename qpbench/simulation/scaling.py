@@ -692,4 +692,18 @@ def _factorization_verdict(entry: dict[str, Any], report: dict[str, Any]) -> str
         for row in entry["rows"])
     verdict = "meets" if entry["meets_factorization_target"] else "misses"
     return (f" Inner solves per step against one factorization of the final active block: "
-            f"**{figures} bodies** ({verdict} the target <= {target:g}x).")
+            f"**{figures} bodies** ({verdict} the target <= {target:g}x)."
+            + _factorization_growth(entry["rows"]))
+
+
+def _factorization_growth(rows: list[dict[str, Any]]) -> str:
+    """The sentence of how one factorization of the final active block grows per body from
+    the smallest pile to the largest (the yardstick's own growth, beside the inner solves');
+    empty unless both were factored."""
+    first, last = rows[0], rows[-1]
+    if first is last or not first.get("factorization_s") or not last.get("factorization_s"):
+        return ""
+    growth = ((last["factorization_s"] / last["bodies"])
+              / (first["factorization_s"] / first["bodies"]))
+    return (f" One factorization itself, per body, grows {growth:.2f}x from "
+            f"{first['bodies']} to {last['bodies']} bodies.")
