@@ -46,7 +46,7 @@ def groups(quick: bool) -> Iterator[tuple[str, list[ImpactProblem]]]:
             yield name, problems[:3] if quick else problems
     dumps = sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out"))
     yield "fork 5x5 dumps", [import_dump(path) for path in dumps[:3 if quick else None]]
-    for size in (7, 10):
+    for size in (7, 10, 14, 20):
         yield f"grid {size}", [generate("grid", size, seed=seed)[0] for seed in seeds]
     for ratio in (5, 10):
         yield f"mass ratio {ratio}", [generate("mass-ratio", ratio, seed=seed)[0]

@@ -38,6 +38,12 @@ WITHOUT_REFCOUNTS = {"_nrt": False}
 # puts the columns n + mu t and n - mu t of one contact n apart).
 WIDE_ENVELOPE = 0.5
 WIDE_ENVELOPE_WORK = 1e4
+# A start that the first ``start_sweeps`` sweeps leave unsolved gets more, in all as many as
+# cost about SWEEP_SHARE of one factorization of its whole envelope (a sweep costs about one
+# multiply-add per entry of Q), MOST_START_SWEEPS at most: on wide grids a factorization costs
+# a hundred sweeps, and the sweeps put more contacts on the right side of the active set.
+SWEEP_SHARE = 0.4
+MOST_START_SWEEPS = 50
 # A block factored with at least DEPENDENT_CONTACTS dependent contacts (pivots
 # L_ii^2 < DEPENDENT_PIVOT rho D_i: contact i nearly a combination of the free contacts before
 # it) is nearly singular at this rho, and block pivoting's iterate on it swings (see

@@ -7,7 +7,8 @@ symmetric positive semi-definite and often singular) to qpbench's residual
 overhead and with Q sparse throughout:
 
 1. the start (a warm start, or zero) gets ``start_sweeps`` projected Gauss-Seidel sweeps in
-   the posed order (:func:`_gauss_seidel`), which alone solve contacts that hardly interact;
+   the posed order (:func:`_gauss_seidel`), which alone solve contacts that hardly interact,
+   and more where one factorization costs many sweeps (``SWEEP_SHARE``, after step 2);
 2. above ``order_above`` contacts, or when the envelope in the posed order is wide, the
    contacts are put in reverse Cuthill-McKee order (:mod:`.ordering`); a problem whose whole
    envelope costs more than ``max_envelope_work`` to factor is declined;
@@ -32,12 +33,14 @@ from numba import njit
 from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy
 from qpbench.solvers.pi_robust_kernel.constants import (
+    MOST_START_SWEEPS,
     PATH_DECLINED,
     PATH_INTERIOR,
     PATH_NAMES,
     PATH_NONE,
     PATH_START,
     PATH_SWEEPS,
+    SWEEP_SHARE,
     WIDE_ENVELOPE,
     WIDE_ENVELOPE_WORK,
     WITHOUT_REFCOUNTS,
@@ -172,8 +175,10 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     envelope costs more than ``WIDE_ENVELOPE`` of a dense factorization, the contacts are put in
     reverse Cuthill-McKee order, inside the timed call. When one factorization of the whole
     envelope would cost more than ``max_envelope_work`` (wide grids), the kernel declines
-    (``PATH_DECLINED``) and the caller's sparse path runs. Otherwise
-    :func:`.interior._solve_ordered` solves it.
+    (``PATH_DECLINED``) and the caller's sparse path runs. Otherwise the start gets more
+    sweeps, as many in all as cost ``SWEEP_SHARE`` of one factorization of that envelope
+    (``MOST_START_SWEEPS`` at most; a sweep costs one multiply-add per entry of Q), and a
+    start they solve is returned; else :func:`.interior._solve_ordered` solves it.
     """
     options = unpacked(packed_options)
     n, entries = b.size, indices.size
@@ -226,6 +231,15 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         work = _envelope_work(widths)
     if work > max_envelope_work:
         return start, False, PATH_DECLINED, 0, 0, 0, False
+    # more sweeps where a factorization costs many of them (SWEEP_SHARE)
+    more_sweeps = min(MOST_START_SWEEPS, int(SWEEP_SHARE * work / max(entries, 1))) \
+        - options.start_sweeps
+    if options.start_sweeps > 0 and more_sweeps > 0:
+        _gauss_seidel(A_posed, b, diag, start, inverse, more_sweeps)
+        start_residual = _natural_residual_into(A_posed, b, diag, scale, start, start_product)
+        if start_residual <= options.tol:
+            return start, True, PATH_SWEEPS, 0, 0, 0, _certified(
+                A_posed, b, scale, start, start_residual, options.tol, magnitude)
     if order.size == 0 and _leading_upper(A, starts[:n]):
         upper = (indptr, starts[:n], indices, data)
     else:
