@@ -306,14 +306,13 @@ def _prox_policy_iteration(lcp: Lcp, blocks: BlockSolver, centre: np.ndarray,
     return best, False, status, solves, best_res
 
 
-def _start_is_near(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, w: np.ndarray,
+def _start_is_near(lcp: Lcp, blocks: BlockSolver, start: np.ndarray, policy: np.ndarray,
                    tol: float, rho: float) -> bool:
     """Whether policy iteration should go on from ``start``: one prox step's solve of its
-    policy ``{w <= D l}`` around it (:func:`_inner_lcp` with a budget of one solve) leaves at
-    most ``NEAR_START_INFEASIBLE`` contacts infeasible; not when that block's factorization
-    fails. The block's factor is kept, so policy iteration's first solve from there costs
-    triangular solves only."""
-    policy = w <= lcp.diag * start
+    ``policy`` (``{w <= D l}``) around it (:func:`_inner_lcp` with a budget of one solve)
+    leaves at most ``NEAR_START_INFEASIBLE`` contacts infeasible; not when that block's
+    factorization fails. The block's factor is kept, so policy iteration's first solve from
+    there costs triangular solves only."""
     try:
         _, exchanged, _, _ = _inner_lcp(lcp, blocks, policy, rho,
                                         lcp.b - rho * lcp.safe_diag * start,
@@ -453,12 +452,13 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
             return None, False, 0, f"interior point failed: {error}", normal.over
         return impulses, converged, iterations, "", normal.over
 
+    start_policy = w <= lcp.diag * start
     sparse_warm = not lcp.dense and bool(np.any(start))
-    near = sparse_warm and _start_is_near(lcp, blocks, start, w, tol, rho)
+    near = sparse_warm and _start_is_near(lcp, blocks, start, start_policy, tol, rho)
     warm_solves = int(sparse_warm)  # the solve that tested the start's nearness
     if lcp.dense or near:
         first, converged, status, solves, _ = _prox_policy_iteration(
-            lcp, blocks, start, w <= lcp.diag * start, budget=pi_budget, **settings)
+            lcp, blocks, start, start_policy, budget=pi_budget, **settings)
         warm_solves += solves
         if converged:
             return first, True, "converged", warm_solves, {
