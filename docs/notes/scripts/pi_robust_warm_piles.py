@@ -84,14 +84,13 @@ def main() -> None:
         started_solved = 0
         for step, (problem, warm) in enumerate(posed, start=2):
             cells = []
-            for column, limit in enumerate([None, *limits]):
+            for column, limit in enumerate([None, *limits]):  # None: the cold solve
                 pi_robust.NEAR_START_INFEASIBLE = saved if limit is None else limit
                 solves, failed, seconds = timed(problem, None if limit is None else warm,
                                                 repeats)
                 totals[column] += seconds
                 cells.append(f"{solves}, {1e3 * seconds:.1f}" + (" failed" if failed else ""))
-                if limit is not None and solves == 0 and column == 1:
-                    started_solved += 1
+                started_solved += column == 1 and solves == 0
             pi_robust.NEAR_START_INFEASIBLE = saved
             print(f"| {step} | {problem.n_contacts} | " + " | ".join(cells) + " |", flush=True)
         print(f"| all | | {1e3 * totals[0]:.1f} | "
