@@ -6,6 +6,7 @@ Siconos' known defects are rows of qpbench/solvers/defects.toml (package
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,21 @@ def test_one_server_per_process_serves_every_solve() -> None:
     for spec in LCP_SPECS[:3]:
         call_solver(spec, ALL_CASES["k3"].problem, ACCURACY)
     assert siconos_.server() is first and first.alive()
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity here")
+def test_each_solve_runs_on_the_cpu_of_the_process_that_asks() -> None:
+    # as a library called in-process would, the server finds the caches as the client's
+    # other work left them, not as its own last solve did on a core of its own
+    spec = next(spec for spec in LCP_SPECS if spec.name == "siconos-lemke")
+    allowed = os.sched_getaffinity(0)
+    try:
+        for cpu in sorted(allowed)[-2:]:
+            os.sched_setaffinity(0, {cpu})
+            call_solver(spec, ALL_CASES["k3"].problem, ACCURACY)
+            assert os.sched_getaffinity(siconos_.server().process.pid) == {cpu}
+    finally:
+        os.sched_setaffinity(0, allowed)
 
 
 @pytest.mark.parametrize("name", sorted(ALL_CASES))

@@ -11,7 +11,11 @@ Siconos takes, its problem and options, the solve, reading l back) and returns i
 Siconos' ``info``, its iteration count and residual; these pairs are registered with
 ``reports_own_time``, so that time becomes ``time_s`` and the pipe's round trip is kept
 apart (docs/design.md section 7). Siconos' own split (its problem and options objects, the
-driver call) is ``backend_setup_time_s`` / ``backend_solve_time_s``.
+driver call) is ``backend_setup_time_s`` / ``backend_solve_time_s``. Before each request the
+server is moved to the CPU its client runs on (:meth:`SiconosServer.ask`), so that it finds
+the caches as the client's other work left them, as a library called in-process would; on
+another core it would find them as its own last solve left them, a cold start the other
+solvers do not escape.
 
 Pairs: ``lcp`` (impact problems) with Siconos' LCP solvers that apply to a symmetric
 positive semi-definite Q; ``fc2d`` (frictional problems) with its 2D friction solvers, which
@@ -25,6 +29,7 @@ with its own reason.
 from __future__ import annotations
 
 import atexit
+import ctypes
 import json
 import os
 import subprocess
@@ -106,6 +111,17 @@ FRICTION_PAIRS = (
 PAIRS = LCP_PAIRS + FRICTION_PAIRS
 
 
+def _current_cpu() -> Callable[[], int] | None:
+    """The C library's ``sched_getcpu`` (the CPU the calling thread runs on), or None where
+    there is none (not Linux) or it fails."""
+    try:
+        current = ctypes.CDLL(None, use_errno=True).sched_getcpu
+    except (OSError, AttributeError):
+        return None
+    current.restype, current.argtypes = ctypes.c_int, []
+    return current if current() >= 0 else None
+
+
 class SiconosServer:
     """The server process of this process (:func:`server`): one request at a time."""
 
@@ -114,7 +130,25 @@ class SiconosServer:
         self.process = subprocess.Popen(
             [SYSTEM_PYTHON, "-I", str(SERVER)], stdin=subprocess.PIPE,
             stdout=subprocess.PIPE, close_fds=True)
+        self.current_cpu = _current_cpu()
+        self.server_cpu = -1  # the CPU the server was last moved to; -1: none yet
         self.ask({"problem": "ping"}, {})
+
+    def _share_client_cpu(self) -> None:
+        """Moves the server to the CPU this process runs on (while this process waits for
+        the answer, the server runs there alone). A no-op where the CPU cannot be read or set,
+        or when the server is there already."""
+        if self.current_cpu is None:
+            return
+        cpu = self.current_cpu()
+        if cpu < 0 or cpu == self.server_cpu:
+            return
+        try:
+            os.sched_setaffinity(self.process.pid, {cpu})
+        except (OSError, AttributeError):  # not allowed there, or not Linux
+            self.current_cpu = None
+            return
+        self.server_cpu = cpu
 
     def alive(self) -> bool:
         """Whether the server runs and was started by this process (not one it forked from).
@@ -128,7 +162,7 @@ class SiconosServer:
 
     def ask(self, header: dict[str, Any], arrays: dict[str, np.ndarray]
             ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """Sends one request and reads its answer.
+        """Sends one request, on the CPU this process runs on, and reads its answer.
 
         Parameters
         ----------
@@ -153,6 +187,7 @@ class SiconosServer:
         stdin: IO[bytes] | None = self.process.stdin
         stdout: IO[bytes] | None = self.process.stdout
         assert stdin is not None and stdout is not None
+        self._share_client_cpu()
         try:
             send(stdin, header, arrays)  # type: ignore[arg-type]
             answer = receive(stdout)  # type: ignore[arg-type]
