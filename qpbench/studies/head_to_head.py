@@ -520,7 +520,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         f"Accuracy {ACCURACY:g}; `time_s` of the one stopwatch, the fastest of {repeats} "
         f"repeats (fewer once they took {REPEAT_BUDGET_S:g} s), never back to back: the "
         "solves of a few problems by every pair are timed together, one round of every "
-        "(problem, pair) after another in a rotated order, after one untimed warm-up each"
+        "(problem, pair) after another in a rotated order, after one untimed warm-up each "
+        "(Siconos' pairs, in a server process, each solve on the CPU of the process that "
+        "times the others)"
         + (f"; *caches flushed*: the same speedup from the fastest of {cold_repeats} calls "
            "each made after writing a buffer as large as the last-level cache (outside the "
            "stopwatch)" if cold_repeats > 0 else "")
