@@ -111,7 +111,7 @@ FRICTION_PAIRS = (
 PAIRS = LCP_PAIRS + FRICTION_PAIRS
 
 
-def _current_cpu() -> Callable[[], int] | None:
+def _cpu_reader() -> Callable[[], int] | None:
     """The C library's ``sched_getcpu`` (the CPU the calling thread runs on), or None where
     there is none (not Linux) or it fails."""
     try:
@@ -130,7 +130,7 @@ class SiconosServer:
         self.process = subprocess.Popen(
             [SYSTEM_PYTHON, "-I", str(SERVER)], stdin=subprocess.PIPE,
             stdout=subprocess.PIPE, close_fds=True)
-        self.current_cpu = _current_cpu()
+        self.read_cpu = _cpu_reader()
         self.server_cpu = -1  # the CPU the server was last moved to; -1: none yet
         self.ask({"problem": "ping"}, {})
 
@@ -138,15 +138,15 @@ class SiconosServer:
         """Moves the server to the CPU this process runs on (while this process waits for
         the answer, the server runs there alone). A no-op where the CPU cannot be read or set,
         or when the server is there already."""
-        if self.current_cpu is None:
+        if self.read_cpu is None:
             return
-        cpu = self.current_cpu()
+        cpu = self.read_cpu()
         if cpu < 0 or cpu == self.server_cpu:
             return
         try:
             os.sched_setaffinity(self.process.pid, {cpu})
         except (OSError, AttributeError):  # not allowed there, or not Linux
-            self.current_cpu = None
+            self.read_cpu = None
             return
         self.server_cpu = cpu
 
