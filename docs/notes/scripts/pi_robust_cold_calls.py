@@ -5,8 +5,10 @@ research fork's 5x5 grid dumps it times the compiled entry ``envelope_pi_robust`
 harness, no Python path), each problem's fastest of 30 rounds (10 with ``--quick``), in four
 settings: the same problem called back to back; the problems in turn; the problems in turn
 with a small SciPy sparse product between calls (as the harness's posing runs between two
-timed solves); and the problems in turn with a 32 MB buffer written between calls. It prints
-the geometric mean over the problems of each.
+timed solves); the problems in turn with a 32 MB buffer written between calls; and the same
+with the kernel then run on a 3-contact problem (K3) before each call, which brings back its
+code and the data every call shares but not the problem's own. It prints the geometric mean
+over the problems of each.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from pi_robust_common import ROOT
 
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
+from qpbench.problem.generate import generate
 from qpbench.solvers import pi_robust
 from qpbench.solvers.pi_robust_kernel import entry
 
@@ -37,6 +40,9 @@ def main() -> None:
         calls.append((Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
                       pi_robust.NO_START, pi_robust.ORDERING_ABOVE,
                       settings.compiled_work_limit, settings.kernel))
+    tiny = generate("k3", None, seed=0)[0]
+    pose(tiny, "lcp")
+    tiny_call = (tiny.Q.indptr, tiny.Q.indices, tiny.Q.data, tiny.b, tiny.diag_Q, *calls[0][5:])
     other = sp.random(300, 300, density=0.05, format="csc", random_state=0)
     buffer = np.zeros(4_000_000)
 
@@ -45,6 +51,10 @@ def main() -> None:
 
     def flush() -> None:
         buffer[:] += 1.0
+
+    def flush_then_code() -> None:
+        flush()
+        entry.envelope_pi_robust(*tiny_call)
 
     def nothing() -> None:
         return None
@@ -73,7 +83,8 @@ def main() -> None:
     rows = [("the same problem back to back", back_to_back()),
             ("the problems in turn", in_turn(nothing)),
             ("in turn, a SciPy sparse product between calls", in_turn(product)),
-            ("in turn, a 32 MB buffer written between calls", in_turn(flush))]
+            ("in turn, a 32 MB buffer written between calls", in_turn(flush)),
+            ("in turn, the buffer written, then a K3 problem solved", in_turn(flush_then_code))]
     print(f"\nenvelope_pi_robust on {len(calls)} fork 5x5 dumps, accuracy 1e-8\n")
     print("| setting | geometric mean (us) |")
     print("|---|---:|")
