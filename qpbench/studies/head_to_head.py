@@ -85,6 +85,7 @@ from qpbench.solvers import accuracy as accuracy_table
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import BELOW_FLOOR, NO_SOLUTION, judge
+from qpbench.studies.few_contacts import few_contacts_markdown, few_contacts_summary
 from qpbench.studies.head_to_head_sets import (
     HARD_FAMILIES,
     SETS,
@@ -490,7 +491,8 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
 
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
              out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
-             cold_repeats: int = 0, seeds: dict[str, list[int]] | None = None) -> str:
+             cold_repeats: int = 0, seeds: dict[str, list[int]] | None = None,
+             few_contacts: dict[str, Any] | None = None) -> str:
     """The head-to-head as a Markdown section: the protocol, a table per set, the pairs' figures.
 
     Parameters
@@ -508,6 +510,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
     seeds : dict of str to list of int or None, optional
         The generated problems' seeds per family (:func:`generated_seeds`), listed at the
         end; None (default) or empty for none.
+    few_contacts : dict or None, optional
+        The problems of a few contacts (``few_contacts.few_contacts_summary``), a paragraph
+        after the targets; None (default) or empty for none.
 
     Returns
     -------
@@ -574,6 +579,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         lines.append("\nWhere it does not, the section \"Where pi-robust's time goes\" breaks "
                      "a solve's time down, and docs/notes/pi-robust.md says what was tried, "
                      "with the scripts that measure it.")
+    if few_contacts:
+        lines.append("\n" + few_contacts_markdown(few_contacts))
     tuned = [f"- {entry['set']}: {TUNED_ON[entry['set']]}." for entry in summary
              if entry["set"] in TUNED_ON]
     if tuned:
@@ -761,7 +768,8 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     Returns
     -------
     dict
-        The settings, the pairs chosen (``candidates``), ``rows``, ``summary``, ``markdown``,
+        The settings, the pairs chosen (``candidates``), ``rows``, ``summary``,
+        ``few_contacts`` (``few_contacts.few_contacts_summary``), ``markdown``,
         the problem count, the generated problems' seeds per family and the sets not measured.
     """
     chosen = fastest_external(bench, candidates)
@@ -795,13 +803,15 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                 for set_name in {one["set"] for one in measured}:
                     running.update(rows, set_name)
     summary = summarize(rows, running.out)
+    few_contacts = few_contacts_summary(rows, UNDECIDED)
     seeds = generated_seeds(problems)
     return {"accuracy": ACCURACY, "repeats": repeats, "cold_repeats": cold_repeats,
             "batch_problems": batch_problems, "flush_bytes": flush_bytes() if cold_repeats
             else 0, "passes": passes, "candidates": chosen,
             "staggered_max_outer": STAGGERED_MAX_OUTER, "out_of_running": out_of_running,
             "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
+            "few_contacts": few_contacts,
             "markdown": markdown(summary, repeats, passes, out_of_running, cold_repeats,
-                                 seeds) if rows else "",
+                                 seeds, few_contacts) if rows else "",
             "problems": len(problems), "seeds": seeds,
             "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}
