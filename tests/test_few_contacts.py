@@ -62,11 +62,13 @@ def test_a_problem_pi_robust_fails_counts_against_it_and_one_nobody_else_solves_
     assert problems["b"]["external"] is None and problems["b"]["lowest"]
 
 
-def test_larger_problems_and_problems_without_a_verdict_are_left_out() -> None:
+def test_larger_problems_unsolved_ones_and_ones_without_a_verdict_are_left_out() -> None:
     rows = [row("big", "pi-robust/lcp", 9e-5, contacts=FEW_CONTACTS + 1),
             row("big", "daqp-native/dual", 1e-5, contacts=FEW_CONTACTS + 1),
             row("ray", "pi-robust/lcp", 9e-5, status=UNDECIDED[0]),
-            row("ray", "daqp-native/dual", 1e-5, status=UNDECIDED[0])]
+            row("ray", "daqp-native/dual", 1e-5, status=UNDECIDED[0]),
+            row("hard", "pi-robust/lcp", 9e-5, success=False, status="failed"),
+            row("hard", "daqp-native/dual", 1e-5, success=False, status="failed")]
     assert few_contacts_summary(rows, UNDECIDED) == {}
     assert few_contacts_markdown({}) == ""
 

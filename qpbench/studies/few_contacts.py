@@ -8,7 +8,7 @@ at most ``FEW_CONTACTS`` contacts in every set, pi-robust's pair of that set tha
 fastest against the fastest external pair that solved it, each solve's ``time_s`` the fastest
 over the passes. A frictional problem is in two sets (``staggered`` and ``ccp``), each
 comparing the pairs of one formulation, and counts once in each. A problem pi-robust did not
-solve counts against it; one no external pair solved, for it.
+solve counts against it; one no external pair solved, for it; one no pair solved is left out.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ def few_contacts_summary(rows: Sequence[dict[str, Any]], undecided: Sequence[str
         solved it or None, their times ``own_s`` and ``external_s`` or None, ``ratio``
         ``external_s / own_s``, infinite when no external pair solved it, 0 when pi-robust did
         not, and ``lowest``), ``lowest`` (how many pi-robust is the fastest on) and
-        ``target_met`` (on every one); empty when no problem is that small.
+        ``target_met`` (on every one); empty when no problem is that small (or solved by any
+        pair).
     """
     frame = pd.DataFrame(list(rows))
     if frame.empty:
