@@ -207,7 +207,7 @@ def minimum_degree(Q: sp.csc_matrix, shift: np.ndarray
     return factor, solve, int(counts.sum())
 
 
-def fastest(action: Callable[[], object], times: list[float]) -> None:
+def time_once(action: Callable[[], object], times: list[float]) -> None:
     """Time ``action`` once, appending its wall time to ``times``."""
     start = time.perf_counter()
     action()
@@ -233,8 +233,8 @@ def row(name: str, Q: sp.csc_matrix) -> str:
     for _ in range(CALLS):
         for (factor, solve, _), factored, solved in zip(methods, factor_times, solve_times,
                                                         strict=True):
-            fastest(factor, factored)
-            fastest(lambda solve=solve: solve(rhs), solved)
+            time_once(factor, factored)
+            time_once(lambda solve=solve: solve(rhs), solved)
     (envelope_factor, sparse_factor), (envelope_solve, sparse_solve) = \
         [[1e6 * min(times) for times in pair] for pair in (factor_times, solve_times)]
     return (f"| {name} | {n} | {methods[0][2]} | {methods[1][2]} | {envelope_factor:.1f} | "
@@ -247,7 +247,7 @@ def own_solve(name: str, problem) -> str:
     output = pi_robust.solve(problem, 1e-8)
     times: list[float] = []
     for _ in range(15):
-        fastest(lambda: pi_robust.solve(problem, 1e-8), times)
+        time_once(lambda: pi_robust.solve(problem, 1e-8), times)
     return (f"| {name} | {output.iterations} | {output.info.get('factorizations')} | "
             f"{1e3 * min(times):.2f} |")
 
