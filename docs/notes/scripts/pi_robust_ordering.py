@@ -1,8 +1,8 @@
 """Why reverse Cuthill-McKee and envelope Cholesky: the multiply-adds of one factorization of
 the whole matrix, in the posed order and in reverse Cuthill-McKee order, against a dense
 Cholesky's n^3 / 6, and the envelope's entries against a dense factor's n^2 / 2; and what a
-sparse factor in approximate minimum degree order (CHOLMOD's symbolic analysis, simplicial)
-would do: ``sum_j c_j^2 / 2`` multiply-adds over its columns' entries c_j, and its entries.
+sparse factor in approximate minimum degree order (CHOLMOD's simplicial factor) would do:
+``sum_j c_j^2 / 2`` multiply-adds over its columns' entries c_j, and its entries.
 
 Usage: ``.venv/bin/python docs/notes/scripts/pi_robust_ordering.py`` (seconds).
 """
@@ -26,8 +26,8 @@ from qpbench.solvers.pi_robust_kernel.ordering import (
 
 def minimum_degree(Q: sp.csc_matrix) -> tuple[float, int]:
     """(multiply-adds, entries) of a simplicial Cholesky factor of Q + eps I in CHOLMOD's
-    approximate minimum degree order, from its symbolic analysis alone (eps keeps the
-    numeric factorization of a singular Q going; it changes no entry's place)."""
+    approximate minimum degree order, from the factor's column counts (eps keeps the
+    factorization of a singular Q going; it changes no entry's place)."""
     shifted = (Q + 1e-8 * Q.diagonal().max() * sp.identity(Q.shape[0])).tocsc()
     factor = analyze(shifted, mode="simplicial", ordering_method="amd")
     factor.cholesky_inplace(shifted)
