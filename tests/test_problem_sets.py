@@ -68,7 +68,13 @@ def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFi
     ("scenes = " + "[" * 100_000 + "]" * 100_000 + "\n", "nested too deeply"),
     ("[families]\nk4 = 3\n", r"<families> attribute 'k4': must be a table"),
     ("[families]\nk4 = { count = 1.5 }\n",
-     r"<families.k4> attribute 'count': must be an integer >= 1, got 1.5"),
+     r"<families.k4> attribute 'count': must be an integer >= 1, or a list of them"),
+    ("[families]\ngrid = { sizes = [3, 4], count = [2] }\n",
+     r"<families.grid> attribute 'count': a list of counts needs one count per size"),
+    ("[families]\nk4 = { count = [2] }\n",
+     r"<families.k4> attribute 'count': a list of counts needs one count per size"),
+    ("[families]\ngrid = { sizes = [3], count = [0] }\n",
+     r"<families.grid> attribute 'count': must be an integer >= 1, or a list"),
     ("[families]\nbox = { sizes = [-5] }\n", r"<families.box> attribute 'sizes': must be a list"),
     ("[families]\nk4 = { seed = -1 }\n", r"<families.k4> attribute 'seed': must be an integer"),
     # a misspelt or unsupported key is refused, not ignored
@@ -104,6 +110,14 @@ def test_a_bad_scene_or_solver_stops_the_build_before_any_output(tmp_path: Path)
     with pytest.raises(QpbenchError, match="unknown solver 'nope'"):
         problem_sets.build(set_file, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_list_of_counts_gives_each_size_its_own(tmp_path: Path) -> None:
+    set_file = tmp_path / "counts.toml"
+    set_file.write_text("[families]\ngrid = { sizes = [3, 4], count = [3, 1] }\n")
+    written = problem_sets.build(set_file, tmp_path / "out")
+    assert sorted(path.stem for path in written) == ["grid-3-s0", "grid-3-s1", "grid-3-s2",
+                                                      "grid-4-s0"]
 
 
 def test_a_seed_offset_is_added_to_every_familys_seeds(tmp_path: Path,

@@ -3,6 +3,7 @@
 ```toml
 [families]                       # family -> sizes (default: the family's) and seeds per size
 grid = { sizes = [3, 5], count = 2, seed = 0 }   # seeds 0 and 1 (plus build's seed_offset)
+box = { sizes = [1000, 4000], count = [3, 1] }   # a count per size: 3 of 1000 balls, 1 of 4000
 incline = { count = 2 }          # frictional families (qpbench.problem.friction_generate) too
 
 [dumps]
@@ -111,6 +112,10 @@ def read_set(path: str | Path) -> dict[str, Any]:
             raise InputError(str(path), "must be a table such as { count = 2 }", "families",
                              family)
         _check_entries(path, options, f"families.{family}", _FAMILY_KEYS)
+        if isinstance(options.get("count"), list) and \
+                len(options["count"]) != len(options.get("sizes", ())):
+            raise InputError(str(path), "a list of counts needs one count per size in sizes",
+                             f"families.{family}", "count")
     for section in ("dumps", "siconos", "fclib"):
         _check_entries(path, definition.get(section, {}), section, _DUMPS_KEYS)
     for index, scene in enumerate(definition.get("scenes", [])):
@@ -138,7 +143,9 @@ _SECTIONS: dict[str, _Rule] = {
 _FAMILY_KEYS: dict[str, _Rule] = {
     "sizes": ("a list of integers >= 1", lambda value: isinstance(value, list) and bool(value)
               and all(_is_integer(size, 1) for size in value)),
-    "count": ("an integer >= 1", lambda value: _is_integer(value, 1)),
+    "count": ("an integer >= 1, or a list of them (one per size)",
+              lambda value: _is_integer(value, 1) or isinstance(value, list) and bool(value)
+              and all(_is_integer(count, 1) for count in value)),
     "seed": ("an integer >= 0", lambda value: _is_integer(value, 0)),
 }
 _DUMPS_KEYS: dict[str, _Rule] = {
@@ -171,14 +178,17 @@ def _check_entries(path: Path, table: dict[str, Any], element: str,
 def _family_problems(definition: dict[str, Any], existing: set[str], seed_offset: int = 0
                      ) -> Iterator[ImpactProblem | FrictionalProblem]:
     """The problems of the ``families`` section not in ``existing``: per family and size,
-    ``count`` problems from seed ``seed + seed_offset`` on."""
+    ``count`` problems (that size's entry when ``count`` is a list) from seed
+    ``seed + seed_offset`` on."""
     for family, options in definition.get("families", {}).items():
         sizes = options.get("sizes", [None])
+        count = options.get("count", 1)
+        counts = count if isinstance(count, list) else [count] * len(sizes)
         make = generate_frictional if family in FRICTION_FAMILIES else generate
         first = options.get("seed", 0) + seed_offset
-        for size in sizes:
+        for size, problems in zip(sizes, counts, strict=True):
             # one problem at a time: make(seed=s + i, count=1) is make(seed=s, count=n)[i]
-            for seed in range(first, first + options.get("count", 1)):
+            for seed in range(first, first + problems):
                 [problem] = make(family, size=size, seed=seed, count=1)
                 if problem.name not in existing:
                     yield problem
