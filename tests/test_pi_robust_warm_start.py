@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from qpbench.inner_solvers import choose_by_name
+from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.simulation.scaling import circle_pile
 from qpbench.simulation.stepper import Simulator
@@ -16,28 +17,22 @@ from qpbench.solvers.run import solve_and_judge
 
 
 @pytest.fixture(scope="module")
-def second_step() -> tuple[ImpactProblem, np.ndarray]:
+def second_step(tmp_path_factory: pytest.TempPathFactory) -> tuple[ImpactProblem, np.ndarray]:
     """The second impact of a settling pile of 1,000 circles (2,921 contacts, 2,000 degrees
     of freedom: Q singular) and its warm start: the first step's impulses of the same
-    contacts, as a scene that caches impulses carries them (SCISim's ``cache_impulses``).
-    Its envelope is too wide for the compiled kernel, which declines it: the Python path
-    solves it."""
+    contacts, as a scene that caches impulses carries them (SCISim's ``cache_impulses``) and
+    the simulator's capture stores them beside the problem (``warm_start``). Its envelope is
+    too wide for the compiled kernel, which declines it: the Python path solves it."""
     scene = circle_pile(1000)
     scene = dataclasses.replace(scene, impact=dataclasses.replace(scene.impact,
                                                                   cache_impulses=True))
-    simulator = Simulator(scene, choose_by_name("pi-robust"))
-    posed: list[tuple[ImpactProblem, np.ndarray]] = []
-    solve = simulator._solve
-
-    def recorded(problem: ImpactProblem, warm: np.ndarray | None) -> np.ndarray:
-        assert warm is not None
-        posed.append((problem, warm.copy()))
-        return solve(problem, warm)
-
-    simulator._solve = recorded  # type: ignore[method-assign]
+    folder = tmp_path_factory.mktemp("pile")
+    simulator = Simulator(scene, choose_by_name("pi-robust"), capture=folder)
     simulator.step()
     simulator.step()
-    return posed[1]
+    _, second = (files.load(path) for path in files.find([folder]))
+    assert isinstance(second, ImpactProblem)
+    return second, second.data["warm_start"]
 
 
 def test_a_far_warm_start_is_left_to_the_interior_point(

@@ -15,11 +15,13 @@ counted apart. ``--quick``: the circles only, 6 steps, one repeat.
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 
 import numpy as np
 from pi_robust_common import ACCURACY, quick_flag, words
 
 from qpbench.inner_solvers import choose_by_name
+from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
 from qpbench.simulation.scaling import PILES
@@ -32,23 +34,19 @@ from qpbench.solvers.run import call_solver
 def warm_started_impacts(kind: str, bodies: int, steps: int
                          ) -> list[tuple[ImpactProblem, np.ndarray]]:
     """(problem, warm start) of each step of a pile whose scene caches impulses, the first
-    step (no impulses to carry) left out."""
+    step (no impulses to carry) left out: the simulator's own capture, which stores each
+    impact with the impulses it carried (``warm_start``)."""
     scene = PILES[kind](bodies)
     scene = dataclasses.replace(scene, impact=dataclasses.replace(scene.impact,
                                                                   cache_impulses=True))
-    simulator = Simulator(scene, choose_by_name("pi-robust"))
-    posed: list[tuple[ImpactProblem, np.ndarray]] = []
-    solve = simulator._solve
-
-    def recorded(problem: ImpactProblem, warm: np.ndarray | None) -> np.ndarray:
-        if warm is not None and np.any(warm):
-            posed.append((problem, warm.copy()))
-        return solve(problem, warm)
-
-    simulator._solve = recorded  # type: ignore[method-assign]
-    for _ in range(steps):
-        simulator.step()
-    return posed
+    with tempfile.TemporaryDirectory() as folder:
+        simulator = Simulator(scene, choose_by_name("pi-robust"), capture=folder)
+        for _ in range(steps):
+            simulator.step()
+        captured = [files.load(path) for path in files.find([folder])]
+    return [(problem, problem.data["warm_start"]) for problem in captured
+            if isinstance(problem, ImpactProblem)
+            and np.any(problem.data.get("warm_start", 0.0))]
 
 
 def timed(problem: ImpactProblem, warm: np.ndarray | None, repeats: int
