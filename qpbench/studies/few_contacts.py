@@ -55,10 +55,9 @@ def few_contacts_summary(rows: Sequence[dict[str, Any]], undecided: Sequence[str
                   & frame["success"]]
     problems = []
     for (set_name, problem), group in frame.groupby(["set", "problem"], sort=True):
-        fastest = group.groupby("solver")["time_s"].min()
-        own = fastest[[bool(group.loc[group["solver"] == key, "own"].iloc[0])
-                       for key in fastest.index]]
-        external = fastest.drop(own.index)
+        by_pair = group.groupby("solver")
+        fastest, is_own = by_pair["time_s"].min(), by_pair["own"].first().astype(bool)
+        own, external = fastest[is_own], fastest[~is_own]
         own_s = float(own.min()) if len(own) else None
         external_s = float(external.min()) if len(external) else None
         ratio = (math.inf if external_s is None else 0.0 if own_s is None
