@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import errno
 import os
+import secrets
 import stat
-import tempfile
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from qpbench.errors import OutputError
 
 FOLLOW_SYMLINKS_ENV = "QPBENCH_FOLLOW_SYMLINKS"
+TEMPORARY_PREFIX = ".tmp-"  # a temporary file is .tmp-<16 random hex digits>-<target's name>
 # errors that only a write can give: the reason alone says what went wrong
 WRITE_ERRNOS = frozenset({errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
 _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
@@ -170,6 +171,23 @@ def sync_folder(folder: Path) -> None:
         os.close(descriptor)
 
 
+def _temporary_beside(target: Path) -> Path:
+    """A name for a temporary file beside ``target``: :data:`TEMPORARY_PREFIX`, 64 random
+    bits in hex, then the target's name."""
+    return target.with_name(f"{TEMPORARY_PREFIX}{secrets.token_hex(8)}-{target.name}")
+
+
+def _made_new(path: Path) -> bool:
+    """Makes ``path`` as a new empty file, readable and writable by its owner alone; False
+    when a file of that name exists already (it is left as it is)."""
+    try:
+        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        return False
+    os.close(descriptor)
+    return True
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike[str], durable: bool = False) -> Iterator[Path]:
     """Yields a temporary path ``.tmp-<random>-<name>`` beside the file that ``path`` names.
@@ -201,14 +219,14 @@ def atomic_path(path: str | os.PathLike[str], durable: bool = False) -> Iterator
     target = checked_target(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        handle, name = tempfile.mkstemp(dir=target.parent, prefix=".tmp-",
-                                        suffix=f"-{target.name}")
     except OSError as error:
         raise cannot_write(path, error) from error
-    os.close(handle)
-    temporary = Path(name)
+    # named before it is made, so that Ctrl-C at any moment after it exists finds it to remove
+    temporary = _temporary_beside(target)
     try:
         try:
+            while not _made_new(temporary):
+                temporary = _temporary_beside(target)
             yield temporary
             os.chmod(temporary, _new_file_mode())
             if durable:
@@ -218,7 +236,8 @@ def atomic_path(path: str | os.PathLike[str], durable: bool = False) -> Iterator
         except OSError as error:
             raise cannot_write(path, error) from error
     except BaseException:
-        temporary.unlink(missing_ok=True)
+        with suppress(OSError):  # a read-only folder: none was made; the first error is told
+            temporary.unlink(missing_ok=True)
         raise
     if durable:
         sync_folder(target.parent)

@@ -29,9 +29,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
+from qpbench.atomic import TEMPORARY_PREFIX
+
 EXIT_INTERRUPTED = 130
 GRACE_S = 0.8  # the main thread's time to end by itself after SIGINT
-TEMPORARY_PREFIX = ".tmp-"  # qpbench.atomic's temporary files
 
 
 class Watchdog:

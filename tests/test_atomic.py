@@ -116,3 +116,34 @@ def test_a_disk_that_fills_while_writing_is_one_error_and_leaves_nothing(tmp_pat
         temporary.write_text("half")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
     assert not target.exists() and _leftovers(target.parent) == []
+
+
+def test_ctrl_c_the_moment_the_temporary_file_is_made_leaves_nothing(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    target = tmp_path / "result.npz"
+    target.write_text("old")
+    make = os.open
+
+    def make_then_interrupt(path: str | os.PathLike[str], flags: int, mode: int = 0o777) -> int:
+        descriptor = make(path, flags, mode)
+        if Path(path).name.startswith(".tmp-"):  # SIGINT lands as the file comes to exist
+            raise KeyboardInterrupt
+        return descriptor
+
+    monkeypatch.setattr(os, "open", make_then_interrupt)
+    with pytest.raises(KeyboardInterrupt), atomic_path(target) as temporary:
+        temporary.write_text("new")
+    assert target.read_text() == "old" and _leftovers(tmp_path) == []
+
+
+def test_a_temporary_name_another_file_has_is_passed_over(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    target = tmp_path / "result.json"
+    taken = tmp_path / f".tmp-{'0' * 16}-result.json"
+    taken.write_text("another writer's")
+    names = iter(["0" * 16, "1" * 16])
+    monkeypatch.setattr("qpbench.atomic.secrets.token_hex", lambda _: next(names))
+    with atomic_path(target) as temporary:
+        assert temporary.name == f".tmp-{'1' * 16}-result.json"
+        temporary.write_text("{}")
+    assert target.read_text() == "{}" and taken.read_text() == "another writer's"
