@@ -115,3 +115,15 @@ def test_a_stall_that_is_not_tried_ends_unconverged(pile: ImpactProblem) -> None
         lambda impulses, w: NOT_TRIED, 1e-2, end_on_stall=True)
     assert not converged and finishing == 1
     assert impulses is not NOT_TRIED and impulses.shape == (lcp.n,)
+
+
+def test_each_step_of_a_settling_pile_of_5000_boxes_meets_the_accuracy() -> None:
+    """Where a step is degenerate (contacts where both l and w go to zero, which slows the
+    interior point near its end), the interior iterates are finished by policy iteration on
+    updated blocks at the prox weight ``UPDATED_FINISH_RHO``: each step of the settling pile
+    is solved to the accuracy the simulator asks."""
+    simulator = Simulator(box_pile(5000), choose_by_name("pi-robust"), accuracy=1e-8)
+    for _ in range(2):
+        simulator.step()
+    assert simulator.log.solves == 2
+    assert simulator.log.inaccurate == 0 and simulator.log.max_residual <= 1e-8

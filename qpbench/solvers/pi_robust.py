@@ -47,8 +47,8 @@ and adds published safeguards:
    of freedom through ``L = M^-1/2 G`` when fewer of them move than there are contacts
    (``lcp_interior.FactoredNormalMatrix``), its iterates handed on from a residual of
    ``UPDATED_FINISH_BELOW`` where the policy blocks are updated rather than factored
-   (``pi_robust_blocks``), ended at its floor or a stall, then policy iteration from its
-   best iterate (see :func:`pi_robust`).
+   (``pi_robust_blocks``; prox weight ``UPDATED_FINISH_RHO``), ended at its floor or a
+   stall, then policy iteration from its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
@@ -115,9 +115,13 @@ INTERIOR_PROX = 1e-10
 FIRST_FINISH_BELOW = 1e-6
 # where the policy blocks are updated rather than factored (BlockSolver.updatable), a finish
 # costs little, so the first interior point hands its iterates on from this residual, with
-# this many solves (docs/notes/pi-robust.md)
+# this many solves, at this prox weight (when below the accuracy table's rho): an interior
+# iterate foretells the free contacts of the LCP itself, which a prox step at a small weight
+# nearly is; much smaller, and the blocks' Woodbury form loses the digits it needs
+# (docs/notes/pi-robust.md)
 UPDATED_FINISH_BELOW = 1e-4
 UPDATED_FINISH_BUDGET = 30
+UPDATED_FINISH_RHO = 1e-9
 # a sparse problem's warm start is followed by policy iteration only when one solve of its
 # policy leaves at most this many contacts infeasible (then the next block is an update of
 # this one); else the interior point runs as from a cold start: a start a step off (a settling
@@ -415,20 +419,22 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
                 "drift_steps": drift_steps}
     finishing_solves = [0]
 
-    def finish(candidate: np.ndarray, candidate_w: np.ndarray, budget: int = finish_budget
-               ) -> np.ndarray | None:
+    def finish(candidate: np.ndarray, candidate_w: np.ndarray, budget: int = finish_budget,
+               finish_rho: float = rho) -> np.ndarray | None:
         result, done, _, used, _ = _prox_policy_iteration(
             lcp, blocks, candidate, candidate_w < lcp.diag * candidate, budget=budget,
-            **settings)
+            **{**settings, "rho": finish_rho})
         finishing_solves[0] += used
         return result if done else None
 
     def first_finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
         """The first interior point's finish: from ``UPDATED_FINISH_BELOW`` with
-        ``UPDATED_FINISH_BUDGET`` solves where the policy's blocks are updated rather than
-        factored (each try is cheap), else from ``FIRST_FINISH_BELOW`` as any finish."""
+        ``UPDATED_FINISH_BUDGET`` solves at the prox weight ``UPDATED_FINISH_RHO`` where the
+        policy's blocks are updated rather than factored (each try is cheap), else from
+        ``FIRST_FINISH_BELOW`` as any finish."""
         if blocks.updatable(candidate_w < lcp.diag * candidate):
-            return finish(candidate, candidate_w, max(finish_budget, UPDATED_FINISH_BUDGET))
+            return finish(candidate, candidate_w, max(finish_budget, UPDATED_FINISH_BUDGET),
+                          min(rho, UPDATED_FINISH_RHO))
         if lcp.residual_of(candidate, candidate_w) > FIRST_FINISH_BELOW:
             return NOT_TRIED
         return finish(candidate, candidate_w)
