@@ -127,6 +127,7 @@ def test_ctrl_c_the_moment_the_temporary_file_is_made_leaves_nothing(
     def make_then_interrupt(path: str | os.PathLike[str], flags: int, mode: int = 0o777) -> int:
         descriptor = make(path, flags, mode)
         if Path(path).name.startswith(".tmp-"):  # SIGINT lands as the file comes to exist
+            os.close(descriptor)
             raise KeyboardInterrupt
         return descriptor
 

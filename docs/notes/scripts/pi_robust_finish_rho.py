@@ -8,8 +8,8 @@ K steps (4 unless given) with pi-robust at the first value given of ``UPDATED_FI
 policy blocks are updated), keeps every step's impact problem, and then solves each of them
 cold at 1e-8 once for every value given. The first value makes the problems: a step's
 contacts follow from the answers of the steps before, and a more exact answer can make the
-next step easier. It prints per problem the linear solves, failures (qpbench's residual above 1e-8)
-and ``time_s``, and the sums. ``--quick``: the 1,000-body piles, 2 steps.
+next step easier. It prints per problem the linear solves, failures (qpbench's residual
+above 1e-8) and ``time_s``, and the sums. ``--quick``: the 1,000-body piles, 2 steps.
 """
 
 from __future__ import annotations
