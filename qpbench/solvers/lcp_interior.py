@@ -273,9 +273,11 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     ``normal`` factors its matrices), judging by the original ``lcp``. ``try_finish(l, w)`` is
     called on an iterate whose residual is below ``finish_below`` (then below a tenth of the last
     failed try's) and returns a converged l or None. ``end_on_stall``: once five iterations in a row
-    have not cut the best residual by 10% (complementarity can outrun feasibility on degenerate
-    piles, after which the steps shrink to nothing), the best iterate is handed to ``try_finish``
-    and the interior point ends there.
+    have cut by 10% neither the best residual nor, while it is above ``tol`` (scaled), the
+    infeasibility ``|Q~ l~ + b~ - w~|`` (complementarity can outrun feasibility on degenerate
+    piles, after which the steps shrink to nothing; while the infeasibility still falls, the
+    iterates are still on their way, however the residual wavers), the best iterate is handed
+    to ``try_finish`` and the interior point ends there.
 
     ``prox`` > 0: the iterates solve the proximal LCP ``(Q~ + prox I) l~ + b~ = w~`` around
     0 instead (Rockafellar's proximal point; the regularization of PIQP's interior point).
@@ -333,7 +335,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     slack = np.maximum(scaled.w(impulses), scaled.scale)
     floor = 1e-14
     best, best_w, best_res = impulses * root, slack / root, np.inf
-    progress, stalled = np.inf, 0
+    progress, feasible, stalled = np.inf, np.inf, 0  # the best residual and infeasibility
     for iteration in range(1, max_iters + 1):
         plain_w = scaled.op @ impulses + scaled.b
         infeasibility = plain_w + prox * impulses - slack
@@ -350,7 +352,11 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
                 finish_below = 0.1 * res  # try again once the residual is ten times smaller
             elif finished is not NOT_TRIED:
                 return finished, True, iteration - 1, 1
-        progress, stalled = (res, 0) if res < 0.9 * progress else (progress, stalled + 1)
+        infeasible = float(np.max(np.abs(infeasibility), initial=0.0)) / scaled.scale
+        if res < 0.9 * progress or tol < infeasible < 0.9 * feasible:
+            progress, feasible, stalled = min(res, progress), min(infeasible, feasible), 0
+        else:
+            stalled += 1
         at_floor = prox > 0.0 and res > 100.0 * lcp.residual_of(
             original_l, (plain_w + prox * impulses) / root)
         if end_on_stall and (stalled >= 5 or at_floor):
