@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from qpbench.atomic import TEMPORARY_PREFIX
 from qpbench.bench import reduced_reference
 from qpbench.errors import InputError, QpbenchError, UnsupportedError
 from qpbench.inner_solvers import choose_by_name
@@ -275,7 +276,8 @@ def _scenes(definition: dict[str, Any], root: Path) -> list[tuple[dict[str, Any]
 def _scene_problems(scenes: list[tuple[dict[str, Any], Scene]], existing: set[str],
                     output: Path) -> Iterator[ImpactProblem]:
     for entry, scene in scenes:
-        with tempfile.TemporaryDirectory(dir=output, prefix=".tmp-capture-") as capture:
+        with tempfile.TemporaryDirectory(dir=output,
+                                         prefix=f"{TEMPORARY_PREFIX}capture-") as capture:
             simulator = Simulator(scene, choose_by_name(entry.get("solver")), capture=capture)
             result = simulator.run(end_time=entry.get("end_time"),
                                    max_steps=entry.get("steps"))

@@ -23,7 +23,7 @@ from typing import Any
 import pandas as pd
 import pyarrow.parquet as pq
 
-from qpbench.atomic import atomic_path
+from qpbench.atomic import TEMPORARY_PREFIX, atomic_path
 from qpbench.bench.settings import CELL_KEY
 from qpbench.errors import InputError, QpbenchError
 from qpbench.problem.friction import KIND as FRICTIONAL
@@ -308,10 +308,10 @@ class ResultStore:
                           self.path)
         for part in parts:
             part.unlink(missing_ok=True)
-        for leftover in self.path.parent.glob(f".tmp-*-{self.path.name}"):
+        for leftover in self.path.parent.glob(f"{TEMPORARY_PREFIX}*-{self.path.name}"):
             leftover.unlink(missing_ok=True)  # a write that a kill interrupted
         if self.parts.is_dir():
-            for leftover in self.parts.glob(".tmp-*"):
+            for leftover in self.parts.glob(f"{TEMPORARY_PREFIX}*"):
                 leftover.unlink(missing_ok=True)
             with contextlib.suppress(OSError):  # not empty: another writer's part arrived
                 self.parts.rmdir()
