@@ -335,7 +335,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     slack = np.maximum(scaled.w(impulses), scaled.scale)
     floor = 1e-14
     best, best_w, best_res = impulses * root, slack / root, np.inf
-    progress, feasible, stalled = np.inf, np.inf, 0  # the best residual and infeasibility
+    progress, least_infeasible, stalled = np.inf, np.inf, 0
     for iteration in range(1, max_iters + 1):
         plain_w = scaled.op @ impulses + scaled.b
         infeasibility = plain_w + prox * impulses - slack
@@ -353,8 +353,9 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
             elif finished is not NOT_TRIED:
                 return finished, True, iteration - 1, 1
         infeasible = float(np.max(np.abs(infeasibility), initial=0.0)) / scaled.scale
-        if res < 0.9 * progress or tol < infeasible < 0.9 * feasible:
-            progress, feasible, stalled = min(res, progress), min(infeasible, feasible), 0
+        if res < 0.9 * progress or tol < infeasible < 0.9 * least_infeasible:
+            progress, stalled = min(res, progress), 0
+            least_infeasible = min(infeasible, least_infeasible)
         else:
             stalled += 1
         at_floor = prox > 0.0 and res > 100.0 * lcp.residual_of(
