@@ -8,14 +8,18 @@ variant it compares. Times depend on the machine; solve counts do not.
 from __future__ import annotations
 
 import sys
+import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
+from qpbench.scenes.model import Scene
+from qpbench.simulation.stepper import Simulator
 from qpbench.solvers import accuracy
 from qpbench.solvers.pi_robust import settings_for
 from qpbench.solvers.registry import get
@@ -55,6 +59,17 @@ def groups(quick: bool) -> Iterator[tuple[str, list[ImpactProblem]]]:
     yield "box packings", [generate("box", size, seed=0)[0]
                            for size in ((1000,) if quick else (1000, 4000))]
 
+
+def captured_impacts(scene: Scene, steps: int) -> list[ImpactProblem]:
+    """The impact problems of the first ``steps`` steps of ``scene``, pi-robust its inner
+    solver, as the simulator's own capture stores them (with the impulses each step carried,
+    ``data["warm_start"]``, where the scene caches them)."""
+    with tempfile.TemporaryDirectory() as folder:
+        simulator = Simulator(scene, choose_by_name("pi-robust"), capture=folder)
+        for _ in range(steps):
+            simulator.step()
+        captured = [files.load(path) for path in files.find([folder])]
+    return [problem for problem in captured if isinstance(problem, ImpactProblem)]
 
 def run(problems: list[ImpactProblem], repeats: int) -> dict[str, float]:
     """pi-robust at ``ACCURACY`` on ``problems``: summed solves, factorizations, failures

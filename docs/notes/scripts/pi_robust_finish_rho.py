@@ -14,17 +14,12 @@ above 1e-8) and ``time_s``, and the sums. ``--quick``: the 1,000-body piles, 2 s
 
 from __future__ import annotations
 
-import tempfile
-
 import numpy as np
-from pi_robust_common import ACCURACY, quick_flag, words
+from pi_robust_common import ACCURACY, captured_impacts, quick_flag, words
 
-from qpbench.inner_solvers import choose_by_name
-from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
 from qpbench.simulation.scaling import PILES
-from qpbench.simulation.stepper import Simulator
 from qpbench.solvers import pi_robust
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
@@ -37,15 +32,9 @@ def pile_impacts(kind: str, bodies: int, steps: int, finish_rho: float
     saved = pi_robust.UPDATED_FINISH_RHO
     pi_robust.UPDATED_FINISH_RHO = finish_rho
     try:
-        with tempfile.TemporaryDirectory() as folder:
-            simulator = Simulator(PILES[kind](bodies), choose_by_name("pi-robust"),
-                                  capture=folder)
-            for _ in range(steps):
-                simulator.step()
-            captured = [files.load(path) for path in files.find([folder])]
+        return captured_impacts(PILES[kind](bodies), steps)
     finally:
         pi_robust.UPDATED_FINISH_RHO = saved
-    return [problem for problem in captured if isinstance(problem, ImpactProblem)]
 
 
 def option(arguments: list[str], name: str, default: str) -> str:

@@ -15,17 +15,13 @@ counted apart. ``--quick``: the circles only, 6 steps, one repeat.
 from __future__ import annotations
 
 import dataclasses
-import tempfile
 
 import numpy as np
-from pi_robust_common import ACCURACY, quick_flag, words
+from pi_robust_common import ACCURACY, captured_impacts, quick_flag, words
 
-from qpbench.inner_solvers import choose_by_name
-from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
 from qpbench.simulation.scaling import PILES
-from qpbench.simulation.stepper import Simulator
 from qpbench.solvers import pi_robust
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
@@ -39,14 +35,8 @@ def warm_started_impacts(kind: str, bodies: int, steps: int
     scene = PILES[kind](bodies)
     scene = dataclasses.replace(scene, impact=dataclasses.replace(scene.impact,
                                                                   cache_impulses=True))
-    with tempfile.TemporaryDirectory() as folder:
-        simulator = Simulator(scene, choose_by_name("pi-robust"), capture=folder)
-        for _ in range(steps):
-            simulator.step()
-        captured = [files.load(path) for path in files.find([folder])]
-    return [(problem, problem.data["warm_start"]) for problem in captured
-            if isinstance(problem, ImpactProblem)
-            and np.any(problem.data.get("warm_start", 0.0))]
+    return [(problem, problem.data["warm_start"]) for problem in captured_impacts(scene, steps)
+            if np.any(problem.data.get("warm_start", 0.0))]
 
 
 def timed(problem: ImpactProblem, warm: np.ndarray | None, repeats: int
