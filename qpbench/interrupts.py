@@ -15,6 +15,11 @@ The helper needs the interpreter lock to act; numpy's and scipy's long loops and
 libraries release it, but a compiled kernel that keeps it delays the exit until it returns.
 Atomic writes (:mod:`qpbench.atomic`) rename a complete temporary file over their target, so
 an exit at any moment leaves each target either as it was or whole.
+
+Beside the watchdog: :func:`terminate_as_interrupt` takes SIGTERM as Ctrl-C within a block, and
+:func:`interrupts_held` holds both off within a block that must not be cut short (a table
+compacted, a library writing a file whose state an exception in mid-write would break), raising
+the interrupt when the block ends.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
+from types import FrameType
 
 from qpbench.atomic import TEMPORARY_PREFIX
 
@@ -150,7 +156,7 @@ def interrupt_watchdog(command: str, grace_s: float = GRACE_S) -> Iterator[Watch
         The registry of temporary files to remove on a forced exit.
     """
     watchdog = Watchdog(command)
-    if threading.current_thread() is not threading.main_thread():
+    if not _in_main_thread():
         yield watchdog
         return
     reader, writer = socket.socketpair()
@@ -168,3 +174,70 @@ def interrupt_watchdog(command: str, grace_s: float = GRACE_S) -> Iterator[Watch
         writer.close()
         helper.join(timeout=1.0)
         reader.close()
+
+
+INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, taken as an interrupt: the run ends as after Ctrl-C."""
+
+
+def _in_main_thread() -> bool:
+    """Whether this is the main thread, the only one that can take signals."""
+    return threading.current_thread() is threading.main_thread()
+
+
+def _raise_terminated(number: int, frame: FrameType | None) -> None:
+    raise Terminated(f"signal {signal.Signals(number).name}")
+
+
+@contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """Take SIGTERM as Ctrl-C within the block.
+
+    Within the block, SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) as Ctrl-C
+    does, so that a run stopped by ``kill`` keeps its rows too; the previous handler is put
+    back after. Only the main thread can take signals: elsewhere this does nothing.
+
+    Yields
+    ------
+    None
+        Control to the block.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextmanager
+def interrupts_held() -> Iterator[None]:
+    """Hold off SIGINT and SIGTERM within the block.
+
+    Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
+    raised as KeyboardInterrupt when the block ends (so the block, writing the table, is never
+    cut short). Does nothing outside the main thread.
+
+    Yields
+    ------
+    None
+        Control to the block.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    arrived: list[int] = []
+    previous = {number: signal.signal(number, lambda number, frame: arrived.append(number))
+                for number in INTERRUPTS}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    if arrived:
+        raise (Terminated if arrived[0] == signal.SIGTERM else KeyboardInterrupt)()

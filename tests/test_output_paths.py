@@ -5,10 +5,14 @@ line and exit 2 with nothing half-written."""
 from __future__ import annotations
 
 import errno
+import gc
 import os
 import shutil
+import signal
 import stat
 import subprocess
+import sys
+import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,6 +25,8 @@ from qpbench.atomic import FOLLOW_SYMLINKS_ENV
 from qpbench.cli import main, os_error_line
 from qpbench.cli.output import writable_output
 from qpbench.errors import OutputError
+from qpbench.problem import files
+from qpbench.problem.generate import generate
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "problems" / "scenes" / "scisim" / "ball_ball_ccd_00.xml"  # impacts at once
@@ -200,6 +206,30 @@ def test_a_disk_that_fills_while_a_problem_is_written_leaves_nothing(
                                  "No space left on device")
     assert os.listdir(output) == []
 
+
+
+def test_ctrl_c_while_a_problem_file_is_written_leaves_no_file_and_no_broken_archive(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """SIGINT as NumPy opens a member of the archive: the write ends first, then the interrupt
+    is raised, the temporary file goes, and the garbage collector finds no archive left with
+    a member open (closing it later fails, after the interrupt's one line)."""
+    reported: list[BaseException | None] = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda unraisable: reported.append(
+        unraisable.exc_value))
+    opened = zipfile.ZipFile.open
+
+    def open_then_interrupt(self: zipfile.ZipFile, name: str, mode: str = "r",
+                            **options: object) -> object:
+        member = opened(self, name, mode, **options)  # type: ignore[arg-type]
+        if mode == "w":
+            os.kill(os.getpid(), signal.SIGINT)
+        return member
+
+    monkeypatch.setattr(zipfile.ZipFile, "open", open_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        files.save(generate("k3", None, seed=0)[0], tmp_path / "k3.npz")
+    gc.collect()
+    assert reported == [] and list(tmp_path.iterdir()) == []
 
 def test_an_os_error_that_names_its_file_is_one_line_and_exit_2(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

@@ -12,15 +12,11 @@ under way is solved again.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
-import signal
 import sys
-import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -32,6 +28,7 @@ from qpbench.bench.provenance import provenance
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import RETRIED_ON_RESUME, Cell, Limits, RunSettings, cells
 from qpbench.errors import InputError, QpbenchError
+from qpbench.interrupts import interrupts_held, terminate_as_interrupt
 from qpbench.problem import files
 from qpbench.problem.friction import FrictionalProblem, kind_of
 from qpbench.problem.impact import ImpactProblem
@@ -215,73 +212,6 @@ def summaries(problem_files: Iterable[str]) -> dict[str, dict[str, Any]]:
         problem file -> ``problem.summary()`` (name, family, source, sizes, rank deficiency).
     """
     return {path: files.load(path).summary() for path in problem_files}
-
-
-# --- interrupts ----------------------------------------------------------------------------
-INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, taken as an interrupt: the run ends as after Ctrl-C."""
-
-
-def _in_main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
-def _raise_terminated(number: int, frame: FrameType | None) -> None:
-    raise Terminated(f"signal {signal.Signals(number).name}")
-
-
-@contextlib.contextmanager
-def terminate_as_interrupt() -> Iterator[None]:
-    """Take SIGTERM as Ctrl-C within the block.
-
-    Within the block, SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) as Ctrl-C
-    does, so that a run stopped by ``kill`` keeps its rows too; the previous handler is put
-    back after. Only the main thread can take signals: elsewhere this does nothing.
-
-    Yields
-    ------
-    None
-        Control to the block.
-    """
-    if not _in_main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextlib.contextmanager
-def interrupts_held() -> Iterator[None]:
-    """Hold off SIGINT and SIGTERM within the block.
-
-    Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
-    raised as KeyboardInterrupt when the block ends (so the block, writing the table, is never
-    cut short). Does nothing outside the main thread.
-
-    Yields
-    ------
-    None
-        Control to the block.
-    """
-    if not _in_main_thread():
-        yield
-        return
-    arrived: list[int] = []
-    previous = {number: signal.signal(number, lambda number, frame: arrived.append(number))
-                for number in INTERRUPTS}
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-    if arrived:
-        raise (Terminated if arrived[0] == signal.SIGTERM else KeyboardInterrupt)()
 
 
 # --- the whole run -------------------------------------------------------------------------

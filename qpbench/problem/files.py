@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from qpbench.atomic import atomic_path
 from qpbench.errors import InputError, shown
+from qpbench.interrupts import interrupts_held
 from qpbench.problem.friction import KIND as FRICTIONAL
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
 from qpbench.problem.impact import ImpactProblem, Reference, check_vector
@@ -194,9 +195,13 @@ def _frictional_reference_fields(fref: FrictionalReference) -> dict[str, Any]:
 
 def _write(path: Path, arrays: dict[str, np.ndarray], header: dict[str, Any]) -> Path:
     """Writes ``arrays`` and ``header`` (as ``header_json``) to the .npz at ``path``,
-    atomically; returns ``path``."""
+    atomically; returns ``path``. Ctrl-C is held off while NumPy writes the zip archive
+    (:func:`~qpbench.interrupts.interrupts_held`; a few milliseconds): cut short between the
+    opening of a member and the block that closes it, the archive would be left with that
+    member open, which the garbage collector then closes, failing on our closed file or on
+    the archive, after the interrupt's one line."""
     arrays["header_json"] = _json_bytes(header)
-    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+    with atomic_path(path) as temporary, open(temporary, "wb") as stream, interrupts_held():
         np.savez_compressed(stream, **arrays)
     return path
 
