@@ -220,8 +220,8 @@ def interrupts_held() -> Iterator[None]:
     """Hold off SIGINT and SIGTERM within the block.
 
     Within the block, SIGINT and SIGTERM are noted instead of raised; one that arrived is
-    raised as KeyboardInterrupt when the block ends (so the block, writing the table, is never
-    cut short). Does nothing outside the main thread.
+    raised as KeyboardInterrupt when the block ends (so the block, writing a table or a file,
+    is never cut short). Does nothing outside the main thread.
 
     Yields
     ------
