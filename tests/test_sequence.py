@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import types
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files, metrics
 from qpbench.problem.dumps import import_dump
+from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene
 from qpbench.scenes.builders import scene_xml
@@ -319,10 +321,46 @@ def test_breakdown_parts_are_non_negative_and_the_floor_uses_the_final_active_se
     # the compiled path ran, so it was also timed back to back, and cold is the difference
     assert row["compiled"] and row["kernel_back_to_back_s"] > 0
     assert row["cold_kernel_s"] == max(0.0, row["kernel_s"] - row["kernel_back_to_back_s"])
+    assert row["python_path_s"] == row["python_factor_s"] == 0.0  # (the kernel's answer held)
     assert row["success"] and row["residual"] <= 1e-8
     answer = get("pi-robust").solve(problem.blind_copy(), 1e-8).impulses
     assert row["active"] == int(np.count_nonzero(answer > 0)) < problem.n_contacts
     assert row["factorizations"] >= 1 and row["linear_solves"] >= 1
+
+
+def test_breakdown_times_the_python_paths_factorizations_within_it() -> None:
+    # the 30x30 grid of the default problems: the kernel declines, the interior point runs
+    problem = generate("grid", breakdown.GRID_SIZES[-1], seed=0)[0]
+    trivial = import_dump(ROOT / breakdown.TRIVIAL_DUMP)
+    row = breakdown.measure(problem, trivial, repeats=1)
+    assert row["success"] and row["interior_iterations"] > 0
+    assert 0.0 < row["python_factor_s"] <= row["python_path_s"] <= row["instrumented_total_s"]
+    header, _, line = [text for text in breakdown.markdown([row], 1).splitlines()
+                       if text.startswith("|")]
+    assert "of it, factorizations [ms]" in header
+    assert header.count("|") == line.count("|")
+
+
+def test_a_factorization_inside_another_is_timed_once() -> None:
+    # the inner call is looked up on the namespace at call time, as a caller's import is
+    calls: list[str] = []
+
+    def inner() -> None:
+        calls.append("inner")
+
+    def outer() -> None:
+        calls.append("outer")
+        namespace.inner()
+        namespace.inner()
+
+    namespace = types.SimpleNamespace(inner=inner, outer=outer)
+    sink: list[float] = []
+    with breakdown._timed_outermost(((namespace, "outer"), (namespace, "inner")), sink):
+        namespace.outer()
+        namespace.inner()
+    assert calls == ["outer", "inner", "inner", "inner"]
+    assert len(sink) == 2 and all(seconds >= 0 for seconds in sink)
+    assert namespace.outer is outer and namespace.inner is inner  # put back
 
 
 def test_breakdown_table_rows_have_as_many_cells_as_its_header(

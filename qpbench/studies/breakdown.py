@@ -2,9 +2,11 @@
 
 Problems (all in the repository): the SCISim research fork's 5x5 grid dumps
 (``problems/dumps/grid5_itr_*.out``), the first impact of its first 7x7 grid scene
-(``problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml``, copied verbatim) and a box packing
-of 1000 balls (``generate("box", 1000, seed=0)``). For each, at accuracy 1e-8, the fastest of
-rounds that each time every part below once, in turn:
+(``problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml``, copied verbatim), a box packing
+of 1000 balls (``generate("box", 1000, seed=0)``) and grids of 20 and 30 balls a side
+(``generate("grid", size, seed=0)``: the sizes where pi-robust is furthest behind the best
+peer; the 30x30 grid takes the Python path's interior point). For each, at accuracy 1e-8, the
+fastest of rounds that each time every part below once, in turn:
 
 * ``total_s``: pi-robust's ``time_s`` (the one stopwatch, ``call_solver``);
 * ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
@@ -35,12 +37,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
@@ -53,11 +56,13 @@ from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import Simulator
-from qpbench.solvers import pi_robust
+from qpbench.solvers import lcp_interior, pi_robust, pi_robust_blocks
 from qpbench.solvers.base import SolverOutput, SolverSpec
+from qpbench.solvers.pi_robust_blocks import BlockSolver
 from qpbench.solvers.pi_robust_kernel import entry as kernel
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
+from qpbench.solvers.sparse_cholesky import PatternFactor
 from qpbench.studies import compiled_floor
 
 SOLVER = "pi-robust"
@@ -68,6 +73,14 @@ DUMPS = ("problems/dumps/grid5_itr_0.out", "problems/dumps/grid5_itr_1.out")
 GRID7_SCENE = "problems/head_to_head/fork_7x7_grid/grid7_itr_0.xml"
 TRIVIAL_DUMP = "problems/dumps/2_balls.json"
 BOX_BALLS = 1000
+GRID_SIZES = (20, 30)
+# where the Python path factors a matrix, as (owner, attribute), each name as its callers look
+# it up at call time: a policy block (dense, sparse, or in Woodbury form over the degrees of
+# freedom, made anew or updated), the interior point's matrices (_timed_outermost counts a
+# factorization inside another once)
+FACTOR_CALLS = ((BlockSolver, "_factor"), (pi_robust_blocks, "updated_gram_factor"),
+                (scipy.linalg, "cho_factor"), (PatternFactor, "factorize"),
+                (lcp_interior, "gram_factor"), (pi_robust_blocks, "symmetric_factor"))
 
 
 def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
@@ -99,7 +112,8 @@ def first_impact(scene_path: str | Path, max_steps: int = 100) -> ImpactProblem:
 
 
 def default_problems(root: Path = ROOT) -> list[ImpactProblem]:
-    """The breakdown's problems: the 5x5 grid dumps, the 7x7 grid's first impact, a box packing.
+    """The breakdown's problems: the 5x5 grid dumps, the 7x7 grid's first impact, a box packing
+    and the generated grids of ``GRID_SIZES`` balls a side.
 
     Parameters
     ----------
@@ -114,6 +128,7 @@ def default_problems(root: Path = ROOT) -> list[ImpactProblem]:
     problems = [import_dump(root / path) for path in DUMPS]
     problems.append(first_impact(root / GRID7_SCENE))
     problems.append(generate("box", BOX_BALLS, seed=0)[0])
+    problems.extend(generate("grid", size, seed=0)[0] for size in GRID_SIZES)
     return problems
 
 
@@ -128,7 +143,7 @@ HARNESS = SolverSpec(name="harness-zeros", formulation="lcp", backend="qpbench-b
 
 
 @contextmanager
-def _timed(module: Any, name: str, sink: list[float]):
+def _timed(module: Any, name: str, sink: list[float]) -> Iterator[None]:
     """Replaces ``module.name`` by a wrapper that appends each call's wall time to ``sink``."""
     original = getattr(module, name)
 
@@ -144,6 +159,35 @@ def _timed(module: Any, name: str, sink: list[float]):
         yield
     finally:
         setattr(module, name, original)
+
+
+@contextmanager
+def _timed_outermost(calls: tuple[tuple[Any, str], ...], sink: list[float]) -> Iterator[None]:
+    """Replaces each ``owner.name`` of ``calls`` by a wrapper that appends to ``sink`` the wall
+    time of each call made while no other of them runs: a call inside another is timed once,
+    as part of the outer one."""
+    depth = [0]
+    originals = [(owner, name, getattr(owner, name)) for owner, name in calls]
+
+    def wrapped(original: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            depth[0] += 1
+            start = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                depth[0] -= 1
+                if depth[0] == 0:
+                    sink.append(time.perf_counter() - start)
+        return wrapper
+
+    try:
+        for owner, name, original in originals:
+            setattr(owner, name, wrapped(original))
+        yield
+    finally:
+        for owner, name, original in originals:
+            setattr(owner, name, original)
 
 
 def _banded_lower(block: sp.spmatrix) -> np.ndarray:
@@ -252,7 +296,8 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
     impulses = np.zeros(problem.n_contacts) if first.impulses is None else first.impulses
     floor_rounds = _FloorRounds(problem, impulses)
     parts: dict[str, list[float]] = {name: [] for name in (
-        "total", "instrumented", "kernel", "python", "back_to_back", "harness", "trivial")}
+        "total", "instrumented", "kernel", "python", "python_factor", "back_to_back",
+        "harness", "trivial")}
     for _ in range(repeats):
         # pi-robust's own parts as the timing protocol (docs/design.md section 7) finds them:
         # never right after a solve of this problem by pi-robust, other parts ran since
@@ -261,11 +306,16 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
         parts["harness"].append(call_solver(HARNESS, problem, ACCURACY).time_s)
         kernel_calls: list[float] = []
         python_calls: list[float] = []
-        with _timed(kernel, "envelope_pi_robust", kernel_calls), \
-                _timed(pi_robust, "pi_robust", python_calls):
+        factor_calls: list[float] = []
+        with ExitStack() as timers:
+            timers.enter_context(_timed(kernel, "envelope_pi_robust", kernel_calls))
+            timers.enter_context(_timed(pi_robust, "pi_robust", python_calls))
+            timers.enter_context(_timed_outermost(FACTOR_CALLS, factor_calls))
             parts["instrumented"].append(call_solver(spec, problem, ACCURACY).time_s)
         parts["kernel"].append(sum(kernel_calls))
         parts["python"].append(sum(python_calls))
+        # (inside the Python path only: the kernel's own factors are compiled code)
+        parts["python_factor"].append(sum(factor_calls) if python_calls else 0.0)
         parts["back_to_back"].append(back_to_back_call() if back_to_back_call else 0.0)
         floor_rounds.round()  # between the back-to-back calls and the next round's total
     total, kernel_s, python_s, back_to_back = (
@@ -281,6 +331,8 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
         "total_s": total, "instrumented_total_s": min(parts["instrumented"]),
         "harness_s": min(parts["harness"]), "trivial_s": min(parts["trivial"]),
         "kernel_s": kernel_s, "python_path_s": python_s,
+        # the factorizations of the round whose Python path was fastest
+        "python_factor_s": parts["python_factor"][int(np.argmin(parts["python"]))],
         "outside_kernel_s": max(0.0, total - kernel_s - python_s),
         "kernel_back_to_back_s": back_to_back,
         "cold_kernel_s": max(0.0, kernel_s - back_to_back),
@@ -312,7 +364,9 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
         "fastest round kept; single-threaded BLAS. total = `time_s`; harness = `call_solver` "
         "around a solver that returns zeros; trivial = pi-robust on one contact; kernel = the"
         " compiled call `envelope_pi_robust` alone; Python path = the fallback when it runs; "
-        "outside = total - kernel - Python path; back to back = the same compiled call "
+        "of it, factorizations = the Python path's matrix factorizations (LAPACK, CHOLMOD or "
+        "SuperLU; the rest of that path is its products, step lengths and bookkeeping in "
+        "Python); outside = total - kernel - Python path; back to back = the same compiled call "
         "repeated with nothing in between, and cold = kernel - back to back: what the kernel "
         "loses when other work (the blind copy, the posing) has run since its last call, so "
         "that its caches and branch predictors no longer hold this very solve (`time_s` "
@@ -322,15 +376,16 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
         " Python call overhead.\n",
         "| problem | contacts | active | path | solves | factorizations | interior its | "
         "total [ms] | harness [ms] | trivial [ms] | kernel [ms] | back to back [ms] | "
-        "cold [ms] | Python path [ms] | outside [ms] | product [ms] | floor [ms] | "
-        "total / floor |",
+        "cold [ms] | Python path [ms] | of it, factorizations [ms] | outside [ms] | "
+        "product [ms] | floor [ms] | total / floor |",
         "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-        "---:|",
+        "---:|---:|",
     ]
     for row in rows:
         ms = {key: 1e3 * row[key] for key in ("total_s", "harness_s", "trivial_s", "kernel_s",
                                               "kernel_back_to_back_s", "cold_kernel_s",
-                                              "python_path_s", "outside_kernel_s",
+                                              "python_path_s", "python_factor_s",
+                                              "outside_kernel_s",
                                               "product_s", "floor_s")}
         lines.append(
             f"| {row['problem']} | {row['contacts']} | {row['active']} | {row['path']}"
@@ -339,7 +394,7 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
             f"{ms['total_s']:.3f} | {ms['harness_s']:.3f} | {ms['trivial_s']:.3f} | "
             f"{ms['kernel_s']:.3f} | {ms['kernel_back_to_back_s']:.3f} | "
             f"{ms['cold_kernel_s']:.3f} | {ms['python_path_s']:.3f} | "
-            f"{ms['outside_kernel_s']:.3f} | "
+            f"{ms['python_factor_s']:.3f} | {ms['outside_kernel_s']:.3f} | "
             f"{ms['product_s']:.4f} | {ms['floor_s']:.4f} ({row['floor_kind']}) | "
             f"{row['ratio_to_floor']:.1f}x |")
     return "\n".join(lines) + "\n"
