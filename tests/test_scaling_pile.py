@@ -15,6 +15,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.simulation.scaling import (
     FACTORIZATION_TARGET,
     PARTS,
+    SOLVE_GROWTH_TARGET,
     box_pile,
     circle_pile,
     final_block_fields,
@@ -163,6 +164,22 @@ def test_a_pile_sets_its_inner_solves_against_one_factorization_of_its_final_act
         assert (f"One factorization itself, per body, grows {growth:.2f}x from "
                 f"{small['bodies']} to {large['bodies']} bodies.") in text
     assert "final active block (the contacts F with l > 0" in text
+
+
+def test_a_kinds_inner_solves_growth_is_held_against_2x() -> None:
+    """The inner solves per body per step, largest pile over the smallest, against the
+    near-linear target; a report kept before that target was measured shows no verdict."""
+    report = pile_scaling(CLARABEL, {"boxes": (20, 40)}, steps=1)
+    assert report["solve_growth_target"] == SOLVE_GROWTH_TARGET == 2.0
+    entry = report["kinds"]["boxes"]
+    assert entry["meets_solve_growth_target"] == (entry["solve_ratio"] <= 2.0)
+    verdict = "meets" if entry["meets_solve_growth_target"] else "misses"
+    assert (f"inner solves **{entry['solve_ratio']:.2f}x** ({verdict} the target <= 2x)."
+            in pile_markdown(report, "clarabel/dual"))
+    for kind_entry in report["kinds"].values():  # as an older scaling.json holds it
+        del kind_entry["meets_solve_growth_target"]
+    del report["solve_growth_target"]
+    assert f"inner solves **{entry['solve_ratio']:.2f}x**." in pile_markdown(report, None)
 
 
 def test_a_pile_without_a_factorization_shows_dashes_and_no_verdict() -> None:

@@ -9,7 +9,8 @@ solver and not on the stepper.
 The sparse box scenes have few contacts. The dense piles (``circle_pile``, ``box_pile``)
 keep most bodies in contact at every step; there the simulator's own cost per body per
 step (contact detection, assembly, integration) is reported apart from the inner solves,
-with its growth from the smallest to the largest size against the same target. Each kind
+with its growth from the smallest to the largest size against the same target, and the
+inner solves' growth per body per step against ``SOLVE_GROWTH_TARGET`` (<= 2x). Each kind
 is warmed up once by one untimed step of a small pile, and every pile is timed from its
 first step, so a large pile pays for no untimed step; a pile whose inner solves pass a time
 budget stops after fewer steps (at least one), and its row says so.
@@ -52,6 +53,8 @@ PILE_WARMUP_BODIES = 100  # every kind's one untimed warm-up step is on a pile t
 DEFAULT_PILE_SOLVE_BUDGET_S = 60.0
 # the inner solves per step of a pile against one sparse factorization of its final active block
 FACTORIZATION_TARGET = 3.0
+# the inner solves per body per step, largest pile against the smallest: near-linear at scale
+SOLVE_GROWTH_TARGET = 2.0
 # times one sparse factorization of the final active block: told the last step's problem and
 # impulses, it gives the row's fields ``factorization_s`` (seconds, None when not measured),
 # ``factorization_library`` and any more (qpbench.studies.factorization.active_block_factorization)
@@ -500,7 +503,8 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
 
     Each kind is warmed up once on a small pile; the growth of the simulator's own cost per
     body per step (largest size against the smallest, target <= 1.5x) and of the inner solves'
-    is given per kind. ``progress`` is told after each warm-up and each pile (:data:`Advance`).
+    (target <= SOLVE_GROWTH_TARGET) is given per kind. ``progress`` is told after each warm-up
+    and each pile (:data:`Advance`).
     With ``factor_block``, each pile's inner solves per step are set against one sparse
     factorization of its final active block (:func:`measure_pile`), and per kind the largest
     such ratio against FACTORIZATION_TARGET.
@@ -526,7 +530,8 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
     -------
     dict
         The steps, budget, warm-up size and target, and under ``kinds`` per kind its sizes,
-        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio`` and ``meets_target``; with
+        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio``, ``meets_target`` and
+        ``meets_solve_growth_target`` (``solve_growth_target`` beside ``target_ratio``); with
         ``factor_block`` also ``factorization_target`` and per kind
         ``max_solve_to_factorization`` (None when a row has no ratio) and
         ``meets_factorization_target``.
@@ -535,7 +540,7 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
     warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
     report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
                               "warmup_bodies": warmup, "target_ratio": TARGET_RATIO,
-                              "kinds": {}}
+                              "solve_growth_target": SOLVE_GROWTH_TARGET, "kinds": {}}
     if factor_block is not None:
         report["factorization_target"] = FACTORIZATION_TARGET
     for kind, kind_sizes in sizes.items():
@@ -553,6 +558,7 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
         report["kinds"][kind] = {
             "sizes": list(kind_sizes), "rows": rows, "own_ratio": own_ratio,
             "solve_ratio": solve_ratio, "meets_target": bool(own_ratio <= TARGET_RATIO),
+            "meets_solve_growth_target": bool(solve_ratio <= SOLVE_GROWTH_TARGET),
         }
         if factor_block is not None:
             ratios = [row["solve_to_factorization"] for row in rows]
@@ -635,7 +641,8 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
         lines.append(
             f"- {kind}: own cost per body per step, {large} vs {small} bodies: "
             f"**{entry['own_ratio']:.2f}x** ({verdict} the target <= "
-            f"{report['target_ratio']}x); inner solves {entry['solve_ratio']:.2f}x."
+            f"{report['target_ratio']}x); inner solves **{entry['solve_ratio']:.2f}x**"
+            + _solve_growth_verdict(entry, report) + "."
             + _factorization_verdict(entry, report))
     for kind, entry in report["kinds"].items():
         for row in entry["rows"]:
@@ -646,6 +653,15 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
                     f"{row['solve_s']:.0f} s, past the {budget:g} s budget of a pile "
                     "(`--pile-solve-budget`); the simulator's own cost is per step done.")
     return "\n".join(lines) + "\n"
+
+
+def _solve_growth_verdict(entry: dict[str, Any], report: dict[str, Any]) -> str:
+    """`` (meets the target <= 2x)`` or ``misses`` for one kind's inner solves, as measured
+    against ``solve_growth_target`` (empty for a report measured before it was kept)."""
+    if "solve_growth_target" not in report:
+        return ""
+    verdict = "meets" if entry["meets_solve_growth_target"] else "misses"
+    return f" ({verdict} the target <= {report['solve_growth_target']:g}x)"
 
 
 def _factorization_text(report: dict[str, Any]) -> str:
