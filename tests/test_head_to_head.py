@@ -10,10 +10,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from qpbench.bench import repeats as repeats_module
+from qpbench.bench.problem_sets import read_set
 from qpbench.cli import main
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.generate import generate
+from qpbench.scenes.builders import scene_xml
+from qpbench.simulation.scaling import box_pile, circle_pile
+from qpbench.solvers.registry import get
 from qpbench.studies import head_to_head, head_to_head_sets
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -135,6 +140,39 @@ def test_a_grid_or_box_packings_set_is_its_size_bucket() -> None:
     assert head_to_head_sets.size_bucket("box", 100) == "box packings 100"
     assert head_to_head_sets.larger_buckets("grids 10-14") == ["grids 16-20", "grids 30-40"]
     assert head_to_head_sets.larger_buckets("box packings 8k-16k") == []
+
+
+def test_the_committed_piles_are_the_generated_piles() -> None:
+    """The head-to-head's pile scenes are ``circle_pile(1000)`` and ``box_pile(1000)`` of the
+    scaling study, written as they are."""
+    for scene in (circle_pile(1000), box_pile(1000)):
+        committed = ROOT / "problems/scenes/piles" / scene.path
+        assert committed.read_text(encoding="utf-8") == scene_xml(scene)
+        assert f"scenes/piles/{scene.path}" in (ROOT / "problems/head_to_head.toml").read_text()
+    entries = read_set(ROOT / "problems/head_to_head.toml")["scenes"]
+    piles = [entry for entry in entries if entry["path"].startswith("scenes/piles/")]
+    assert [entry["solver"] for entry in piles] == ["pi-robust", "pi-robust"]
+
+
+def test_the_impacts_of_a_dense_pile_are_in_the_set_of_its_bodies() -> None:
+    """A pile scene's impacts (family ``scene:circle_pile_N`` or ``scene:box_pile_N``) are
+    compared per bucket of bodies, circles and boxes together; the resting pile of the
+    sequence mode is no set of the table's buckets, and a scene merely named like a pile
+    ends elsewhere."""
+    problem = generate("k3", None, seed=0)[0]
+    for family, expected in (("scene:circle_pile_1000", "dense piles 1k"),
+                             ("scene:box_pile_1000", "dense piles 1k"),
+                             ("scene:box_pile_10000", "dense piles 10k"),
+                             ("scene:circle_pile_30", "dense piles 30"),
+                             ("scene:circle_pile_1000_x", None),
+                             ("scene:ball_pile_1000", None)):
+        problem.family = family
+        assert head_to_head.set_of(problem) == expected, family
+    assert head_to_head_sets.larger_buckets("dense piles 1k") == ["dense piles 10k"]
+    piles = [name for name in head_to_head_sets.SETS if name.startswith("dense piles")]
+    assert piles == ["dense piles 1k", "dense piles 10k"]
+    assert head_to_head_sets.SETS.index("box packings 8k-16k") + 1 \
+        == head_to_head_sets.SETS.index("dense piles 1k")
 
 
 def test_the_command_measures_a_folder_against_the_named_table(tmp_path: Path,
@@ -260,6 +298,58 @@ def test_a_pair_far_slower_than_the_fastest_external_one_leaves_the_set() -> Non
     assert "more than 30 times the fastest external pair's there" in text
 
 
+def test_a_pair_with_a_solve_past_the_cap_leaves_once_another_solved_within_it() -> None:
+    """daqp's dense factorization took 15 s on the first pile (17x piqp's 0.87 s: within the
+    running limit); past the cap of 10 s it leaves the set and the larger bucket, and the
+    report says why. A pair past the cap sets no pace."""
+    def pile(solver: str, own: bool, time: float, over_cap: bool = False) -> dict:
+        return {**row(solver, own, "pile", time), "set": "dense piles 1k", "over_cap": over_cap}
+
+    running = head_to_head.Running(limit=30.0, cap_s=10.0)
+    rows = [pile("pi-robust/lcp", True, 0.05), pile("piqp-native/dual", False, 0.87),
+            pile("daqp-native/dual", False, 15.0, over_cap=True)]
+    running.update(rows, "dense piles 1k")
+    left = {"problems": 1, "slower": pytest.approx(15.0 / 0.87), "than": "piqp-native/dual",
+            "longest_s": 15.0, "cap_s": 10.0}
+    assert running.out["dense piles 1k"] == {"daqp-native/dual": left}
+    assert running.out["dense piles 10k"] == {"daqp-native/dual": {
+        **left, "measured_on": "dense piles 1k"}}
+    [entry] = head_to_head.summarize(rows, running.out)
+    text = head_to_head.markdown([entry], 5, solve_cap_s=10.0)
+    assert ("`daqp-native/dual` measured no further after 1 problem (a solve took 15.0 s, past "
+            "the cap of 10 s; 17.2x `piqp-native/dual`'s time there)") in text
+    assert "untimed warm-up took more than 10 s (the main table's time limit)" in text
+    assert "untimed warm-up took more than" not in head_to_head.markdown([entry], 5)
+    # every external pair past the cap: none is the pace, so none leaves
+    alone = head_to_head.Running(limit=30.0, cap_s=10.0)
+    alone.update([pile("piqp-native/dual", False, 11.0, over_cap=True),
+                  pile("daqp-native/dual", False, 15.0, over_cap=True)], "dense piles 1k")
+    assert alone.out == {}
+
+
+def test_a_solve_past_the_cap_is_timed_once_and_its_row_says_so(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """measure_batch on a pile-sized problem: the pair whose warm-up passed the cap keeps that
+    one solve (judged as any other) and no cold time; the other pair is timed in full."""
+    problem = generate("k3", None, seed=0)[0]
+    slow, fast = get("lemke/lcp"), get("pi-robust/lcp")
+    real_call_solver = repeats_module.call_solver
+
+    def call_solver(spec, solved, accuracy, warm_start=None):
+        output = real_call_solver(spec, solved, accuracy, warm_start)
+        if spec is slow:
+            output.time_s = 12.0
+        return output
+
+    monkeypatch.setattr(repeats_module, "call_solver", call_solver)
+    slow_row, fast_row = head_to_head.measure_batch([(slow, problem), (fast, problem)],
+                                                    repeats=3, cold_repeats=2, cap_s=10.0)
+    assert slow_row["over_cap"] and slow_row["time_s"] == 12.0 and slow_row["success"]
+    assert math.isnan(slow_row["time_cold_cache_s"])
+    assert not fast_row["over_cap"] and fast_row["success"]
+    assert fast_row["time_cold_cache_s"] >= 0
+
+
 def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> None:
     """A pair that fails fast sets no pace: daqp stays however slow it is against it; once
     daqp is the only one to have solved every problem, the failing pair is measured against
@@ -299,7 +389,8 @@ def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.
                          + bench_rows("osqp", "osqp", "dump", [2e-4]))
     seconds = {"pi-robust/lcp": 1e-5, "daqp/dual": 1e-4, "osqp/dual": 1e-2}
 
-    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0):  # noqa: ANN001, ANN202
+    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0,  # noqa: ANN001, ANN202
+              cap_s=math.inf):
         return [{"problem": problem.name, "set": head_to_head.set_of(problem),
                  "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
                  "contacts": problem.n_contacts, "status": "solved", "success": True,
@@ -355,7 +446,8 @@ def test_a_hard_familys_own_fastest_pair_runs_on_its_set_only(monkeypatch: pytes
                          + bench_rows("daqp", "daqp", "k3", [1e-4])
                          + bench_rows("osqp", "osqp", "k3", [1e-5]))
 
-    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0):  # noqa: ANN001, ANN202
+    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0,  # noqa: ANN001, ANN202
+              cap_s=math.inf):
         return [{"problem": problem.name, "set": head_to_head.set_of(problem),
                  "solver": spec.key, "pass": pass_number, "own": spec.key == "pi-robust/lcp",
                  "contacts": problem.n_contacts, "status": "solved", "success": True,

@@ -52,6 +52,29 @@ def test_a_solve_slower_than_the_repeat_budget_is_not_repeated(
     assert len(warm_starts) == 1
 
 
+def test_a_unit_whose_warm_up_passed_the_cap_is_timed_no_further(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The slow unit's warm-up (12 s against a cap of 10 s) stands for its interleaved timing,
+    and its cold timing gets no call; the fast unit is timed as without a cap."""
+    warm_starts = given_times(monkeypatch, [12.0, 0.001, *[0.002] * 6])
+    slow = [repeats.Timing(None, None, unit="slow"),
+            repeats.Timing(None, None, cold=True, unit="slow")]
+    fast = [repeats.Timing(None, None, unit="fast"),
+            repeats.Timing(None, None, cold=True, unit="fast")]
+    slow_warm, fast_warm, slow_cold, fast_cold = repeats.time_interleaved(
+        [slow[0], fast[0], slow[1], fast[1]], repeats=3, flush=lambda: None, cap_s=10.0)
+    assert [output.time_s for output in slow_warm] == [12.0] and slow_cold == []
+    assert len(fast_warm) == len(fast_cold) == 3
+    assert len(warm_starts) == 2 + 6  # two warm-ups, then the fast unit's six timed calls
+
+
+def test_without_a_cap_a_slow_warm_up_is_discarded_and_timed_calls_follow(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    given_times(monkeypatch, [12.0, 3.0])
+    [outputs] = repeats.time_interleaved([repeats.Timing(None, None, unit="slow")], repeats=3)
+    assert [output.time_s for output in outputs] == [3.0]  # (past the repeat budget)
+
+
 # --- the main table's repeats (qpbench run --repeats K --repeat-budget S) ------------------
 def repeats_of_a_cell(monkeypatch: pytest.MonkeyPatch, tmp_path, times: list[float],
                       limits: Limits) -> dict:

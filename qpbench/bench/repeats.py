@@ -8,11 +8,14 @@ back: :func:`time_interleaved` hands every timed call of a batch to a
 :class:`~qpbench.bench.schedule.Schedule`, so that other pairs' and other problems' solves run
 between them, in an order rotated from round to round. Repeats of one timing stop once they
 have taken ``REPEAT_BUDGET_S`` in all: a slow solve varies little, and repeating it would
-only take the benchmark's time.
+only take the benchmark's time. With a cap, a (problem, pair) whose untimed warm-up took
+longer is timed no further: its warm-up's answer and time stand for it, so that a solve of
+minutes is not made three times over (a dense factorization on a large pile).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 
@@ -61,7 +64,8 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
                      accuracy: float = 1e-8, warm_up: bool = True,
                      budget_s: float = REPEAT_BUDGET_S,
                      flush: Callable[[], None] | None = None,
-                     accuracies: Sequence[float] | None = None) -> list[list[SolverOutput]]:
+                     accuracies: Sequence[float] | None = None,
+                     cap_s: float = math.inf) -> list[list[SolverOutput]]:
     """Time every one of ``timings`` through the one stopwatch, interleaved by a schedule.
 
     Every call goes through ``call_solver`` at ``accuracy`` (or ``accuracies[i]`` for the
@@ -69,7 +73,9 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
     untimed solve per unit first (on its first timing; its output discarded), then rounds of
     one timed call of each timing still running. A timing stops after its ``repeats`` (or the
     batch's), after a failed solve, or once its calls have taken ``budget_s`` in all. A cold
-    timing's every timed call follows a call of ``flush`` (outside the stopwatch).
+    timing's every timed call follows a call of ``flush`` (outside the stopwatch). A unit whose
+    warm-up took more than ``cap_s`` gets no timed call: the warm-up's output is the one output
+    of the timing it ran on, and the unit's other timings have none.
 
     Parameters
     ----------
@@ -88,6 +94,8 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
         :func:`~qpbench.bench.schedule.flush_caches`.
     accuracies : sequence of float, optional
         One accuracy level per timing, in place of ``accuracy``.
+    cap_s : float, optional
+        Seconds of a warm-up past which its unit is timed no further; infinite by default.
 
     Returns
     -------
@@ -99,10 +107,18 @@ def time_interleaved(timings: Sequence[Timing], repeats: int = REPEATS,
     schedule = Schedule(range(len(timings)), max(wanted, default=1),
                         unit=lambda index: timings[index].unit_key(), warm_up=warm_up)
     outputs: list[list[SolverOutput]] = [[] for _ in timings]
+    capped: set[Hashable] = set()  # the units whose warm-up took more than cap_s
     for call in schedule:
         timing = timings[call.item]
         if not call.timed:
-            call_solver(timing.spec, timing.problem, levels[call.item], timing.warm_start)
+            output = call_solver(timing.spec, timing.problem, levels[call.item],
+                                 timing.warm_start)
+            if output.time_s > cap_s:
+                capped.add(timing.unit_key())
+                outputs[call.item].append(output)
+            continue
+        if timing.unit_key() in capped:
+            schedule.retire(call.index)
             continue
         if timing.cold:
             (flush or flush_caches)()

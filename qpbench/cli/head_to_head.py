@@ -1,5 +1,6 @@
 """``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 20] [--passes 3]
-[--candidates 6] [--out-of-running 30] [--cold-repeats 3] -o results/head_to_head.json``:
+[--candidates 6] [--out-of-running 30] [--cold-repeats 3] [--solve-cap 10]
+-o results/head_to_head.json``:
 pi-robust against the fastest external pairs of the main benchmark, no warm start, timed
 interleaved and with the CPU caches flushed, per set of ``problems/head_to_head.toml``
 (built into FOLDER by ``qpbench build-set``; ``qpbench.studies.head_to_head``). Runs with
@@ -17,6 +18,7 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
+    HEAD_TO_HEAD_SOLVE_CAP_S,
 )
 from qpbench.bench.results import ResultStore
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
@@ -58,6 +60,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="timed calls per solve with the CPU caches flushed before each, "
                              "minimum kept, beside the interleaved figure; 0: none "
                              f"({HEAD_TO_HEAD_COLD_REPEATS})")
+    parser.add_argument("--solve-cap", type=float, default=HEAD_TO_HEAD_SOLVE_CAP_S,
+                        help="seconds: a solve whose untimed warm-up took longer is timed no "
+                             "further, and its pair leaves the set once another pair solved "
+                             f"it within the cap; inf: none ({HEAD_TO_HEAD_SOLVE_CAP_S:g})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     parser.set_defaults(handler=run)
 
@@ -90,6 +96,9 @@ def run(args: argparse.Namespace) -> int:
         raise QpbenchError(f"--cold-repeats must be at least 0, got {args.cold_repeats}")
     if not args.out_of_running >= 1:  # NaN too
         raise QpbenchError("--out-of-running must be at least 1 (inf: never)")
+    if not args.solve_cap > 0:  # NaN too
+        raise QpbenchError(f"--solve-cap must be positive seconds (inf: none), got "
+                           f"{args.solve_cap}")
     if not Path(args.folder).is_dir():
         raise InputError(args.folder, "no such problem folder")
     output = writable_output(args.output)
@@ -97,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
          "--passes", str(args.passes), "--candidates", str(args.candidates),
          "--out-of-running", repr(args.out_of_running), "--cold-repeats",
-         str(args.cold_repeats), "-o", str(args.output)])
+         str(args.cold_repeats), "--solve-cap", repr(args.solve_cap), "-o", str(args.output)])
     if child is not None:
         return child
 
@@ -111,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     report = head_to_head(args.folder, bench, args.repeats, args.candidates,
                           progress=lambda text: print(text, file=sys.stderr),
                           passes=args.passes, out_of_running=args.out_of_running,
-                          cold_repeats=args.cold_repeats)
+                          cold_repeats=args.cold_repeats, solve_cap_s=args.solve_cap)
     if not report["rows"]:
         raise InputError(args.folder, "no problem of a head-to-head set")
     write_json(output, report)

@@ -5,10 +5,11 @@ The sets (``problems/head_to_head.toml``, built with ``qpbench build-set``; ``ma
 adds a seed offset drawn at run time, so that the generated problems are ones nobody tuned on,
 and the report lists their seeds, read from the problem files): the SCISim research fork's 50
 dumps of its 5x5 grid scene, the first impacts of its 50 7x7 grid scenes, impacts captured
-from its 5x5 and 3x3 grid scenes, generated grids and box packings (a set per size bucket),
-the hard families (a set each) and the frictional families (pi-robust as the inner solver
-of ``staggered`` and on ``ccp``). A problem's set is named by its family and, for grids and
-box packings, its size (``qpbench.studies.head_to_head_sets``).
+from its 5x5 and 3x3 grid scenes, generated grids and box packings, the first impacts of dense
+piles of circles and of boxes (a set per size bucket), the hard families (a set each) and the
+frictional families (pi-robust as the inner solver of ``staggered`` and on ``ccp``). A
+problem's set is named by its family and, for grids, box packings and piles, its size
+(``qpbench.studies.head_to_head_sets``).
 
 The external pairs: for impact problems the ``candidates`` fastest external pairs of the main
 benchmark (``results/bench.parquet``: shifted geometric mean of charged times at 1e-8 over
@@ -27,8 +28,13 @@ that set (:class:`Running`): it cannot be the fastest, and on the large box pack
 solver's minute-long solves were most of the benchmark's time. A pair that left a size bucket
 is not measured on the family's larger buckets either (the problems are taken smaller bucket
 first): a dense factorization's time grows faster with the contacts than a sparse one's, and
-one solve of it on the largest packings would take longer than the whole study. The report
-names every such pair, where and after how many problems it left and how much slower it was.
+one solve of it on the largest packings would take longer than the whole study. For the same
+reason a solve whose untimed warm-up took more than ``solve_cap_s`` (the main table's time
+limit) is timed no further, its warm-up's time standing for it, and its pair leaves the set as
+soon as another external pair has solved the set's problems so far within the cap (on the
+dense piles a dense factorization takes seconds to minutes a solve). The report names every
+such pair, where and after how many problems it left, how much slower it was and, for a solve
+over the cap, how long it took.
 
 Every solve goes through the one stopwatch (``call_solver``) under the timing protocol
 (docs/design.md section 7, ``qpbench.bench.repeats.time_interleaved``): the problems are taken
@@ -76,6 +82,7 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_OUT_OF_RUNNING,
     HEAD_TO_HEAD_PASSES,
     HEAD_TO_HEAD_REPEATS,
+    HEAD_TO_HEAD_SOLVE_CAP_S,
     TARGET_SPEEDUP,
 )
 from qpbench.bench.repeats import REPEAT_BUDGET_S, Timing, fastest_output, time_interleaved
@@ -133,6 +140,12 @@ TUNED_ON = {
                             "on these scenes, its gate chosen here and on the 5x5 dumps",
     "grids 16-20": WORK_LIMIT_CHOSEN,
     "grids 30-40": WORK_LIMIT_CHOSEN,
+    "dense piles 1k": "these are the very impacts several options were chosen on: "
+                      "compiled_work_limit on the first three steps of this pile of 1,000 "
+                      "circles (and on grids), the updated finish's start (1e-4) and budget "
+                      "(30 solves) on this pile of 1,000 boxes' first step and the first "
+                      "steps of a pile of 10,000 circles, its prox weight (1e-9) on piles of "
+                      "10,000 circles and boxes, checked on piles of 1,000 to 5,000",
 }
 # the main benchmark's families whose fastest external pairs are the impact candidates
 CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
@@ -225,14 +238,17 @@ def ranked(frame: pd.DataFrame) -> list[str]:
 
 def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalProblem]],
                   repeats: int, accuracy: float = ACCURACY, pass_number: int = 0,
-                  cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS) -> list[dict[str, Any]]:
+                  cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS,
+                  cap_s: float = math.inf) -> list[dict[str, Any]]:
     """One row per (pair, problem) of ``pairs``, their solves timed together.
 
     In pass ``pass_number``, under the timing protocol
     (``qpbench.bench.repeats.time_interleaved``: one untimed warm-up each, then up to
     ``repeats`` interleaved timed calls, ``time_s`` the fastest), and beside them up to
     ``cold_repeats`` calls with the CPU caches flushed before each (``time_cold_cache_s``, the
-    fastest; NaN with none), in the same schedule. The first interleaved answer is judged by
+    fastest; NaN with none), in the same schedule. A solve whose warm-up took more than
+    ``cap_s`` is timed no further (``time_interleaved``): its row keeps the warm-up's answer
+    and time, ``over_cap`` true, and no cold time. The first interleaved answer is judged by
     qpbench.
 
     Parameters
@@ -247,18 +263,20 @@ def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalPr
         The pass the rows belong to; 0 by default.
     cold_repeats : int, optional
         Cache-flushed calls per solve; 0 for none; HEAD_TO_HEAD_COLD_REPEATS by default.
+    cap_s : float, optional
+        Seconds of a warm-up past which a solve is timed no further; infinite by default.
 
     Returns
     -------
     list of dict
         One row per pair: problem, set, solver, pass, own or not, contacts, status, success,
-        residual, iteration counts, ``time_s`` and ``time_cold_cache_s``.
+        residual, iteration counts, ``time_s``, ``time_cold_cache_s`` and ``over_cap``.
     """
     timings = [Timing(spec, problem) for spec, problem in pairs]
     if cold_repeats > 0:
         timings += [Timing(spec, problem, cold=True, repeats=cold_repeats)
                     for spec, problem in pairs]
-    outputs = time_interleaved(timings, max(repeats, cold_repeats), accuracy)
+    outputs = time_interleaved(timings, max(repeats, cold_repeats), accuracy, cap_s=cap_s)
     rows = []
     for number, (spec, problem) in enumerate(pairs):
         warm = outputs[number]
@@ -272,7 +290,8 @@ def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalPr
             "residual": row["residual"], "iterations": row["iterations"],
             "outer_iterations": row["outer_iterations"],
             "time_s": fastest_output(warm).time_s,
-            "time_cold_cache_s": fastest_output(cold).time_s if cold else math.nan})
+            "time_cold_cache_s": fastest_output(cold).time_s if cold else math.nan,
+            "over_cap": bool(fastest_output(warm).time_s > cap_s)})
     return rows
 
 
@@ -283,15 +302,18 @@ class Running:
     so far (the same problems for all of them: a batch times every running pair on each of
     its problems) and takes out every pair
     whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
-    one of those problems (those without a solution, which the figures leave out, aside);
+    one of those problems within ``cap_s`` each (those without a solution, which the figures
+    leave out, aside), and every pair with a solve over ``cap_s`` (a row's ``over_cap``);
     ``out[set][pair]`` keeps after how many problems it left, how many times slower it was and
-    than which pair. No pair leaves while none has solved them all. A pair that leaves a size
+    than which pair, and for a solve over the cap its longest time and the cap. No pair leaves
+    while none has solved them all within the cap. A pair that leaves a size
     bucket leaves the family's larger buckets too (:func:`larger_buckets`), before it is
     measured there: ``out`` keeps the same record for them, with ``measured_on`` naming the
     bucket where it left."""
 
     limit: float
     out: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
+    cap_s: float = math.inf
 
     def running(self, set_name: str | None, solver: str) -> bool:
         """Whether ``solver`` is still measured on the set ``set_name``.
@@ -325,6 +347,7 @@ class Running:
         """
         totals: dict[str, float] = {}
         solved_all: dict[str, bool] = {}
+        longest: dict[str, float] = {}
         problems: dict[str, set[str]] = {}
         for one in rows:
             solver = one["solver"]
@@ -333,15 +356,19 @@ class Running:
                 continue
             totals[solver] = totals.get(solver, 0.0) + one["time_s"]
             solved_all[solver] = solved_all.get(solver, True) and bool(one["success"])
+            if one.get("over_cap"):
+                longest[solver] = max(longest.get(solver, 0.0), one["time_s"])
             problems.setdefault(solver, set()).add(one["problem"])
-        finishers = [solver for solver in totals if solved_all[solver]]
+        finishers = [solver for solver in totals if solved_all[solver] and solver not in longest]
         if not finishers:
             return
         fastest = min(finishers, key=totals.__getitem__)
         for solver, total in totals.items():
-            if total > self.limit * totals[fastest]:
+            if total > self.limit * totals[fastest] or solver in longest:
                 left = {"problems": len(problems[solver]), "slower": total / totals[fastest],
                         "than": fastest}
+                if solver in longest:
+                    left.update(longest_s=longest[solver], cap_s=self.cap_s)
                 self.out.setdefault(set_name, {})[solver] = left
                 for larger in larger_buckets(set_name):
                     self.out.setdefault(larger, {}).setdefault(
@@ -494,7 +521,8 @@ def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
              out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
              cold_repeats: int = 0, seeds: dict[str, list[int]] | None = None,
-             few_contacts: dict[str, Any] | None = None) -> str:
+             few_contacts: dict[str, Any] | None = None,
+             solve_cap_s: float = math.inf) -> str:
     """The head-to-head as a Markdown section: the protocol, a table per set, the pairs' figures.
 
     Parameters
@@ -515,6 +543,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
     few_contacts : dict or None, optional
         The problems of a few contacts (``few_contacts.few_contacts_summary``), a paragraph
         after the targets; None (default) or empty for none.
+    solve_cap_s : float, optional
+        The cap of :class:`Running` and of the timing; infinite (default): none.
 
     Returns
     -------
@@ -546,7 +576,11 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         f"that family's {FAMILY_CANDIDATES} fastest; one whose times on a set's problems so "
         f"far, summed, are more than {out_of_running:g} times the fastest "
         "external pair's there is measured no further on that set, nor on the larger size "
-        "buckets of its family (it cannot be the fastest; named below). "
+        "buckets of its family (it cannot be the fastest; named below)"
+        + (f"; so is one with a solve whose untimed warm-up took more than {solve_cap_s:g} s "
+           "(the main table's time limit), once another external pair has solved the set's "
+           "problems so far within it; such a solve is not timed again, its warm-up's time "
+           "stands" if math.isfinite(solve_cap_s) else "") + ". "
         "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
         + (" in the table and in every pass" if passes > 1 else "")
@@ -615,7 +649,8 @@ def left_sentence(left: dict[str, Any]) -> str:
     ----------
     left : dict
         An entry of a set's ``out_of_running``: ``solver``, ``problems``, ``slower``,
-        ``than``, and ``measured_on`` when it left a smaller size bucket.
+        ``than``, ``measured_on`` when it left a smaller size bucket, and ``longest_s`` and
+        ``cap_s`` when a solve of it went over the cap.
 
     Returns
     -------
@@ -623,9 +658,11 @@ def left_sentence(left: dict[str, Any]) -> str:
         The clause.
     """
     where = f" of {left['measured_on']}" if "measured_on" in left else ""
+    capped = (f"a solve took {left['longest_s']:.1f} s, past the cap of {left['cap_s']:g} s; "
+              if "longest_s" in left else "")
     return (f"`{left['solver']}` measured no further after {left['problems']} "
-            f"problem{'s' if left['problems'] > 1 else ''}{where} ({left['slower']:.1f}x "
-            f"`{left['than']}`'s time there)")
+            f"problem{'s' if left['problems'] > 1 else ''}{where} ({capped}"
+            f"{left['slower']:.1f}x `{left['than']}`'s time there)")
 
 
 def flushed(entry: dict[str, Any]) -> str:
@@ -736,15 +773,18 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                  passes: int = HEAD_TO_HEAD_PASSES,
                  out_of_running: float = HEAD_TO_HEAD_OUT_OF_RUNNING,
                  cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS,
-                 batch_problems: int = HEAD_TO_HEAD_BATCH_PROBLEMS) -> dict[str, Any]:
+                 batch_problems: int = HEAD_TO_HEAD_BATCH_PROBLEMS,
+                 solve_cap_s: float = HEAD_TO_HEAD_SOLVE_CAP_S) -> dict[str, Any]:
     """The JSON object of ``qpbench head-to-head``: rows (each pass's), per-set summary, Markdown.
 
-    The problems are taken in the order of their sets in SETS (:func:`set_rank`) and timed in
-    batches (:func:`problem_batches` of ``batch_problems``), every
-    running pair on every problem of a batch in one interleaved schedule
-    (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside); external pairs
-    leave a set after a batch as :class:`Running` says, with ``limit = out_of_running``
-    (infinite: every pair runs on every problem).
+    The problems are taken in the order of their sets in SETS (:func:`set_rank`), within a set
+    fewer contacts first, and timed in batches (:func:`problem_batches` of
+    ``batch_problems``), every running pair on every problem of a batch in one interleaved
+    schedule (:func:`measure_batch`, with ``cold_repeats`` cache-flushed calls beside);
+    external pairs leave a set after a batch as :class:`Running` says, with
+    ``limit = out_of_running`` (infinite: every pair runs on every problem) and
+    ``cap_s = solve_cap_s``, the same cap under which a solve whose warm-up took longer is
+    timed no further.
 
     Parameters
     ----------
@@ -766,6 +806,9 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
         Cache-flushed calls per solve; HEAD_TO_HEAD_COLD_REPEATS by default.
     batch_problems : int, optional
         Problems per batch at most; HEAD_TO_HEAD_BATCH_PROBLEMS by default.
+    solve_cap_s : float, optional
+        Seconds of a warm-up past which a solve is timed no further and its pair leaves the
+        set (infinite: none); HEAD_TO_HEAD_SOLVE_CAP_S by default.
 
     Returns
     -------
@@ -775,8 +818,10 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
         the problem count, the generated problems' seeds per family and the sets not measured.
     """
     chosen = fastest_external(bench, candidates)
+    # fewer contacts first within a set: a pair too slow leaves before the largest problems
     problems = sorted((problem for problem in files.load_all(files.find([str(folder)]))
-                       if set_of(problem) is not None), key=set_rank)
+                       if set_of(problem) is not None),
+                      key=lambda problem: (set_rank(problem), problem.n_contacts))
     specs = {"impact": [get(key) for key in (*OWN_IMPACT, *chosen["impact"])],
              "frictional": [get(key, "frictional")
                             for key in (*OWN_FRICTIONAL, *chosen["frictional"])]}
@@ -784,7 +829,7 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     own_set_specs = {family: [get(key) for key in keys]
                      for family, keys in chosen["families"].items()}
     rows: list[dict[str, Any]] = []
-    running = Running(out_of_running)
+    running = Running(out_of_running, cap_s=solve_cap_s)
     batches = problem_batches(problems, batch_problems)
     with accuracy_table.overridden("staggered", max_outer=STAGGERED_MAX_OUTER):
         for pass_number in range(passes):
@@ -800,7 +845,7 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                     if spec.solve is not None
                     and running.running(set_of(problem, spec.formulation), spec.key)]
                 measured = measure_batch(pairs, repeats, pass_number=pass_number,
-                                         cold_repeats=cold_repeats)
+                                         cold_repeats=cold_repeats, cap_s=solve_cap_s)
                 rows += measured
                 for set_name in {one["set"] for one in measured}:
                     running.update(rows, set_name)
@@ -811,9 +856,10 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
             "batch_problems": batch_problems, "flush_bytes": flush_bytes() if cold_repeats
             else 0, "passes": passes, "candidates": chosen,
             "staggered_max_outer": STAGGERED_MAX_OUTER, "out_of_running": out_of_running,
+            "solve_cap_s": solve_cap_s,
             "target_speedup": TARGET_SPEEDUP, "rows": rows, "summary": summary,
             "few_contacts": few_contacts,
             "markdown": markdown(summary, repeats, passes, out_of_running, cold_repeats,
-                                 seeds, few_contacts) if rows else "",
+                                 seeds, few_contacts, solve_cap_s) if rows else "",
             "problems": len(problems), "seeds": seeds,
             "unmeasured": [name for name in SETS if not any(r["set"] == name for r in rows)]}

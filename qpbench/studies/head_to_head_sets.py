@@ -2,14 +2,16 @@
 belongs to, the order the sets are measured in, and the seeds of the generated problems.
 
 A problem's set is named by its family: the fork's dumps and grid scenes, the hard families
-(a set each, named by the family), and for the generated grids and box packings a set per
-size bucket (``grids 10-14``, ``box packings 1k-4k``), so that a speedup is shown per size
-rather than averaged over sizes whose times differ by orders of magnitude. A frictional
-problem's set is its pair's formulation's.
+(a set each, named by the family), and for the generated grids and box packings and the
+impacts captured from dense piles (``problems/scenes/piles/circle_pile_N.xml`` and
+``box_pile_N.xml``, N bodies) a set per size bucket (``grids 10-14``, ``box packings 1k-4k``,
+``dense piles 1k``), so that a speedup is shown per size rather than averaged over sizes whose
+times differ by orders of magnitude. A frictional problem's set is its pair's formulation's.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 from qpbench.problem.friction import FrictionalProblem
@@ -23,11 +25,18 @@ HARD_FAMILIES = ("k3", "k4", "k4-middle", "cradle", "near-duplicate", "mass-rati
 GRID_BUCKETS = (("grids 4-9", 4, 9), ("grids 10-14", 10, 14), ("grids 16-20", 16, 20),
                 ("grids 30-40", 30, 40))
 BOX_BUCKETS = (("box packings 1k-4k", 1_000, 4_000), ("box packings 8k-16k", 8_000, 16_000))
+# dense piles by bodies, circles and boxes alike (a box pile of N bodies has about 2.6 times the
+# contacts of a circle pile of N)
+PILE_BUCKETS = (("dense piles 1k", 1_000, 4_000), ("dense piles 10k", 8_000, 16_000))
 # family -> (the start of its sets' names, its buckets)
-SIZE_BUCKETS = {"grid": ("grids", GRID_BUCKETS), "box": ("box packings", BOX_BUCKETS)}
+SIZE_BUCKETS = {"grid": ("grids", GRID_BUCKETS), "box": ("box packings", BOX_BUCKETS),
+                "pile": ("dense piles", PILE_BUCKETS)}
+# the family of the impacts captured from a pile scene, and the pile's bodies in its name
+PILE_FAMILY = re.compile(r"scene:(?:circle|box)_pile_(\d+)")
 SETS = ("fork 5x5 grid dumps", "fork 7x7 grid scenes", "grid scene captures",
         *(name for name, _, _ in GRID_BUCKETS), *(name for name, _, _ in BOX_BUCKETS),
-        *HARD_FAMILIES, "frictional (staggered)", "frictional (ccp)")
+        *(name for name, _, _ in PILE_BUCKETS), *HARD_FAMILIES, "frictional (staggered)",
+        "frictional (ccp)")
 
 
 def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
@@ -35,8 +44,9 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
 
     A frictional problem's set is that of the pair's ``formulation`` (``frictional
     (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one model).
-    A generated grid or box packing is in the set of its size's bucket (:func:`size_bucket`),
-    a problem of a hard family in the set named by the family.
+    A generated grid or box packing, and an impact of a dense pile (``PILE_FAMILY``: its size
+    the pile's bodies), is in the set of its size's bucket (:func:`size_bucket`), a problem of
+    a hard family in the set named by the family.
 
     Parameters
     ----------
@@ -60,6 +70,9 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
         return "fork 7x7 grid scenes"
     if family.startswith("scene:grid"):
         return "grid scene captures"
+    pile = PILE_FAMILY.fullmatch(family)
+    if pile is not None:
+        return size_bucket("pile", int(pile.group(1)))
     if family in SIZE_BUCKETS:
         return size_bucket(family, problem.metadata.get("size"))
     if family in HARD_FAMILIES:
@@ -68,15 +81,16 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
 
 
 def size_bucket(family: str, size: int | None) -> str:
-    """The set of a generated grid or box packing of ``size``: its bucket in SIZE_BUCKETS.
+    """The set of a generated grid or box packing, or a dense pile, of ``size``: its bucket in
+    SIZE_BUCKETS.
 
     Parameters
     ----------
     family : str
-        ``grid`` or ``box``.
+        ``grid``, ``box`` or ``pile``.
     size : int or None
-        Balls per side (grid) or balls (box), as the problem's metadata records it; None when
-        it does not.
+        Balls per side (grid), balls (box) or bodies (pile), as the problem's metadata or the
+        pile's name records it; None when it does not.
 
     Returns
     -------
