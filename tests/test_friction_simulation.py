@@ -184,7 +184,8 @@ def test_with_e_zero_no_impact_adds_kinetic_energy_to_the_test_scenes() -> None:
 
 
 SHARED = sorted(SCENES.rglob("*.xml"))
-STEP_CAPS = {"balls_in_box_1000": 10, "balls_in_box_100": 60}
+STEP_CAPS = {"balls_in_box_1000": 10, "balls_in_box_100": 60, "circle_pile_1000": 5,
+             "box_pile_1000": 5}
 
 
 @pytest.mark.parametrize("path", SHARED, ids=lambda p: p.stem)

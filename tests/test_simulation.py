@@ -173,7 +173,8 @@ def test_the_broad_phase_finds_every_overlapping_box() -> None:
 
 
 SCENE_STEP_CAPS = {"balls_in_box_1000": 15, "balls_in_box_100": 100, "newtons_cradle": 800,
-                   "balls_bouncing_on_wedge_apgd": 400}
+                   "balls_bouncing_on_wedge_apgd": 400, "circle_pile_1000": 5,
+                   "box_pile_1000": 2}
 
 
 @pytest.mark.parametrize("path", sorted(SCENES.rglob("*.xml")), ids=lambda p: p.stem)
