@@ -19,27 +19,16 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
-from pi_robust_common import ROOT
+from pi_robust_common import dump_kernel_calls
 
-from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
 from qpbench.problem.generate import generate
-from qpbench.solvers import pi_robust
 from qpbench.solvers.pi_robust_kernel import entry
 
 
 def main() -> None:
     rounds = 10 if "--quick" in sys.argv[1:] else 30
-    pi_robust.prepare()
-    settings = pi_robust.settings_for(1e-8)
-    calls = []
-    for path in sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out")):
-        problem = import_dump(path)
-        pose(problem, "lcp")
-        Q = problem.Q
-        calls.append((Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-                      pi_robust.NO_START, pi_robust.ORDERING_ABOVE,
-                      settings.compiled_work_limit, settings.kernel))
+    calls = dump_kernel_calls()
     tiny = generate("k3", None, seed=0)[0]
     pose(tiny, "lcp")
     tiny_call = (tiny.Q.indptr, tiny.Q.indices, tiny.Q.data, tiny.b, tiny.diag_Q, *calls[0][5:])

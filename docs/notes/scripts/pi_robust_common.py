@@ -15,12 +15,13 @@ from pathlib import Path
 from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
+from qpbench.problem.formulations import pose
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
 from qpbench.scenes.model import Scene
 from qpbench.simulation.stepper import Simulator
-from qpbench.solvers import accuracy
+from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers.pi_robust import settings_for
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
@@ -85,6 +86,23 @@ def run(problems: list[ImpactProblem], repeats: int) -> dict[str, float]:
         totals["failed"] += residual(problem, first.impulses) > ACCURACY
         totals["time_s"] += min(output.time_s for output in outputs)
     return totals
+
+
+def dump_kernel_calls() -> list[tuple]:
+    """The arguments of the compiled entry ``envelope_pi_robust`` for each of the fork's 5x5
+    dumps, posed as pi-robust's ``solve`` poses them, at ``ACCURACY`` from no start (the
+    kernel loaded or compiled first)."""
+    pi_robust.prepare()
+    settings = settings_for(ACCURACY)
+    calls = []
+    for path in sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out")):
+        problem = import_dump(path)
+        pose(problem, "lcp")
+        Q = problem.Q
+        calls.append((Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
+                      pi_robust.NO_START, pi_robust.ORDERING_ABOVE,
+                      settings.compiled_work_limit, settings.kernel))
+    return calls
 
 
 def with_row(key: str, value: object, action: Callable[[], dict[str, float]]

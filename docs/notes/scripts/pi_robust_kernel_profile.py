@@ -57,23 +57,11 @@ def write_symbol_map() -> int:
 
 def run(rounds: int) -> None:
     """Call the kernel on every dump in turn, ``rounds`` times, then write the symbol map."""
-    from pi_robust_common import ROOT
+    from pi_robust_common import dump_kernel_calls
 
-    from qpbench.problem.dumps import import_dump
-    from qpbench.problem.formulations import pose
-    from qpbench.solvers import pi_robust
     from qpbench.solvers.pi_robust_kernel import entry
 
-    pi_robust.prepare()
-    settings = pi_robust.settings_for(1e-8)
-    calls = []
-    for path in sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out")):
-        problem = import_dump(path)
-        pose(problem, "lcp")
-        Q = problem.Q
-        calls.append((Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-                      pi_robust.NO_START, pi_robust.ORDERING_ABOVE,
-                      settings.compiled_work_limit, settings.kernel))
+    calls = dump_kernel_calls()
     start = time.perf_counter()
     for _ in range(rounds):
         for arguments in calls:
