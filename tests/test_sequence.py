@@ -355,7 +355,7 @@ def test_a_factorization_inside_another_is_timed_once() -> None:
 
     namespace = types.SimpleNamespace(inner=inner, outer=outer)
     sink: list[float] = []
-    with breakdown._timed_outermost(((namespace, "outer"), (namespace, "inner")), sink):
+    with breakdown._timed(((namespace, "outer"), (namespace, "inner")), sink):
         namespace.outer()
         namespace.inner()
     assert calls == ["outer", "inner", "inner", "inner"]

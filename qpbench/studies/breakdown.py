@@ -76,7 +76,7 @@ BOX_BALLS = 1000
 GRID_SIZES = (20, 30)
 # where the Python path factors a matrix, as (owner, attribute), each name as its callers look
 # it up at call time: a policy block (dense, sparse, or in Woodbury form over the degrees of
-# freedom, made anew or updated), the interior point's matrices (_timed_outermost counts a
+# freedom, made anew or updated), the interior point's matrices (_timed counts a
 # factorization inside another once)
 FACTOR_CALLS = ((BlockSolver, "_factor"), (pi_robust_blocks, "updated_gram_factor"),
                 (scipy.linalg, "cho_factor"), (PatternFactor, "factorize"),
@@ -143,26 +143,7 @@ HARNESS = SolverSpec(name="harness-zeros", formulation="lcp", backend="qpbench-b
 
 
 @contextmanager
-def _timed(module: Any, name: str, sink: list[float]) -> Iterator[None]:
-    """Replaces ``module.name`` by a wrapper that appends each call's wall time to ``sink``."""
-    original = getattr(module, name)
-
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        start = time.perf_counter()
-        try:
-            return original(*args, **kwargs)
-        finally:
-            sink.append(time.perf_counter() - start)
-
-    setattr(module, name, wrapper)
-    try:
-        yield
-    finally:
-        setattr(module, name, original)
-
-
-@contextmanager
-def _timed_outermost(calls: tuple[tuple[Any, str], ...], sink: list[float]) -> Iterator[None]:
+def _timed(calls: tuple[tuple[Any, str], ...], sink: list[float]) -> Iterator[None]:
     """Replaces each ``owner.name`` of ``calls`` by a wrapper that appends to ``sink`` the wall
     time of each call made while no other of them runs: a call inside another is timed once,
     as part of the outer one."""
@@ -308,9 +289,9 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
         python_calls: list[float] = []
         factor_calls: list[float] = []
         with ExitStack() as timers:
-            timers.enter_context(_timed(kernel, "envelope_pi_robust", kernel_calls))
-            timers.enter_context(_timed(pi_robust, "pi_robust", python_calls))
-            timers.enter_context(_timed_outermost(FACTOR_CALLS, factor_calls))
+            timers.enter_context(_timed(((kernel, "envelope_pi_robust"),), kernel_calls))
+            timers.enter_context(_timed(((pi_robust, "pi_robust"),), python_calls))
+            timers.enter_context(_timed(FACTOR_CALLS, factor_calls))
             parts["instrumented"].append(call_solver(spec, problem, ACCURACY).time_s)
         parts["kernel"].append(sum(kernel_calls))
         parts["python"].append(sum(python_calls))
