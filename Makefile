@@ -62,6 +62,8 @@ BENCH_RESULTS ?= results
 HEAD_TO_HEAD_SEED ?= $(shell expr $$(date +%s) % 1000000)
 HEAD_TO_HEAD_SEED := $(HEAD_TO_HEAD_SEED)
 HEAD_TO_HEAD_PROBLEMS ?= build/problems/head_to_head-$(HEAD_TO_HEAD_SEED)
+# the set files the head-to-head's problems are built from, into one folder
+HEAD_TO_HEAD_SETS ?= problems/head_to_head.toml
 BENCH_ACCURACY ?= 1e-2,1e-4,1e-6,1e-8,1e-10
 BENCH_TIMEOUT ?= 10
 # main table: up to 5 timed repeats per solve (time_s their minimum), fewer once they have
@@ -83,8 +85,10 @@ bench: setup
 	$(BIN)/qpbench sequence --steps 40 --results $(BENCH_RESULTS)/bench.parquet \
 		-o $(BENCH_RESULTS)/sequence.json
 	$(BIN)/qpbench breakdown -o $(BENCH_RESULTS)/breakdown.json
-	$(BIN)/qpbench build-set problems/head_to_head.toml --seed-offset $(HEAD_TO_HEAD_SEED) \
-		-o $(HEAD_TO_HEAD_PROBLEMS)
+	for set in $(HEAD_TO_HEAD_SETS); do \
+		$(BIN)/qpbench build-set $$set --seed-offset $(HEAD_TO_HEAD_SEED) \
+			-o $(HEAD_TO_HEAD_PROBLEMS) || exit $$?; \
+	done
 	$(BIN)/qpbench head-to-head $(HEAD_TO_HEAD_PROBLEMS) --results $(BENCH_RESULTS)/bench.parquet \
 		-o $(BENCH_RESULTS)/head_to_head.json
 	$(BIN)/qpbench sim-precision -o $(BENCH_RESULTS)/sim_precision.json
@@ -93,13 +97,18 @@ bench: setup
 # The larger sweep, in its own folders; first a fuzz run of FUZZ_CASES mutated scenes and as
 # many mutated problem files through the command line (build/results-large/fuzz.json, whose
 # counts the report prints). The target fails after the benchmark when a fuzz case failed.
+# Its head-to-head adds problems/head_to_head_large.toml's piles of 10,000 bodies.
 FUZZ_CASES ?= 10000
 bench-large: setup
 	@mkdir -p build/results-large; status=0; \
 	$(BIN)/qpbench fuzz --scenes $(FUZZ_CASES) --problems $(FUZZ_CASES) --seed 0 \
 		-o build/results-large/fuzz.json || status=$$?; \
 	$(MAKE) bench BENCH_SET=problems/large.toml BENCH_PROBLEMS=build/problems/large \
-		BENCH_RESULTS=build/results-large BENCH_TIMEOUT=60 && exit $$status
+		BENCH_RESULTS=build/results-large BENCH_TIMEOUT=60 \
+		HEAD_TO_HEAD_SEED=$(HEAD_TO_HEAD_SEED) \
+		HEAD_TO_HEAD_SETS="problems/head_to_head.toml problems/head_to_head_large.toml" \
+		HEAD_TO_HEAD_PROBLEMS=build/problems/head_to_head-large-$(HEAD_TO_HEAD_SEED) \
+		&& exit $$status
 
 lint: setup
 	$(BIN)/ruff check qpbench tests

@@ -142,16 +142,18 @@ def test_a_grid_or_box_packings_set_is_its_size_bucket() -> None:
     assert head_to_head_sets.larger_buckets("box packings 8k-16k") == []
 
 
-def test_the_committed_piles_are_the_generated_piles() -> None:
-    """The head-to-head's pile scenes are ``circle_pile(1000)`` and ``box_pile(1000)`` of the
-    scaling study, written as they are."""
+def test_the_head_to_heads_piles_are_the_scaling_studys_piles() -> None:
+    """The head-to-head's piles are the scaling study's piles of 1,000 bodies
+    (``problems/head_to_head.toml``) and of 10,000 (``head_to_head_large.toml``, `make
+    bench-large`), each captured with pi-robust as inner solver; the 1,000-body ones are
+    committed as scene files too, written as the generator makes them."""
     for scene in (circle_pile(1000), box_pile(1000)):
         committed = ROOT / "problems/scenes/piles" / scene.path
         assert committed.read_text(encoding="utf-8") == scene_xml(scene)
-        assert f"scenes/piles/{scene.path}" in (ROOT / "problems/head_to_head.toml").read_text()
-    entries = read_set(ROOT / "problems/head_to_head.toml")["scenes"]
-    piles = [entry for entry in entries if entry["path"].startswith("scenes/piles/")]
-    assert [entry["solver"] for entry in piles] == ["pi-robust", "pi-robust"]
+    for set_file, bodies in (("head_to_head.toml", 1000), ("head_to_head_large.toml", 10000)):
+        piles = read_set(ROOT / "problems" / set_file)["piles"]
+        assert [(pile["kind"], pile["bodies"], pile["solver"]) for pile in piles] == [
+            ("circles", bodies, "pi-robust"), ("boxes", bodies, "pi-robust")]
 
 
 def test_the_impacts_of_a_dense_pile_are_in_the_set_of_its_bodies() -> None:

@@ -1,4 +1,4 @@
-"""Problem sets: a set file's families, dumps and captured scenes become problem files."""
+"""Problem sets: a set file's families, dumps, captured scenes and piles become problem files."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import pytest
 from qpbench.bench import problem_sets
 from qpbench.cli import main
 from qpbench.errors import InputError, QpbenchError
+from qpbench.memory import OutOfMemory
 from qpbench.problem import files
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
@@ -85,6 +86,12 @@ def test_build_set_prints_what_it_wrote(tmp_path: Path, capsys: pytest.CaptureFi
     ("[[scenes]]\npath = 'a.xml'\nend_time = nan\n", r"<scenes\[0\]> attribute 'end_time'"),
     ("[[scenes]]\npath = 'a.xml'\nmax_problem = 2\n", r"attribute 'max_problem': unknown key"),
     ("[scenes]\npath = 'a.xml'\n", r"<set> attribute 'scenes': must be an array of tables"),
+    ("[[piles]]\nbodies = 10\n", r"<piles\[0\]> attribute 'kind': missing"),
+    ("[[piles]]\nkind = 'cubes'\nbodies = 10\n",
+     r"<piles\[0\]> attribute 'kind': must be one of circles, boxes"),
+    ("[[piles]]\nkind = 'boxes'\nbodies = 0\n", r"<piles\[0\]> attribute 'bodies'"),
+    ("[[piles]]\nkind = 'boxes'\nbodies = 5\npath = 'a.xml'\n",
+     r"<piles\[0\]> attribute 'path': unknown key"),
 ])
 def test_a_bad_set_file_is_one_line_naming_the_entry(tmp_path: Path, text: str,
                                                       message: str) -> None:
@@ -108,6 +115,23 @@ def test_a_bad_scene_or_solver_stops_the_build_before_any_output(tmp_path: Path)
     set_file = tmp_path / "bad.toml"
     set_file.write_text(f'[[scenes]]\npath = "{scene}"\nsteps = 2\nsolver = "nope"\n')
     with pytest.raises(QpbenchError, match="unknown solver 'nope'"):
+        problem_sets.build(set_file, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_pile_entry_captures_the_first_impact_of_the_generated_pile(tmp_path: Path) -> None:
+    set_file = tmp_path / "piles.toml"
+    set_file.write_text('[[piles]]\nkind = "circles"\nbodies = 30\nsolver = "pi-robust"\n')
+    written = problem_sets.build(set_file, tmp_path / "out")
+    assert [path.stem for path in written] == ["circle_pile_30_step000000"]  # one step
+    captured = files.load(written[0])
+    assert captured.n_contacts > 30 and captured.reference.verified
+
+
+def test_a_pile_too_large_for_memory_is_refused_before_it_is_made(tmp_path: Path) -> None:
+    set_file = tmp_path / "huge.toml"
+    set_file.write_text('[[piles]]\nkind = "boxes"\nbodies = 1000000000000\n')
+    with pytest.raises(OutOfMemory, match=r"huge.toml: piles\[0\]: 1000000000000 bodies"):
         problem_sets.build(set_file, tmp_path / "out")
     assert not (tmp_path / "out").exists()
 

@@ -1,4 +1,4 @@
-"""Problem sets: a TOML file naming families, dumps and scenes, built into problem files.
+"""Problem sets: a TOML file naming families, dumps, scenes and piles, built into problem files.
 
 ```toml
 [families]                       # family -> sizes (default: the family's) and seeds per size
@@ -20,6 +20,11 @@ path = "scenes/scisim/newtons_cradle.xml"   # or a glob: each scene it matches, 
 steps = 2000                     # step cap (default: the scene's end time)
 solver = "clarabel"              # inner solver of the simulation (default: the scene's)
 max_problems = 5                 # evenly spread over the captured impacts
+
+[[piles]]                        # a dense pile of `qpbench scaling` (qpbench.simulation.scaling),
+kind = "boxes"                   # "circles" or "boxes"
+bodies = 10000                   # made here rather than read from a scene file
+steps = 1                        # step cap (default 1); solver and max_problems as for scenes
 ```
 
 Before anything is written, every family size and every scene is checked against the memory
@@ -64,6 +69,7 @@ from qpbench.problem.reduced import ReducedFrictionalProblem
 from qpbench.problem.reference import attach_reference
 from qpbench.problem.siconos_import import import_siconos
 from qpbench.scenes import Scene, load_scene
+from qpbench.simulation.scaling import PILES
 from qpbench.simulation.stepper import BODY_BYTES, Simulator
 from qpbench.solvers.registry import resolve
 
@@ -119,12 +125,16 @@ def read_set(path: str | Path) -> dict[str, Any]:
                              f"families.{family}", "count")
     for section in ("dumps", "siconos", "fclib"):
         _check_entries(path, definition.get(section, {}), section, _DUMPS_KEYS)
-    for index, scene in enumerate(definition.get("scenes", [])):
-        if not isinstance(scene, dict):
-            raise InputError(str(path), "must be a table ([[scenes]])", f"scenes[{index}]")
-        if "path" not in scene:
-            raise InputError(str(path), "missing", f"scenes[{index}]", "path")
-        _check_entries(path, scene, f"scenes[{index}]", _SCENE_KEYS)
+    for section, required, keys in (("scenes", ("path",), _SCENE_KEYS),
+                                    ("piles", ("kind", "bodies"), _PILE_KEYS)):
+        for index, entry in enumerate(definition.get(section, [])):
+            if not isinstance(entry, dict):
+                raise InputError(str(path), f"must be a table ([[{section}]])",
+                                 f"{section}[{index}]")
+            for key in required:
+                if key not in entry:
+                    raise InputError(str(path), "missing", f"{section}[{index}]", key)
+            _check_entries(path, entry, f"{section}[{index}]", keys)
     return definition
 
 
@@ -140,6 +150,7 @@ _SECTIONS: dict[str, _Rule] = {
     "siconos": ("a table with paths", lambda value: isinstance(value, dict)),
     "fclib": ("a table with paths", lambda value: isinstance(value, dict)),
     "scenes": ("an array of tables ([[scenes]])", lambda value: isinstance(value, list)),
+    "piles": ("an array of tables ([[piles]])", lambda value: isinstance(value, list)),
 }
 _FAMILY_KEYS: dict[str, _Rule] = {
     "sizes": ("a list of integers >= 1", lambda value: isinstance(value, list) and bool(value)
@@ -161,6 +172,14 @@ _SCENE_KEYS: dict[str, _Rule] = {
     "solver": ("a solver name", lambda value: isinstance(value, str)),
     "max_problems": ("an integer >= 1", lambda value: _is_integer(value, 1)),
 }
+_PILE_KEYS: dict[str, _Rule] = {
+    "kind": (f"one of {', '.join(PILES)}", lambda value: value in PILES),
+    "bodies": ("an integer >= 1", lambda value: _is_integer(value, 1)),
+    "steps": _SCENE_KEYS["steps"],
+    "solver": _SCENE_KEYS["solver"],
+    "max_problems": _SCENE_KEYS["max_problems"],
+}
+PILE_STEPS = 1  # a [[piles]] entry's step cap when it names none
 
 
 def _check_entries(path: Path, table: dict[str, Any], element: str,
@@ -261,15 +280,25 @@ def _scene_paths(root: Path, entry: dict[str, Any], index: int) -> list[Path]:
     return [Path(path) for path in paths]
 
 
-def _scenes(definition: dict[str, Any], root: Path) -> list[tuple[dict[str, Any], Scene]]:
-    """(entry, scene) of every scene the ``[[scenes]]`` entries name, each read and its inner
-    solver's name looked up, so that a bad scene or solver stops the build before anything is
-    written."""
+def _scenes(definition: dict[str, Any], set_file: Path) -> list[tuple[dict[str, Any], Scene]]:
+    """(entry, scene) of every scene the ``[[scenes]]`` entries name, each read, then of every
+    ``[[piles]]`` entry, its pile made once its bodies fit in memory (its step cap
+    ``PILE_STEPS`` unless it names one); each inner solver's name is looked up, so that a bad
+    scene or solver stops the build before anything is written."""
     scenes = []
+    for section in ("scenes", "piles"):
+        for entry in definition.get(section, []):
+            if "solver" in entry:
+                resolve([entry["solver"]])  # an unknown name is one line here, before output
     for index, entry in enumerate(definition.get("scenes", [])):
-        if "solver" in entry:
-            resolve([entry["solver"]])  # an unknown name is one line here, before any output
-        scenes += [(entry, load_scene(path)) for path in _scene_paths(root, entry, index)]
+        scenes += [(entry, load_scene(path))
+                   for path in _scene_paths(set_file.parent, entry, index)]
+    for index, entry in enumerate(definition.get("piles", [])):
+        # (checked before the pile is made: its bodies are allocated at once)
+        require(entry["bodies"] * BODY_BYTES,
+                f"{set_file}: piles[{index}]: {entry['bodies']} bodies")
+        scenes.append(({"steps": PILE_STEPS, **entry},
+                       PILES[entry["kind"]](entry["bodies"])))
     return scenes
 
 
@@ -300,8 +329,9 @@ def build(set_file: str | Path, output: str | Path,
           on_problem: Callable[[str], None] | None = None, seed_offset: int = 0) -> list[Path]:
     """Write every problem of the set to ``output``, skipping those already there.
 
-    Families, dumps, Siconos and FCLIB files, then scenes, each problem with its reference
-    (module docstring); a reference that is not verified is said in one line on stderr.
+    Families, dumps, Siconos and FCLIB files, then scenes and piles, each problem with its
+    reference (module docstring); a reference that is not verified is said in one line on
+    stderr.
     ``seed_offset`` is added to every family's seeds (problem i of a family size gets seed
     ``seed + seed_offset + i``), so that one set file gives problems never seen before.
 
@@ -333,7 +363,7 @@ def build(set_file: str | Path, output: str | Path,
     set_file, output = Path(set_file), Path(output)
     definition = read_set(set_file)
     root = set_file.parent
-    scenes = _scenes(definition, root)
+    scenes = _scenes(definition, set_file)
     check_sizes(definition, scenes, set_file)
     output.mkdir(parents=True, exist_ok=True)
     existing = {path.stem for path in output.glob(f"*{files.SUFFIX}")}
