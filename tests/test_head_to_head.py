@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -192,6 +194,28 @@ def test_the_command_measures_a_folder_against_the_named_table(tmp_path: Path,
     rows = json.loads(out.read_text())["rows"]
     assert sorted((row["solver"], row["pass"]) for row in rows) == [
         ("daqp/dual", 0), ("daqp/dual", 1), ("pi-robust/lcp", 0), ("pi-robust/lcp", 1)]
+
+
+def test_a_solve_past_the_memory_cap_fails_alone_and_the_run_goes_on(tmp_path: Path) -> None:
+    """Under ``--memory-limit`` (headroom above the loaded process), a dense backend's solve
+    that needs more (Q of 10,051 contacts as a dense array: 808 MB) fails with MemoryError;
+    pi-robust's sparse solve of the same problem goes on, and so does the run."""
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    files.save(generate("box", 10_000, seed=0)[0], folder / "box-10000-s0.npz")
+    table = tmp_path / "bench.parquet"
+    pd.DataFrame(bench_rows("daqp-native", "daqp", "box", [1e-3])).to_parquet(table)
+    out = tmp_path / "h2h.json"
+    done = subprocess.run(
+        [sys.executable, "-m", "qpbench.cli", "head-to-head", str(folder), "--results",
+         str(table), "--repeats", "1", "--passes", "1", "--cold-repeats", "0",
+         "--memory-limit", "400", "-o", str(out)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    rows = {row["solver"]: row for row in json.loads(out.read_text())["rows"]}
+    assert rows["pi-robust/lcp"]["success"]
+    refused = rows["daqp-native/dual"]
+    assert refused["status"] == "failed" and refused["residual"] is None  # no answer at all
 
 
 def test_a_missing_folder_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

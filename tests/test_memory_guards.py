@@ -1,7 +1,8 @@
-"""Memory and interrupt guards of simulate, generate and build-set: a request too large for
-the memory cap is refused in one line (exit 2) before it is allocated, a MemoryError under
-the cap becomes one line, and Ctrl-C ends a long run with exit 130 within about a second,
-leaving no temporary or partial file."""
+"""Memory and interrupt guards of simulate, generate and build-set (and the memory cap of
+sequence and head-to-head): a request too large for the memory cap is refused in one line
+(exit 2) before it is allocated, a MemoryError under the cap becomes one line, and Ctrl-C
+ends a long run with exit 130 within about a second, leaving no temporary or partial
+file."""
 
 from __future__ import annotations
 
@@ -106,11 +107,14 @@ def test_a_set_that_fits_builds_as_before_under_a_small_cap(tmp_path: Path) -> N
         "grid-3-s0.npz", "k4-4-s0.npz", "k4-4-s1.npz"]
 
 
-def test_a_negative_memory_limit_is_one_line() -> None:
-    done = qpbench("generate", "k4", "--memory-limit", "-1", "-o", "unused")
+@pytest.mark.parametrize("command", [["generate", "k4"], ["sequence", "--solvers", "pi-robust"],
+                                     ["head-to-head", str(ROOT), "--results", "unread.parquet"]])
+def test_a_negative_memory_limit_is_one_line(command: list[str], tmp_path: Path) -> None:
+    done = qpbench(*command, "--memory-limit", "-1", "-o", str(tmp_path / "unused"))
     assert done.returncode == 2
-    assert done.stderr.strip() == ("qpbench generate: --memory-limit must be at least 0, "
+    assert done.stderr.strip() == (f"qpbench {command[0]}: --memory-limit must be at least 0, "
                                    "got -1")
+    assert not (tmp_path / "unused").exists()
 
 
 def test_a_memory_error_becomes_one_line_naming_what_was_built() -> None:

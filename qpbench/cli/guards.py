@@ -1,5 +1,6 @@
 """The guards of the commands that build things (``simulate``, ``render``, ``generate``,
-``build-set``): their ``--memory-limit`` and ``--progress`` options, and :func:`guarded`,
+``build-set``) or call external solvers in their own process (``head-to-head``,
+``sequence``): their ``--memory-limit`` and ``--progress`` options, and :func:`guarded`,
 which applies the memory cap, turns running out of memory into one line (exit 2) and
 watches for Ctrl-C (exit 130 within about a second)."""
 
@@ -38,6 +39,23 @@ def add_memory_option(parser: argparse.ArgumentParser) -> None:
         help=f"cap on the address space in MiB (default: {DEFAULT_FRACTION:.0%}% of the "
              "memory available at the start; 0: none); a request that needs more is "
              "refused in one line")
+
+
+def memory_arguments(args: argparse.Namespace) -> list[str]:
+    """``--memory-limit MB`` as given on the command line, for a child rerun; none when the
+    default stands.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options holding ``memory_limit`` (see :func:`add_memory_option`).
+
+    Returns
+    -------
+    list of str
+        The option and its value, or an empty list.
+    """
+    return [] if args.memory_limit is None else [LIMIT_OPTION, str(args.memory_limit)]
 
 
 def add_progress_option(parser: argparse.ArgumentParser) -> None:

@@ -21,6 +21,7 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_SOLVE_CAP_S,
 )
 from qpbench.bench.results import ResultStore
+from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 from qpbench.studies.head_to_head import BENCH_COLUMNS, head_to_head
@@ -65,6 +66,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "further, and its pair leaves the set once another pair solved "
                              f"it within the cap; inf: none ({HEAD_TO_HEAD_SOLVE_CAP_S:g})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    add_memory_option(parser)
     parser.set_defaults(handler=run)
 
 
@@ -72,7 +74,9 @@ def run(args: argparse.Namespace) -> int:
     """Time pi-robust against the fastest external pairs per set; write and print the report.
 
     Reruns the command in a child process with single-threaded BLAS unless this one already
-    has it.
+    has it. The solves run under the memory cap (``--memory-limit``): a pair whose solve would
+    take more memory than that (a dense backend on a pile of 10,000 bodies) fails that solve
+    with MemoryError instead of taking the machine's memory.
 
     Parameters
     ----------
@@ -106,21 +110,23 @@ def run(args: argparse.Namespace) -> int:
         ["head-to-head", args.folder, "--results", args.results, "--repeats", str(args.repeats),
          "--passes", str(args.passes), "--candidates", str(args.candidates),
          "--out-of-running", repr(args.out_of_running), "--cold-repeats",
-         str(args.cold_repeats), "--solve-cap", repr(args.solve_cap), "-o", str(args.output)])
+         str(args.cold_repeats), "--solve-cap", repr(args.solve_cap), "-o", str(args.output),
+         *memory_arguments(args)])
     if child is not None:
         return child
 
-    bench = ResultStore(args.results).read(BENCH_COLUMNS)
-    if bench.empty:
-        raise InputError(args.results, "no results to choose the external pairs from")
-    for column in ("solver", "formulation", "accuracy", "time_s"):
-        if bench[column].isna().all():
-            raise InputError(args.results, f"no column {column}: not a results table of the "
-                             "main benchmark")
-    report = head_to_head(args.folder, bench, args.repeats, args.candidates,
-                          progress=lambda text: print(text, file=sys.stderr),
-                          passes=args.passes, out_of_running=args.out_of_running,
-                          cold_repeats=args.cold_repeats, solve_cap_s=args.solve_cap)
+    with guarded(args, "head-to-head", "timing the head-to-head"):
+        bench = ResultStore(args.results).read(BENCH_COLUMNS)
+        if bench.empty:
+            raise InputError(args.results, "no results to choose the external pairs from")
+        for column in ("solver", "formulation", "accuracy", "time_s"):
+            if bench[column].isna().all():
+                raise InputError(args.results, f"no column {column}: not a results table of "
+                                 "the main benchmark")
+        report = head_to_head(args.folder, bench, args.repeats, args.candidates,
+                              progress=lambda text: print(text, file=sys.stderr),
+                              passes=args.passes, out_of_running=args.out_of_running,
+                              cold_repeats=args.cold_repeats, solve_cap_s=args.solve_cap)
     if not report["rows"]:
         raise InputError(args.folder, "no problem of a head-to-head set")
     write_json(output, report)

@@ -13,6 +13,7 @@ from pathlib import Path
 from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_PASSES, SEQUENCE_STEPS
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import check_accuracy
+from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 from qpbench.solvers.registry import get
@@ -51,6 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="replays of every scene, one after another; each step's fastest "
                              f"is kept, and each pass alone gives a speedup ({SEQUENCE_PASSES})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
+    add_memory_option(parser)
     parser.set_defaults(handler=run)
 
 
@@ -59,7 +61,9 @@ def run(args: argparse.Namespace) -> int:
 
     Reruns the command in a child process with single-threaded BLAS unless this one already
     has it. Without ``--solvers``, the solvers are pi-robust, the warm-startable external pairs
-    and, with ``--results``, the fastest cold pairs of the main benchmark.
+    and, with ``--results``, the fastest cold pairs of the main benchmark. The scenes are
+    simulated and solved under the memory cap (``--memory-limit``): a solve that would take
+    more fails with MemoryError.
 
     Parameters
     ----------
@@ -88,10 +92,20 @@ def run(args: argparse.Namespace) -> int:
         ["sequence", *args.scenes, "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
          "--repeats", str(args.repeats), "--passes", str(args.passes), "-o", str(args.output),
          *(["--solvers", args.solvers] if args.solvers else []),
-         *(["--results", args.results] if args.results else [])])
+         *(["--results", args.results] if args.results else []), *memory_arguments(args)])
     if child is not None:
         return child
 
+    with guarded(args, "sequence", "replaying the scenes"):
+        report = _replayed(args)
+    write_json(output, report)
+    print(report["markdown"], end="")
+    return 0
+
+
+def _replayed(args: argparse.Namespace) -> dict:
+    """The sequence report of :func:`run`'s options: the solvers named, or the default ones
+    (with ``--results``, the main table's fastest cold pairs too), on the scenes given."""
     if args.solvers:
         specs = [get(name.strip()) for name in args.solvers.split(",") if name.strip()]
         unusable = [spec.key for spec in specs if spec.solve is None]
@@ -105,10 +119,6 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(args.results, "no results to choose the cold pairs from")
             cold = sequence.fastest_cold(bench, accuracy=args.accuracy)
         specs = sequence.default_solvers(cold)
-    report = sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs,
-                               args.steps, args.accuracy,
-                               progress=lambda text: print(text, file=sys.stderr),
-                               repeats=args.repeats, passes=args.passes)
-    write_json(output, report)
-    print(report["markdown"], end="")
-    return 0
+    return sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs, args.steps,
+                             args.accuracy, progress=lambda text: print(text, file=sys.stderr),
+                             repeats=args.repeats, passes=args.passes)
