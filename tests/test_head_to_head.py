@@ -88,6 +88,17 @@ def test_the_report_names_options_tuned_on_a_sets_own_problems() -> None:
         head_to_head.markdown([entry], 5)
 
 
+def test_the_per_problem_column_shows_the_median_and_the_least_lead() -> None:
+    """Over two problems the median is their mean; the least per-problem ratio shows the
+    problem where pi-robust's lead is smallest (here none at all)."""
+    rows = [row("pi-robust/lcp", True, "even", 1e-3), row("daqp/dual", False, "even", 1e-3),
+            row("pi-robust/lcp", True, "far", 1e-4), row("daqp/dual", False, "far", 1.9e-3)]
+    [entry] = head_to_head.summarize(rows)
+    assert entry["median_problem_speedup"] == pytest.approx(10.0)  # (1 + 19) / 2
+    assert entry["least_problem_speedup"] == pytest.approx(1.0)
+    assert "| 10.00x (1.00x) |" in head_to_head.markdown([entry], 5)
+
+
 def test_the_target_needs_every_problem_the_external_pair_solves() -> None:
     """A problem neither pair solves is charged to both and named; one that only the external
     pair solves keeps the target from holding, however fast pi-robust is elsewhere."""
@@ -98,6 +109,7 @@ def test_the_target_needs_every_problem_the_external_pair_solves() -> None:
     [entry] = head_to_head.summarize(rows)
     assert entry["speedup"] > 3 and entry["target_met"] and entry["unsolved_by_both"] == ["b"]
     assert entry["median_problem_speedup"] == pytest.approx(100.0)  # a0-a3: 1e-3 / 1e-5
+    assert entry["least_problem_speedup"] == pytest.approx(100.0)
     assert "solved by neither `pi-robust/lcp` nor `daqp/dual`" in head_to_head.markdown(
         [entry], 5)
     rows[-1] = row("daqp/dual", False, "b", 1.9e-3)

@@ -503,20 +503,20 @@ def _set_summary(name: str, group: pd.DataFrame) -> dict[str, Any]:
             set(group["problem"]) - solved[own[0]["solver"]] - solved[external[0]["solver"]])
         entry["target_met"] = bool(entry["speedup"] >= TARGET_SPEEDUP and solved[
             external[0]["solver"]] <= solved[own[0]["solver"]])
-        entry["median_problem_speedup"] = _median_speedup(group, own[0]["solver"],
-                                                          external[0]["solver"])
+        ratios = _problem_speedups(group, own[0]["solver"], external[0]["solver"])
+        entry["median_problem_speedup"] = float(ratios.median()) if len(ratios) else math.nan
+        entry["least_problem_speedup"] = float(ratios.min()) if len(ratios) else math.nan
     return entry
 
 
-def _median_speedup(group: pd.DataFrame, own: str, external: str) -> float:
-    """The median over the problems both pairs solve of ``time(external) / time(own)`` (NaN
-    when there is none): the typical problem, without the charges of failures."""
+def _problem_speedups(group: pd.DataFrame, own: str, external: str) -> pd.Series:
+    """``time(external) / time(own)`` on each problem both pairs solve (empty when there is
+    none): the problems one by one, without the charges of failures."""
     times = group[group["success"]].pivot_table(index="problem", columns="solver",
                                                  values="time_s", aggfunc="min")
     if own not in times or external not in times:
-        return float("nan")
-    ratios = (times[external] / times[own]).dropna()
-    return float(ratios.median()) if len(ratios) else float("nan")
+        return pd.Series(dtype=float)
+    return (times[external] / times[own]).dropna()
 
 
 def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
@@ -587,7 +587,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         + (" in the table and in every pass" if passes > 1 else "")
         + ", with pi-robust solving every problem the external pair solves); per problem = "
         "the median over the problems both solve of the external pair's time over "
-        "pi-robust's.\n",
+        "pi-robust's, and in brackets the least of them (the problem where pi-robust's lead "
+        "is smallest).\n",
         "| set | problems | contacts | pi-robust pair | SGM [ms] | solved | fastest external "
         "pair | SGM [ms] | solved | speedup | per pass | per problem | caches flushed | "
         "target |",
@@ -605,7 +606,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"{100 * own['success_rate']:.0f}% | `{external['solver']}` | "
             f"{1e3 * external['sgm_s']:.3f} | {100 * external['success_rate']:.0f}% | "
             f"{entry['speedup']:.2f}x | {pass_range(entry)} | "
-            f"{entry['median_problem_speedup']:.2f}x | {flushed(entry)} | "
+            f"{entry['median_problem_speedup']:.2f}x ({entry['least_problem_speedup']:.2f}x) | "
+            f"{flushed(entry)} | "
             f"{'met' if entry['target_met'] else 'not met'} |")
     held = [entry["set"] for entry in summary if entry.get("target_met")]
     missed = [entry["set"] for entry in summary if "target_met" in entry
