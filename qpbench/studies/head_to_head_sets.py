@@ -3,10 +3,11 @@ belongs to, the order the sets are measured in, and the seeds of the generated p
 
 A problem's set is named by its family: the fork's dumps and grid scenes, the hard families
 (a set each, named by the family), and for the generated grids and box packings and the
-impacts captured from dense piles (``problems/scenes/piles/circle_pile_N.xml`` and
-``box_pile_N.xml``, N bodies) a set per size bucket (``grids 10-14``, ``box packings 1k-4k``,
-``dense piles 1k``), so that a speedup is shown per size rather than averaged over sizes whose
-times differ by orders of magnitude. A frictional problem's set is its pair's formulation's.
+impacts captured from dense piles (scenes ``circle_pile_N`` and ``box_pile_N`` of N bodies,
+as a set file's ``[[piles]]`` makes them) a set per size bucket (``grids 10-14``, ``box
+packings 1k-4k``, ``dense piles 1k``), so that a speedup is shown per size rather than
+averaged over sizes whose times differ by orders of magnitude. A frictional problem's set
+is its pair's formulation's.
 """
 
 from __future__ import annotations

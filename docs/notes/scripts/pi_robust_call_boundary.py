@@ -23,23 +23,20 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 from numba import njit
+from pi_robust_common import ACCURACY, ROOT, kernel_arguments
 
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import pi_robust
-from qpbench.solvers.pi_robust import NO_START, ORDERING_ABOVE, settings_for
 from qpbench.solvers.pi_robust_kernel import entry
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
 
-ROOT = Path(__file__).resolve().parents[3]
-ACCURACY = 1e-8
 OTHERS = ("daqp-native/dual", "piqp-native/dual", "quadprog-native/dual")
 
 
@@ -55,13 +52,6 @@ def _empty_kernel_integer(indptr, indices, data, b, diag, warm_start, order_abov
     return 1
 
 
-def _arguments(problem: ImpactProblem) -> tuple:
-    settings = settings_for(ACCURACY)
-    Q = problem.Q
-    return (Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q, NO_START, ORDERING_ABOVE,
-            settings.compiled_work_limit, settings.kernel)
-
-
 def main() -> None:
     rounds = 10 if "--quick" in sys.argv[1:] else 30
     pi_robust.prepare()
@@ -75,18 +65,18 @@ def main() -> None:
              sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out"))[:6]]
     for problem in small + dumps:
         pose(problem, "lcp")
-    arguments = _arguments(small[0])
+    arguments = kernel_arguments(small[0])
     signature = tuple(entry.envelope_pi_robust.typeof_pyval(value) for value in arguments)
     entry_point = entry.envelope_pi_robust.overloads[signature].entry_point
     _empty_kernel(*arguments)
     _empty_kernel_integer(*arguments)
     variants: dict[str, Callable[[ImpactProblem], object]] = {
         "solve": lambda problem: pi_robust.solve(problem, ACCURACY),
-        "kernel": lambda problem: entry.envelope_pi_robust(*_arguments(problem)),
-        "entry point": lambda problem: entry_point(*_arguments(problem)),
-        "empty kernel": lambda problem: _empty_kernel(*_arguments(problem)),
+        "kernel": lambda problem: entry.envelope_pi_robust(*kernel_arguments(problem)),
+        "entry point": lambda problem: entry_point(*kernel_arguments(problem)),
+        "empty kernel": lambda problem: _empty_kernel(*kernel_arguments(problem)),
         "empty kernel, one integer": lambda problem: _empty_kernel_integer(
-            *_arguments(problem)),
+            *kernel_arguments(problem)),
     }
     generator = np.random.default_rng(0)
     print(f"\nmedian over {rounds} rounds, DAQP, PIQP and quadprog solving a dump before every "

@@ -88,20 +88,24 @@ def run(problems: list[ImpactProblem], repeats: int) -> dict[str, float]:
     return totals
 
 
-def dump_kernel_calls() -> list[tuple]:
-    """The arguments of the compiled entry ``envelope_pi_robust`` for each of the fork's 5x5
-    dumps, posed as pi-robust's ``solve`` poses them, at ``ACCURACY`` from no start (the
-    kernel loaded or compiled first)."""
-    pi_robust.prepare()
+def kernel_arguments(problem: ImpactProblem) -> tuple:
+    """The arguments of the compiled entry ``envelope_pi_robust`` for ``problem`` (posed as
+    ``lcp``), as pi-robust's ``solve`` passes them, at ``ACCURACY`` from no start."""
     settings = settings_for(ACCURACY)
+    Q = problem.Q
+    return (Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q, pi_robust.NO_START,
+            pi_robust.ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
+
+
+def dump_kernel_calls() -> list[tuple]:
+    """:func:`kernel_arguments` for each of the fork's 5x5 dumps, posed as pi-robust's
+    ``solve`` poses them (the kernel loaded or compiled first)."""
+    pi_robust.prepare()
     calls = []
     for path in sorted((ROOT / "problems/head_to_head/fork_5x5_grid").glob("*.out")):
         problem = import_dump(path)
         pose(problem, "lcp")
-        Q = problem.Q
-        calls.append((Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-                      pi_robust.NO_START, pi_robust.ORDERING_ABOVE,
-                      settings.compiled_work_limit, settings.kernel))
+        calls.append(kernel_arguments(problem))
     return calls
 
 
