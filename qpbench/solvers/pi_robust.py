@@ -62,7 +62,8 @@ factor.
 Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled call
 (``qpbench.solvers.pi_robust_kernel``: numba, contacts in reverse Cuthill-McKee order,
 envelope Cholesky factors, a start improved by ``start_sweeps`` projected Gauss-Seidel
-sweeps, new factors that copy the rows they share with a kept one); its answer is reported
+sweeps, new factors that copy the rows they share with a kept one; on a few contacts, block
+pivoting on a dense copy of Q first, ``pi_robust_kernel.dense``); its answer is reported
 when a rounding bound or qpbench's own residual confirms it, otherwise (or when a factor
 fails) this Python path runs, and the time of both counts. When the kernel has run policy
 iteration and the interior point in full and failed, Lemke's method goes first: the Python

@@ -7,6 +7,9 @@ variant it compares. Times depend on the machine; solve counts do not.
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
@@ -123,18 +126,44 @@ def with_row(key: str, value: object, action: Callable[[], dict[str, float]]
         settings_for.cache_clear()
 
 
+# the columns of :func:`table`: (result key, heading, format)
+COLUMNS = (("solves", "solves", ".0f"), ("factorizations", "factorizations", ".0f"),
+           ("failed", "failed", ".0f"), ("time_s", "time (s)", ".4f"))
+
+
 def table(title: str, variants: list[str], results: dict[tuple[str, str], dict[str, float]],
-          group_names: list[str]) -> None:
-    """Print one line per (group, variant)."""
+          group_names: list[str], columns: tuple[tuple[str, str, str], ...] = COLUMNS,
+          variant_heading: str = "variant") -> None:
+    """Print one line per (group, variant), one column per entry of ``columns``."""
     print(f"\n{title}\n")
-    print("| group | variant | solves | factorizations | failed | time (s) |")
-    print("|---|---|---:|---:|---:|---:|")
+    print(f"| group | {variant_heading} | " + " | ".join(heading for _, heading, _ in columns)
+          + " |")
+    print("|---|---|" + "---:|" * len(columns))
     for group in group_names:
         for variant in variants:
             got = results[group, variant]
-            print(f"| {group} | {variant} | {got['solves']:.0f} | {got['factorizations']:.0f} "
-                  f"| {got['failed']:.0f} | {got['time_s']:.4f} |")
+            print(f"| {group} | {variant} | "
+                  + " | ".join(format(got[key], form) for key, _, form in columns) + " |")
     sys.stdout.flush()
+
+
+def results_in_children(variants: list[str], command: Callable[[str], list[str]]
+                        ) -> tuple[dict[tuple[str, str], dict[str, float]], list[str]]:
+    """Run ``python *command(variant)`` for each variant, each in its own process with its own,
+    empty numba cache (numba reads the kernel's constants when it compiles), and read the
+    last line each prints as JSON ``{group: results}``. Returns the results by (group,
+    variant) and the groups in the order printed."""
+    results, names = {}, []
+    for variant in variants:
+        with tempfile.TemporaryDirectory() as cache:
+            printed = subprocess.run([sys.executable, *command(variant)],
+                                     env={**os.environ, "NUMBA_CACHE_DIR": cache}, check=True,
+                                     capture_output=True, text=True).stdout
+        for group, got in json.loads(printed.splitlines()[-1]).items():
+            results[group, variant] = got
+            if group not in names:
+                names.append(group)
+    return results, names
 
 
 def folder_argument() -> Path | None:

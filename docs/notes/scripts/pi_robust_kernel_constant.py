@@ -13,12 +13,17 @@ from __future__ import annotations
 import ast
 import importlib
 import json
-import os
-import subprocess
 import sys
-import tempfile
 
-from pi_robust_common import folder_argument, groups, quick_flag, run, table, words
+from pi_robust_common import (
+    folder_argument,
+    groups,
+    quick_flag,
+    results_in_children,
+    run,
+    table,
+    words,
+)
 
 
 def child(module: str, name: str, value: object, quick: bool) -> None:
@@ -37,19 +42,9 @@ def main() -> None:
         text = values[0]
         child(module, name, float("inf") if text == "inf" else ast.literal_eval(text), quick)
         return
-    results, names = {}, []
-    for value in values:
-        with tempfile.TemporaryDirectory() as cache:
-            printed = subprocess.run(
-                [sys.executable, __file__, module, name, value, "--child",
-                 *(["--quick"] if quick else []),
-                 *(["--folder", str(folder_argument())] if folder_argument() else [])],
-                env={**os.environ, "NUMBA_CACHE_DIR": cache}, check=True,
-                capture_output=True, text=True).stdout
-        for group, got in json.loads(printed.splitlines()[-1]).items():
-            results[group, value] = got
-            if group not in names:
-                names.append(group)
+    results, names = results_in_children(values, lambda value: [
+        __file__, module, name, value, "--child", *(["--quick"] if quick else []),
+        *(["--folder", str(folder_argument())] if folder_argument() else [])])
     table(f"pi-robust at 1e-8, {module}.{name} = {' / '.join(values)}", values, results, names)
 
 

@@ -56,11 +56,22 @@ DEPENDENT_CONTACTS = 4
 # (wider spreads make the updated factor round differently enough to change the pivots).
 UPDATE_FIXED = 4
 UPDATE_SPREAD = 1e6
+# Problems of at most DENSE_CONTACTS contacts that the start sweeps leave unsolved are first
+# tried by block principal pivoting on a dense copy of Q (:mod:`.dense`), at most
+# DENSE_BUDGET block solves, before the general path's set-up: it touches less of the kernel.
+# Its factor holds a contact at zero when its pivot L_ii^2 falls below DENSE_DEPENDENT_PIVOT
+# D_i (dependent on the free contacts before it), and a contact at zero whose w_i falls short
+# of zero by at most DENSE_SLACK tol scale (rounding, on dependent contacts) counts as
+# feasible: it adds at most that share of the tolerance to the residual.
+DENSE_CONTACTS = 16
+DENSE_BUDGET = 8
+DENSE_DEPENDENT_PIVOT = 1e-10
+DENSE_SLACK = 0.1
 # Status codes of a prox run.
 PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # Paths of a whole solve, and their names in a solver's ``info["path"]``.
-PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED, PATH_SWEEPS = \
-    0, 1, 2, 3, 4, 5
+PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED, PATH_SWEEPS, \
+    PATH_DENSE = 0, 1, 2, 3, 4, 5, 6
 PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
               "interior point did not converge", "declined: envelope too wide",
-              "start sweeps")
+              "start sweeps", "dense pivoting")

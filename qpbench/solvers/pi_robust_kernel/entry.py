@@ -4,20 +4,23 @@
 symmetric positive semi-definite and often singular) to qpbench's residual
 ``||min(D l, Q l + b)||_inf / scale <= tol``, by the algorithm of
 ``qpbench.solvers.pi_robust`` in its order for dense problems, without per-step Python
-overhead and with Q sparse throughout:
+overhead and with Q sparse throughout (but for the dense copy of step 2):
 
 1. the start (a warm start, or zero) gets ``start_sweeps`` projected Gauss-Seidel sweeps in
    the posed order (:func:`_gauss_seidel`), which alone solve contacts that hardly interact,
-   and more where one factorization costs many sweeps (``SWEEP_SHARE``, after step 2);
-2. above ``order_above`` contacts, or when the envelope in the posed order is wide, the
+   and more where one factorization costs many sweeps (``SWEEP_SHARE``, after step 3);
+2. on at most ``DENSE_CONTACTS`` contacts, block principal pivoting on a dense copy of Q
+   (:mod:`.dense`), which touches little of the kernel, at most ``DENSE_BUDGET`` solves; its
+   answer is taken when qpbench's residual accepts it, else the steps below run;
+3. above ``order_above`` contacts, or when the envelope in the posed order is wide, the
    contacts are put in reverse Cuthill-McKee order (:mod:`.ordering`); a problem whose whole
    envelope costs more than ``max_envelope_work`` to factor is declined;
-3. proximal policy iteration (:mod:`.prox`), each prox step by block pivoting
+4. proximal policy iteration (:mod:`.prox`), each prox step by block pivoting
    (:mod:`.pivoting`) or the primal active-set method (:mod:`.active_set`), every block
    solved by an envelope Cholesky factor (:mod:`.factor`);
-4. when that fails, the interior point, its iterates finished by policy iteration
+5. when that fails, the interior point, its iterates finished by policy iteration
    (:mod:`.interior`);
-5. a converged answer is certified by its residual plus a rounding bound (:mod:`.residual`).
+6. a converged answer is certified by its residual plus a rounding bound (:mod:`.residual`).
 
 :func:`relaxed_pi_robust` does the same on Anitescu's relaxation of a frictional problem,
 its start swept contact by contact (:func:`contact_block_sweeps`). Compilation:
@@ -33,8 +36,12 @@ from numba import njit
 from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy
 from qpbench.solvers.pi_robust_kernel.constants import (
+    DENSE_BUDGET,
+    DENSE_CONTACTS,
+    DENSE_SLACK,
     MOST_START_SWEEPS,
     PATH_DECLINED,
+    PATH_DENSE,
     PATH_INTERIOR,
     PATH_NAMES,
     PATH_NONE,
@@ -45,6 +52,7 @@ from qpbench.solvers.pi_robust_kernel.constants import (
     WIDE_ENVELOPE_WORK,
     WITHOUT_REFCOUNTS,
 )
+from qpbench.solvers.pi_robust_kernel.dense import dense_pivoting
 from qpbench.solvers.pi_robust_kernel.interior import _solve_ordered
 from qpbench.solvers.pi_robust_kernel.ordering import (
     _envelope_widths,
@@ -170,7 +178,10 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
     -----
     A start that is converged already, or that the start sweeps solve (in the posed order,
     :func:`_gauss_seidel`), is returned before any set-up (paths ``PATH_START`` and
-    ``PATH_SWEEPS``). Unless the envelope in the posed order is cheap already
+    ``PATH_SWEEPS``). On at most ``DENSE_CONTACTS`` contacts, block pivoting on a dense copy
+    of Q from the swept start's policy (:func:`.dense.dense_pivoting`) comes next, and its
+    answer is returned when qpbench's residual accepts it (``PATH_DENSE``); otherwise its
+    solves count into the general path's. Unless the envelope in the posed order is cheap already
     (``WIDE_ENVELOPE_WORK``), and when there are more than ``order_above`` contacts or the
     envelope costs more than ``WIDE_ENVELOPE`` of a dense factorization, the contacts are put in
     reverse Cuthill-McKee order, inside the timed call. When one factorization of the whole
@@ -214,6 +225,16 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         if start_residual <= options.tol:
             return start, True, PATH_SWEEPS, 0, 0, 0, _certified(
                 A_posed, b, scale, start, start_residual, options.tol, magnitude)
+    # a few contacts: dense block pivoting first, which touches little of the kernel
+    dense_solves = 0
+    if n <= DENSE_CONTACTS:
+        answer, dense_solves, found = dense_pivoting(
+            A_posed, b, start, DENSE_SLACK * options.tol * scale, DENSE_BUDGET)
+        if found:
+            residual = _natural_residual_into(A_posed, b, diag, scale, answer, magnitude)
+            if residual <= options.tol:
+                return answer, True, PATH_DENSE, dense_solves, 0, dense_solves, _certified(
+                    A_posed, b, scale, answer, residual, options.tol, magnitude)
     safe_diag = reals[3 * n:4 * n]  # D with zeros replaced, for divisions
     for i in range(n):
         safe_diag[i] = diag[i] if diag[i] > 0.0 else 1.0
@@ -260,7 +281,8 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         impulses[order] = answer
     certified = converged and _certified(A_posed, b, scale, impulses, residual, options.tol,
                                          magnitude)
-    return impulses, converged, path, solves, interior, factorizations, certified
+    return impulses, converged, path, solves + dense_solves, interior, \
+        factorizations + dense_solves, certified
 
 
 @njit(cache=True)
