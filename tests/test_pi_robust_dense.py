@@ -75,6 +75,15 @@ def test_dense_pivoting_gives_up_after_its_budget_when_no_policy_is_feasible() -
     assert not found and solves == 5
 
 
+def test_dense_pivoting_never_finds_an_answer_with_a_nan() -> None:
+    """A NaN in Q counts as infeasible wherever it reaches, so the try ends unfound."""
+    from qpbench.solvers.pi_robust_kernel.dense import dense_pivoting
+
+    Q = np.array([[2.0, np.nan], [np.nan, 2.0]])
+    _, solves, found = dense_pivoting(csc_of(Q), np.array([-1.0, -1.0]), np.zeros(2), 1e-12, 4)
+    assert not found and solves == 4
+
+
 @pytest.mark.parametrize("family,size", [("k3", None), ("k4", None), ("k4-middle", None),
                                          ("cradle", 10), ("grid", 3), ("box", 8)])
 def test_pi_robust_answers_problems_of_a_few_contacts_at_1e8(family: str,

@@ -89,15 +89,16 @@ def _solve_block(factor: np.ndarray, rows: np.ndarray, size: int, b: np.ndarray,
 def _mark_infeasible(dense: np.ndarray, b: np.ndarray, impulses: np.ndarray, slack: float,
                      infeasible: np.ndarray) -> int:
     """Mark in ``infeasible`` the contacts with ``l_i < 0`` and those at zero (fixed, or held
-    at zero as dependent) with ``(Q l + b)_i < -slack``; return how many."""
+    at zero as dependent) with ``(Q l + b)_i < -slack``; return how many. A NaN counts as
+    infeasible (the comparisons are written so), so that no NaN answer is ever found."""
     count = 0
     for i in range(b.size):
-        bad = impulses[i] < 0.0
+        bad = not impulses[i] >= 0.0
         if not bad and impulses[i] == 0.0:
             w = b[i]
             for k in range(b.size):
                 w += dense[i, k] * impulses[k]
-            bad = w < -slack
+            bad = not w >= -slack
         infeasible[i] = bad
         count += bad
     return count
