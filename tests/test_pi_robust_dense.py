@@ -85,7 +85,9 @@ def test_dense_pivoting_never_finds_an_answer_with_a_nan() -> None:
 
 
 @pytest.mark.parametrize("family,size", [("k3", None), ("k4", None), ("k4-middle", None),
-                                         ("cradle", 10), ("grid", 3), ("box", 8)])
+                                         ("cradle", 10), ("cradle", 30), ("grid", 3),
+                                         ("grid", 4), ("box", 8), ("box", 25),
+                                         ("near-duplicate", 3)])
 def test_pi_robust_answers_problems_of_a_few_contacts_at_1e8(family: str,
                                                              size: int | None) -> None:
     """Problems of at most DENSE_CONTACTS contacts (singular Q on K3, K4 and grids) are

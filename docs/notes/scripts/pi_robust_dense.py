@@ -1,7 +1,8 @@
 """pi-robust on problems of a few contacts, with and without its dense pivoting path.
 
-Usage: ``.venv/bin/python docs/notes/scripts/pi_robust_dense.py VALUE... [--quick]``, the
-values of ``constants.DENSE_CONTACTS`` to compare (0: no dense path), e.g. ``0 16``. numba
+Usage: ``.venv/bin/python docs/notes/scripts/pi_robust_dense.py VALUE... [--quick]
+[--first-seed N]``, the values of ``constants.DENSE_CONTACTS`` to compare (0: no dense path),
+e.g. ``0 16 32``. numba
 reads the kernel's constants when it compiles, so each value runs in its own process with its
 own, empty numba cache (each compiles the kernel: about a minute).
 
@@ -11,9 +12,9 @@ fork's 5x5 grid dumps is solved by DAQP, PIQP and quadprog through their own API
 kernel's code and data are no longer in the caches. It prints per group the linear solves,
 factorizations and failures (qpbench's residual above 1e-8) of one solve of each problem, and
 the median time of a call over the rounds (20, 5 with ``--quick``). The groups: generated
-families of at most 17 contacts (seeds 0-9, 0-2 with ``--quick``), the first 40 impacts of two
-scenes of few contacts that the sequence mode replays, and the fork's dumps (which the dense
-path does not take).
+families of 2 to 50 contacts (ten seeds from ``--first-seed``, 0 by default; three with
+``--quick``), the first 40 impacts of two scenes of few contacts that the sequence mode
+replays, and the fork's dumps (38-59 contacts).
 """
 
 from __future__ import annotations
@@ -46,13 +47,15 @@ from qpbench.studies.sequence import capture
 
 OTHERS = ("daqp-native/dual", "piqp-native/dual", "quadprog-native/dual")
 FAMILIES = (("k3", None), ("k4", None), ("k4-middle", None), ("cradle", 3), ("cradle", 10),
-            ("cradle", 17), ("grid", 3), ("near-duplicate", 2), ("box", 8))
+            ("cradle", 17), ("cradle", 25), ("cradle", 30), ("cradle", 50), ("grid", 3),
+            ("grid", 4), ("grid", 5), ("near-duplicate", 2), ("near-duplicate", 3), ("box", 8),
+            ("box", 20), ("box", 25), ("box", 30), ("mass-ratio", 3))
 SCENES = ("problems/scenes/scisim/butterfly.xml", "problems/scenes/ura/10_balls_in_box.xml")
 
 
-def problem_groups(quick: bool, folder: str) -> dict[str, list[ImpactProblem]]:
+def problem_groups(quick: bool, folder: str, first_seed: int) -> dict[str, list[ImpactProblem]]:
     """The groups of the module docstring, posed as pi-robust takes them."""
-    seeds = range(3 if quick else 10)
+    seeds = range(first_seed, first_seed + (3 if quick else 10))
     groups = {f"{family} {size or ''}".strip(): [generate(family, size, seed=seed)[0]
                                                  for seed in seeds]
               for family, size in FAMILIES}
@@ -70,7 +73,7 @@ def problem_groups(quick: bool, folder: str) -> dict[str, list[ImpactProblem]]:
     return groups
 
 
-def child(value: int, quick: bool) -> None:
+def child(value: int, quick: bool, first_seed: int) -> None:
     """Set DENSE_CONTACTS before anything compiles, then print the groups' results as JSON."""
     from qpbench.solvers.pi_robust_kernel import entry
     entry.DENSE_CONTACTS = value  # (the name the entry compiles with)
@@ -83,7 +86,7 @@ def child(value: int, quick: bool) -> None:
     rounds = 5 if quick else 20
     results = {}
     with tempfile.TemporaryDirectory() as folder:
-        groups = problem_groups(quick, folder)
+        groups = problem_groups(quick, folder, first_seed)
     between = groups["fork 5x5 dumps"]
     for name, problems in groups.items():
         totals = {"solves": 0, "factorizations": 0, "failed": 0}
@@ -105,11 +108,17 @@ def child(value: int, quick: bool) -> None:
 def main() -> None:
     values = words()
     quick = quick_flag()
+    first_seed = 0
+    if "--first-seed" in values:
+        at = values.index("--first-seed")
+        first_seed = int(values[at + 1])
+        del values[at:at + 2]
     if "--child" in sys.argv:
-        child(int(values[0]), quick)
+        child(int(values[0]), quick, first_seed)
         return
     results, names = results_in_children(values, lambda value: [
-        __file__, value, "--child", *(["--quick"] if quick else [])])
+        __file__, value, "--child", "--first-seed", str(first_seed),
+        *(["--quick"] if quick else [])])
     table(f"pi-robust at 1e-8, DENSE_CONTACTS = {' / '.join(values)}", values, results, names,
           columns=(*COLUMNS[:3], ("median_us", "median call (us)", ".1f")),
           variant_heading="DENSE_CONTACTS")

@@ -63,7 +63,7 @@ UPDATE_SPREAD = 1e6
 # D_i (dependent on the free contacts before it), and a contact at zero whose w_i falls short
 # of zero by at most DENSE_SLACK tol scale (rounding, on dependent contacts) counts as
 # feasible: it adds at most that share of the tolerance to the residual.
-DENSE_CONTACTS = 16
+DENSE_CONTACTS = 32
 DENSE_BUDGET = 8
 DENSE_DEPENDENT_PIVOT = 1e-10
 DENSE_SLACK = 0.1
