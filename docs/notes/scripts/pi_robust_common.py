@@ -188,6 +188,16 @@ def words() -> list[str]:
     return out
 
 
+def option(arguments: list[str], name: str, default: str) -> str:
+    """The value after ``name`` in ``arguments`` (both removed), else ``default``."""
+    if name not in arguments:
+        return default
+    at = arguments.index(name)
+    value = arguments[at + 1]
+    del arguments[at:at + 2]
+    return value
+
+
 def quick_flag() -> bool:
     """``--quick`` on the command line: a few problems per group, one repeat."""
     return "--quick" in sys.argv[1:]

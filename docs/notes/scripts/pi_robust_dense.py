@@ -29,6 +29,7 @@ from pi_robust_common import (
     ACCURACY,
     COLUMNS,
     ROOT,
+    option,
     quick_flag,
     results_in_children,
     table,
@@ -108,11 +109,7 @@ def child(value: int, quick: bool, first_seed: int) -> None:
 def main() -> None:
     values = words()
     quick = quick_flag()
-    first_seed = 0
-    if "--first-seed" in values:
-        at = values.index("--first-seed")
-        first_seed = int(values[at + 1])
-        del values[at:at + 2]
+    first_seed = int(option(values, "--first-seed", "0"))
     if "--child" in sys.argv:
         child(int(values[0]), quick, first_seed)
         return

@@ -15,7 +15,7 @@ above 1e-8) and ``time_s``, and the sums. ``--quick``: the 1,000-body piles, 2 s
 from __future__ import annotations
 
 import numpy as np
-from pi_robust_common import ACCURACY, captured_impacts, quick_flag, words
+from pi_robust_common import ACCURACY, captured_impacts, option, quick_flag, words
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
@@ -35,16 +35,6 @@ def pile_impacts(kind: str, bodies: int, steps: int, finish_rho: float
         return captured_impacts(PILES[kind](bodies), steps)
     finally:
         pi_robust.UPDATED_FINISH_RHO = saved
-
-
-def option(arguments: list[str], name: str, default: str) -> str:
-    """The value after ``name`` in ``arguments`` (both removed), else ``default``."""
-    if name not in arguments:
-        return default
-    at = arguments.index(name)
-    value = arguments[at + 1]
-    del arguments[at:at + 2]
-    return value
 
 
 def main() -> None:

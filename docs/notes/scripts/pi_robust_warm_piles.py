@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from pi_robust_common import ACCURACY, captured_impacts, quick_flag, words
+from pi_robust_common import ACCURACY, captured_impacts, option, quick_flag, words
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
@@ -52,11 +52,7 @@ def timed(problem: ImpactProblem, warm: np.ndarray | None, repeats: int
 def main() -> None:
     quick = quick_flag()
     arguments = words()
-    bodies = 1000
-    if "--bodies" in arguments:
-        at = arguments.index("--bodies")
-        bodies = int(arguments[at + 1])
-        del arguments[at:at + 2]
+    bodies = int(option(arguments, "--bodies", "1000"))
     limits = [float(word) for word in arguments] or [-1.0, 64.0, np.inf]
     repeats = 1 if quick else 2
     piles = [("circles", bodies, 6 if quick else 12)] + ([] if quick else [("boxes", bodies, 8)])
