@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 from numba import njit
-from pi_robust_common import ACCURACY, ROOT, kernel_arguments
+from pi_robust_common import ACCURACY, ROOT, kernel_arguments, solvers_between
 
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
@@ -34,10 +34,7 @@ from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import pi_robust
 from qpbench.solvers.pi_robust_kernel import entry
-from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
-
-OTHERS = ("daqp-native/dual", "piqp-native/dual", "quadprog-native/dual")
 
 
 @njit
@@ -55,10 +52,7 @@ def _empty_kernel_integer(indptr, indices, data, b, diag, warm_start, order_abov
 def main() -> None:
     rounds = 10 if "--quick" in sys.argv[1:] else 30
     pi_robust.prepare()
-    others = [get(name) for name in OTHERS]
-    for spec in others:
-        if spec.prepare is not None:
-            spec.prepare()
+    others = solvers_between()
     small = [generate(family, size, seed=seed)[0] for family, size in
              (("k3", None), ("k4", None), ("cradle", 3)) for seed in range(3)]
     dumps = [import_dump(path) for path in

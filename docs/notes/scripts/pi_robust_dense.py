@@ -32,6 +32,8 @@ from pi_robust_common import (
     option,
     quick_flag,
     results_in_children,
+    run,
+    solvers_between,
     table,
     words,
 )
@@ -41,12 +43,10 @@ from qpbench.problem.dumps import import_dump
 from qpbench.problem.formulations import pose
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
-from qpbench.problem.metrics import residual
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
 from qpbench.studies.sequence import capture
 
-OTHERS = ("daqp-native/dual", "piqp-native/dual", "quadprog-native/dual")
 FAMILIES = (("k3", None), ("k4", None), ("k4-middle", None), ("cradle", 3), ("cradle", 10),
             ("cradle", 17), ("cradle", 25), ("cradle", 30), ("cradle", 50), ("grid", 3),
             ("grid", 4), ("grid", 5), ("near-duplicate", 2), ("near-duplicate", 3), ("box", 8),
@@ -80,22 +80,14 @@ def child(value: int, quick: bool, first_seed: int) -> None:
     entry.DENSE_CONTACTS = value  # (the name the entry compiles with)
     spec = get("pi-robust")
     spec.prepare()
-    others = [get(name) for name in OTHERS]
-    for other in others:
-        if other.prepare is not None:
-            other.prepare()
+    others = solvers_between()
     rounds = 5 if quick else 20
     results = {}
     with tempfile.TemporaryDirectory() as folder:
         groups = problem_groups(quick, folder, first_seed)
     between = groups["fork 5x5 dumps"]
     for name, problems in groups.items():
-        totals = {"solves": 0, "factorizations": 0, "failed": 0}
-        for problem in problems:
-            output = call_solver(spec, problem, ACCURACY)
-            totals["solves"] += output.iterations or 0
-            totals["factorizations"] += output.info.get("factorizations", 0)
-            totals["failed"] += residual(problem, output.impulses) > ACCURACY
+        totals = run(problems, 1)  # (its one solve each: the counts)
         times = []
         for number in range(rounds):
             for problem in problems:

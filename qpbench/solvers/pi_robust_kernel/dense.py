@@ -167,10 +167,11 @@ def dense_pivoting(A: Csc, b: np.ndarray, start: np.ndarray, slack: float, budge
     """
     indptr, indices, data = A
     n = b.size
-    reals = np.zeros(n * (2 * n + 2))
+    reals = np.zeros(n * (2 * n + 1))
     dense = reals[:n * n].reshape((n, n))
     factor = reals[n * n:2 * n * n].reshape((n, n))
-    solution, impulses = reals[2 * n * n:2 * n * n + n], reals[2 * n * n + n:]
+    solution = reals[2 * n * n:]
+    impulses = np.zeros(n)  # (returned: an array of its own)
     for column in range(n):
         for k in range(indptr[column], indptr[column + 1]):
             dense[indices[k], column] = data[k]
@@ -180,4 +181,4 @@ def dense_pivoting(A: Csc, b: np.ndarray, start: np.ndarray, slack: float, budge
         free[i] = start[i] > 0.0
     rows = np.empty(n, dtype=np.int64)
     solves = _pivot(dense, b, free, impulses, factor, solution, rows, infeasible, slack, budget)
-    return impulses.copy(), abs(solves), solves > 0
+    return impulses, abs(solves), solves > 0
