@@ -117,6 +117,59 @@ def test_the_target_needs_every_problem_the_external_pair_solves() -> None:
     assert entry["speedup"] > 3 and not entry["target_met"] and entry["unsolved_by_both"] == []
 
 
+def lifted_by_failures() -> list[dict]:
+    """pi-robust as fast as daqp on three problems; daqp fails a fourth, charged the set's
+    largest time (1), which alone lifts the speedup over 3x."""
+    rows = [row(solver, own, name, 1e-3) for name in ("a", "b", "c")
+            for solver, own in (("pi-robust/lcp", True), ("daqp/dual", False))]
+    return rows + [row("pi-robust/lcp", True, "d", 1e-3), row("daqp/dual", False, "d", 1.0,
+                                                                False)]
+
+
+def test_a_speedup_lifted_over_the_target_by_the_peers_failures_is_not_met() -> None:
+    [entry] = head_to_head.summarize(lifted_by_failures())
+    assert entry["speedup"] > 3 and entry["common_speedup"] == pytest.approx(1.0)
+    assert entry["met_by_failures"] and not entry["target_met"]
+    text = head_to_head.markdown([entry], 5)
+    assert "| not met (peer failures) |" in text
+    assert "only because `daqp/dual` failed 25% of the problems" in text
+    assert "it is 1.00x" in text
+
+
+def test_an_earlier_runs_rows_are_summarized_again_without_timing(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A run's JSON whose summary an older rule wrote (target met) is summarized again from
+    its rows; nothing is solved, and the pairs that had left a set stay out of it."""
+    rows = lifted_by_failures() + [row("osqp/dual", False, "a", 1e-2)]
+    earlier = {"repeats": 5, "rows": rows, "markdown": "old", "summary": [
+        {"set": "box packings 1k-4k", "target_met": True, "out_of_running": [
+            {"solver": "osqp/dual", "problems": 1, "slower": 10.0, "than": "daqp/dual"}]}]}
+    path = tmp_path / "h2h.json"
+    path.write_text(json.dumps(earlier))
+    assert main(["head-to-head", "--summarize-again", str(path), "-o", str(path)]) == 0
+    [entry] = json.loads(path.read_text())["summary"]
+    assert entry["met_by_failures"] and not entry["target_met"]
+    assert [pair["solver"] for pair in entry["pairs"]] == ["pi-robust/lcp", "daqp/dual"]
+    assert "not met (peer failures)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("text", ["{", "[]", '{"rows": [], "summary": [], "repeats": 5}'])
+def test_a_file_that_is_no_head_to_head_run_is_one_line(tmp_path: Path, text: str,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    path = tmp_path / "h2h.json"
+    path.write_text(text)
+    code = main(["head-to-head", "--summarize-again", str(path), "-o", str(tmp_path / "o.json")])
+    err = capsys.readouterr().err
+    assert code != 0 and str(path) in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_timing_needs_a_folder_and_a_table(tmp_path: Path, capsys: pytest.CaptureFixture
+                                           ) -> None:
+    code = main(["head-to-head", "-o", str(tmp_path / "o.json")])
+    assert code != 0 and "--results are needed" in capsys.readouterr().err
+
+
 def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
     from friction_cases import pair_on_floor
 

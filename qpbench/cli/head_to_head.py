@@ -1,6 +1,7 @@
 """``qpbench head-to-head FOLDER --results results/bench.parquet [--repeats 20] [--passes 3]
 [--candidates 6] [--out-of-running 30] [--cold-repeats 3] [--solve-cap 10]
--o results/head_to_head.json``:
+-o results/head_to_head.json``, or ``qpbench head-to-head --summarize-again FILE.json -o
+FILE.json``:
 pi-robust against the fastest external pairs of the main benchmark, no warm start, timed
 interleaved and with the CPU caches flushed, per set of ``problems/head_to_head.toml``
 (built into FOLDER by ``qpbench build-set``; ``qpbench.studies.head_to_head``). Runs with
@@ -9,8 +10,11 @@ single-threaded BLAS, in a child process unless this one already has it."""
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from qpbench.bench.defaults import (
     HEAD_TO_HEAD_CANDIDATES,
@@ -24,7 +28,14 @@ from qpbench.bench.results import ResultStore
 from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
-from qpbench.studies.head_to_head import BENCH_COLUMNS, head_to_head
+from qpbench.studies.few_contacts import few_contacts_summary
+from qpbench.studies.head_to_head import (
+    BENCH_COLUMNS,
+    UNDECIDED,
+    head_to_head,
+    markdown,
+    summarize,
+)
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -40,9 +51,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "head-to-head", help="pi-robust against the fastest external pairs, per set, cold",
         epilog=JSON_FIELDS)
-    parser.add_argument("folder", help="problem folder built from problems/head_to_head.toml")
-    parser.add_argument("--results", required=True,
+    parser.add_argument("folder", nargs="?",
+                        help="problem folder built from problems/head_to_head.toml")
+    parser.add_argument("--results",
                         help="the main benchmark's table, which names the fastest pairs")
+    parser.add_argument("--summarize-again", metavar="FILE",
+                        help="instead of timing: an earlier run's JSON, whose rows are "
+                             "summarized again under the current rules (its summary, "
+                             "few-contacts figures and Markdown rewritten into -o)")
     parser.add_argument("--repeats", type=int, default=HEAD_TO_HEAD_REPEATS,
                         help=f"timed repeats, minimum kept ({HEAD_TO_HEAD_REPEATS})")
     parser.add_argument("--passes", type=int, default=HEAD_TO_HEAD_PASSES,
@@ -94,6 +110,14 @@ def run(args: argparse.Namespace) -> int:
         When an option is out of range, the folder does not exist or holds no problem of a
         head-to-head set, or the results are empty or not the main benchmark's table.
     """
+    if args.summarize_again is not None:
+        output = writable_output(args.output)
+        report = summarized_again(args.summarize_again)
+        write_json(output, report)
+        print(report["markdown"], end="")
+        return 0
+    if args.folder is None or args.results is None:
+        raise QpbenchError("a problem folder and --results are needed (or --summarize-again)")
     if args.repeats < 1 or args.passes < 1 or args.candidates < 1:
         raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
     if args.cold_repeats < 0:
@@ -132,3 +156,48 @@ def run(args: argparse.Namespace) -> int:
     write_json(output, report)
     print(report["markdown"], end="")
     return 0
+
+
+def summarized_again(path: str) -> dict[str, Any]:
+    """An earlier head-to-head's JSON with its summary, few-contacts figures and Markdown
+    made again from its rows, as measured, under the current rules.
+
+    Parameters
+    ----------
+    path : str
+        The JSON that ``qpbench head-to-head -o`` wrote.
+
+    Returns
+    -------
+    dict
+        The report with ``summary``, ``few_contacts`` and ``markdown`` replaced; the pairs
+        that left a set stay out of its figures, as in the run.
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read as such a JSON.
+    """
+    try:
+        report = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise InputError(path, f"not a head-to-head JSON: {error}") from None
+    for field, kind in (("rows", list), ("summary", list), ("repeats", int)):
+        if not isinstance(report, dict) or not isinstance(report.get(field), kind) or (
+                field == "rows" and not report[field]):
+            raise InputError(path, f"no {kind.__name__} '{field}' of a head-to-head run",
+                             attribute=field)
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for entry in report["summary"]:
+        for left in entry.get("out_of_running", []):
+            out.setdefault(entry["set"], {})[left["solver"]] = {
+                key: value for key, value in left.items() if key != "solver"}
+    summary = summarize(report["rows"], out)
+    few_contacts = few_contacts_summary(report["rows"], UNDECIDED)
+    limits = [report.get(key) for key in ("out_of_running", "solve_cap_s")]  # (null: inf)
+    out_of_running, cap = (value if isinstance(value, (int, float)) else math.inf
+                           for value in limits)
+    report.update(summary=summary, few_contacts=few_contacts, markdown=markdown(
+        summary, report["repeats"], report.get("passes", 1), out_of_running,
+        report.get("cold_repeats", 0), report.get("seeds"), few_contacts, cap))
+    return report

@@ -501,12 +501,25 @@ def _set_summary(name: str, group: pd.DataFrame) -> dict[str, Any]:
                   for key, mine in group.groupby("solver")}
         entry["unsolved_by_both"] = sorted(
             set(group["problem"]) - solved[own[0]["solver"]] - solved[external[0]["solver"]])
-        entry["target_met"] = bool(entry["speedup"] >= TARGET_SPEEDUP and solved[
+        both = solved[own[0]["solver"]] & solved[external[0]["solver"]]
+        common = group[group["problem"].isin(both)]
+        entry["common_speedup"] = _sgm(common, external[0]["solver"], shift) / _sgm(
+            common, own[0]["solver"], shift) if both else math.nan
+        holds = bool(entry["speedup"] >= TARGET_SPEEDUP and solved[
             external[0]["solver"]] <= solved[own[0]["solver"]])
+        # the external pair's failures, each charged the set's largest time, may lift the SGM
+        # over the target where pi-robust is not that fast on the problems both solve
+        entry["met_by_failures"] = holds and not entry["common_speedup"] >= TARGET_SPEEDUP
+        entry["target_met"] = holds and not entry["met_by_failures"]
         ratios = _problem_speedups(group, own[0]["solver"], external[0]["solver"])
         entry["median_problem_speedup"] = float(ratios.median()) if len(ratios) else math.nan
         entry["least_problem_speedup"] = float(ratios.min()) if len(ratios) else math.nan
     return entry
+
+
+def _sgm(group: pd.DataFrame, solver: str, shift: float) -> float:
+    """The shifted geometric mean of ``solver``'s charged times in ``group``."""
+    return stats.shifted_geometric_mean(group.loc[group["solver"] == solver, "charged"], shift)
 
 
 def _problem_speedups(group: pd.DataFrame, own: str, external: str) -> pd.Series:
@@ -585,7 +598,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
         + (" in the table and in every pass" if passes > 1 else "")
-        + ", with pi-robust solving every problem the external pair solves); per problem = "
+        + ", with pi-robust solving every problem the external pair solves, and as fast "
+        "on the problems both solve, so that no target is met by the external pair's "
+        "charged failures alone); per problem = "
         "the median over the problems both solve of the external pair's time over "
         "pi-robust's, and in brackets the least of them (the problem where pi-robust's lead "
         "is smallest).\n",
@@ -607,13 +622,21 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"{1e3 * external['sgm_s']:.3f} | {100 * external['success_rate']:.0f}% | "
             f"{entry['speedup']:.2f}x | {pass_range(entry)} | "
             f"{entry['median_problem_speedup']:.2f}x ({entry['least_problem_speedup']:.2f}x) | "
-            f"{flushed(entry)} | "
-            f"{'met' if entry['target_met'] else 'not met'} |")
+            f"{flushed(entry)} | {'met' if entry['target_met'] else 'not met'}"
+            f"{' (peer failures)' if entry.get('met_by_failures') else ''} |")
     held = [entry["set"] for entry in summary if entry.get("target_met")]
     missed = [entry["set"] for entry in summary if "target_met" in entry
               and not entry["target_met"]]
     lines.append("")
     lines.append(target_sentence(TARGET_SPEEDUP, held, missed, "set"))
+    lifted = [entry for entry in summary if entry.get("met_by_failures")]
+    if lifted:
+        lines.append("\nNot counted as met: " + "; ".join(
+            f"on {entry['set']} the speedup passes {TARGET_SPEEDUP:g}x only because "
+            f"`{entry['external']['solver']}` failed "
+            f"{100 * (1 - entry['external']['success_rate']):.0f}% of the problems, each "
+            "charged the set's largest time; on the problems both pairs solve it is "
+            f"{entry['common_speedup']:.2f}x" for entry in lifted) + ".")
     if missed:
         lines.append("\nWhere it does not, the section \"Where pi-robust's time goes\" breaks "
                      "a solve's time down, and docs/notes/pi-robust.md says what was tried, "
