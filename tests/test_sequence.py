@@ -215,9 +215,10 @@ def test_by_scene_compares_each_scene_on_its_own_rows(captured: list[ImpactProbl
     per_scene = sequence.by_scene(rows)
     assert [entry["scene"] for entry in per_scene] == ["a", "b"]
     for entry in per_scene:
-        alone = sequence.comparison(sequence.summarize(
-            [row for row in rows if row["scene"] == entry["scene"]]))
-        assert entry["sequence"] == alone["sequence"]
+        mine = [row for row in rows if row["scene"] == entry["scene"]]
+        alone = sequence.comparison(sequence.summarize(mine))
+        assert entry["sequence"] == {**alone["sequence"], "common_speedup": pytest.approx(
+            sequence.over_passes(mine)[1]["sequence"]["common_speedup"])}
         assert entry["target_met"] == alone["target_met"]
     text = sequence.markdown(sequence.summarize(rows), sequence.comparison(
         sequence.summarize(rows)), [{"scene": "a", "steps": 6, "contacts_min": 1,
@@ -301,6 +302,24 @@ def test_the_sequence_target_needs_every_pass_too() -> None:
     assert not compared["target_met"]
     _, first_pass = sequence.over_passes(rows[:2])
     assert first_pass["target_met"] and "pass_speedups" not in first_pass
+
+
+def test_a_sequence_target_lifted_by_the_peers_failures_is_not_met() -> None:
+    """Both pairs take 1 s on the steps both solve; osqp/dual fails a fourth step, charged the
+    largest time (100 s), which alone lifts the speedup over 3x."""
+    rows = [{**_step_row(solver, 0, 1.0, 1.0), "problem": name, "index": index}
+            for index, name in enumerate("abc") for solver in ("pi-robust/lcp", "osqp/dual")]
+    rows += [{**_step_row("pi-robust/lcp", 0, 1.0, 1.0), "problem": "d", "index": 3},
+             {**_step_row("osqp/dual", 0, 100.0, 100.0, False), "problem": "d", "index": 3}]
+    _, compared = sequence.over_passes(rows)
+    assert compared["sequence"]["speedup"] > 3
+    assert compared["sequence"]["common_speedup"] == pytest.approx(1.0)
+    assert compared["met_by_failures"] and not compared["target_met"]
+    [scene] = sequence.by_scene(rows)
+    assert scene["met_by_failures"] and not scene["target_met"]
+    text = sequence.markdown(sequence.summarize(rows), compared, [], 1e-8, per_scene=[scene])
+    assert "only through that pair's failed solves" in text
+    assert "| not met (peer failures) |" in text
 
 
 @pytest.fixture(scope="module")

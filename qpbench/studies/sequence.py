@@ -488,7 +488,9 @@ def over_passes(rows: Sequence[dict[str, Any]]) -> tuple[list[dict[str, Any]], d
 
     With more than one pass the comparison also holds ``pass_speedups``, the sequence speedup of
     each pass's rows alone (NaN where a pass lacks pi-robust or an external pair), and its
-    target is met only when every one of them is at least ``TARGET_SPEEDUP`` too.
+    target is met only when every one of them is at least ``TARGET_SPEEDUP`` too. The sequence
+    speedup over the steps both pairs solve (``common_speedup``, no failure charged) must reach
+    it as well; ``met_by_failures`` says when only the external pair's failures lifted it.
 
     Parameters
     ----------
@@ -500,8 +502,17 @@ def over_passes(rows: Sequence[dict[str, Any]]) -> tuple[list[dict[str, Any]], d
     tuple of (list of dict, dict)
         The per-solver summary and the comparison.
     """
-    summary = summarize(fastest_over_passes(rows))
+    fastest = fastest_over_passes(rows)
+    summary = summarize(fastest)
     compared = comparison(summary)
+    figures = compared["sequence"]
+    compared["met_by_failures"] = False
+    if figures is not None:  # the target met by the external pair's charged failures alone
+        figures["common_speedup"] = _common_speedup(fastest, compared["own"],
+                                                    figures["fastest_external"])
+        compared["met_by_failures"] = compared["target_met"] and not \
+            figures["common_speedup"] >= TARGET_SPEEDUP
+        compared["target_met"] = compared["target_met"] and not compared["met_by_failures"]
     passes = sorted({row["pass"] for row in rows if "pass" in row})
     if len(passes) > 1:
         speedups = []
@@ -512,6 +523,20 @@ def over_passes(rows: Sequence[dict[str, Any]]) -> tuple[list[dict[str, Any]], d
         compared["target_met"] = compared["target_met"] and all(
             speedup >= TARGET_SPEEDUP for speedup in speedups)
     return summary, compared
+
+
+def _common_speedup(rows: Sequence[dict[str, Any]], own: str, external: str) -> float:
+    """SGM of ``external``'s sequence times over ``own``'s, on the steps both solve in sequence
+    mode (NaN when there is none): the speedup without the charges of failures."""
+    solved = {solver: {(row["scene"], row["problem"]): row["sequence_time_s"] for row in rows
+                       if row["solver"] == solver and row["sequence_success"]}
+              for solver in (own, external)}
+    both = sorted(solved[own].keys() & solved[external].keys())
+    if not both:
+        return math.nan
+    shift = _shift(rows)
+    return shifted_geometric_mean([solved[external][key] for key in both], shift) / \
+        shifted_geometric_mean([solved[own][key] for key in both], shift)
 
 
 def by_scene(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -629,7 +654,11 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
                      f"fastest warm-startable external pair in sequence mode\" {verdict} over "
                      f"all scenes together: measured {figures['speedup']:.2f}x against "
                      f"`{figures['fastest_external']}`{_per_pass(compared)}."
-                     + (" The target asks it of every pass alone too." if passes > 1 else ""))
+                     + (" The target asks it of every pass alone too." if passes > 1 else "")
+                     + (f" It passes {TARGET_SPEEDUP:g}x only through that pair's failed "
+                        "solves, each charged the largest time: on the steps both solve it is "
+                        f"{figures['common_speedup']:.2f}x." if compared.get("met_by_failures")
+                        else ""))
     if per_scene:
         lines += _per_scene_lines(per_scene, scenes)
     return "\n".join(lines) + "\n"
@@ -654,7 +683,8 @@ def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
         lines.append(f"| `{name}` | {100 * persisting.get(entry['scene'], 0.0):.0f}% | "
                      f"{1e3 * figures['own_sgm_s']:.3f} | `{figures['fastest_external']}` | "
                      f"{1e3 * figures['external_sgm_s']:.3f} | {figures['speedup']:.2f}x | "
-                     f"{pass_range(entry)} | {'met' if entry['target_met'] else 'not met'} |")
+                     f"{pass_range(entry)} | {'met' if entry['target_met'] else 'not met'}"
+                     f"{' (peer failures)' if entry.get('met_by_failures') else ''} |")
     lines.append(f"\n{target_sentence(TARGET_SPEEDUP, holds, fails, 'scene')} Where no contact "
                  "persists, a sequence solve is a cold solve.")
     return lines
