@@ -21,6 +21,14 @@ sweeps). Every policy block it solves is recorded, in order. The script prints p
   sections 4.1 and 4.7; a fixed contact's row and column are unit ones in both);
 - each factor's multiply-adds when every block is factored whole, for scale.
 
+``--time`` then times the same sequences, block by block, as each factor would make them
+(the fastest of 7 replays less that of 7 replays of the Python bookkeeping between blocks
+alone, on this machine): the kernel's own envelope functions
+(``_factor_rows`` from the first changed row, ``_delete_contact``, the substitutions), and an
+up-looking sparse factor written here (:func:`sparse_refactor`, Davis 2006, section 4.7) that
+recomputes only the rows of the changed contacts' ancestors, a fixed contact's row a unit row,
+each block then solved once.
+
 ``--search-cap N`` replaces the active-set method's step to the first blocking contact by a
 projected search (More and Toraldo, "On the solution of large quadratic programming problems
 with bound constraints", SIAM J. Optim. 1(1), 1991): along ``max(x + t (s - x), 0)`` on the
@@ -32,9 +40,14 @@ not equal.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
+
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from pi_robust_common import ACCURACY, ROOT, option, quick_flag, words
+from pi_robust_sparse_factor import column_solve
 from sksparse.cholmod import analyze
 
 from qpbench.problem.dumps import import_dump
@@ -45,8 +58,18 @@ from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.pi_robust_blocks import BlockSolver
 from qpbench.solvers.pi_robust_kernel.constants import UPDATE_FIXED
-from qpbench.solvers.pi_robust_kernel.ordering import reverse_cuthill_mckee
+from qpbench.solvers.pi_robust_kernel.factor import (
+    _backward_substitution,
+    _delete_contact,
+    _factor_rows,
+)
+from qpbench.solvers.pi_robust_kernel.ordering import (
+    _envelope_widths,
+    _upper,
+    reverse_cuthill_mckee,
+)
 
+RHO_KERNEL = 1e-5  # the accuracy table's first prox weight, which most blocks are factored at
 PROX_KEYS = ("tol", "rho", "rho_min", "rho_decrease", "stall_ratio", "stall_steps",
              "backup_steps", "active_set", "drift_steps")
 
@@ -252,26 +275,189 @@ def sparse_work(Q: sp.csc_matrix, blocks: list[np.ndarray]) -> tuple[float, floa
     return kept, whole
 
 
+@njit(cache=True)
+def sparse_refactor(colptr: np.ndarray, rowind: np.ndarray, rowptr: np.ndarray,
+                    colind: np.ndarray, place: np.ndarray, A: tuple, shift: np.ndarray,
+                    free: np.ndarray, parent: np.ndarray, changed: np.ndarray,
+                    values: np.ndarray, dense: np.ndarray, marks: np.ndarray) -> None:
+    """Refactor the rows of L (stored by columns, the diagonal first) that ``changed``
+    contacts' elimination-tree ancestors hold, for ``L L^T = A_FF + diag(shift_F)`` with the
+    fixed contacts' rows and columns unit ones. Row k solves ``L_(:k,:k) l = A_(:k,k)`` over
+    its pattern (``colind[rowptr[k]:rowptr[k + 1]]``, rising; ``place``: where each entry
+    sits in ``values``), the rows before it being L's already (Davis 2006, section 4.7)."""
+    indptr, indices, data = A
+    for contact in changed:
+        j = contact
+        while j >= 0 and not marks[j]:
+            marks[j] = True
+            j = parent[j]
+    for k in range(parent.size):
+        if not marks[k]:
+            continue
+        marks[k] = False
+        if not free[k]:
+            for p in range(rowptr[k], rowptr[k + 1]):
+                values[place[p]] = 0.0
+            values[colptr[k]] = 1.0
+            continue
+        diagonal = shift[k]
+        for p in range(indptr[k], indptr[k + 1]):
+            if indices[p] < k and free[indices[p]]:
+                dense[indices[p]] = data[p]
+            elif indices[p] == k:
+                diagonal += data[p]
+        for p in range(rowptr[k], rowptr[k + 1]):
+            j = colind[p]
+            entry = dense[j] / values[colptr[j]]
+            dense[j] = 0.0
+            for q in range(colptr[j] + 1, colptr[j + 1]):
+                if rowind[q] >= k:
+                    break
+                dense[rowind[q]] -= values[q] * entry
+            values[place[p]] = entry
+            diagonal -= entry * entry
+        if not diagonal > 0.0:
+            raise np.linalg.LinAlgError("not positive definite")
+        values[colptr[k]] = np.sqrt(diagonal)
+
+
+def sparse_replay(Q: sp.csc_matrix, shift: np.ndarray) -> Callable:
+    """A replay of policy blocks by :func:`sparse_refactor` in CHOLMOD's approximate minimum
+    degree order: ``replay(blocks, rhs)`` factors each block from the one before and solves
+    it once, returning the last solution (in the posed order, zero off its block)."""
+    n = Q.shape[0]
+    pattern = (Q + sp.identity(n)).tocsc()
+    order = analyze(pattern, mode="simplicial", ordering_method="amd").P()
+    P = Q[order][:, order].tocsc()
+    P.sort_indices()
+    lower = analyze(P + sp.identity(n), mode="simplicial", ordering_method="natural").cholesky(
+        P + n * abs(P).max() * sp.identity(n)).L().tocsc()
+    lower.sort_indices()
+    colptr, rowind = lower.indptr.astype(np.int64), lower.indices.astype(np.int64)
+    parent = np.array([rowind[colptr[j] + 1] if colptr[j + 1] > colptr[j] + 1 else -1
+                       for j in range(n)], dtype=np.int64)
+    below = sorted((rowind[q], j, q) for j in range(n) for q in range(colptr[j] + 1,
+                                                                      colptr[j + 1]))
+    rowptr = np.searchsorted([k for k, _, _ in below], np.arange(n + 1)).astype(np.int64)
+    colind = np.array([j for _, j, _ in below], dtype=np.int64)
+    place = np.array([q for _, _, q in below], dtype=np.int64)
+    A = (P.indptr.astype(np.int64), P.indices.astype(np.int64), P.data.copy())
+    ordered_shift = RHO_KERNEL * shift[order]
+    values, dense, marks = np.zeros(colptr[-1]), np.zeros(n), np.zeros(n, dtype=np.bool_)
+
+    def replay(blocks: list[np.ndarray], rhs: np.ndarray, work: bool = True) -> np.ndarray:
+        previous = None
+        for policy in blocks:
+            free = policy[order]
+            changed = np.arange(n) if previous is None else np.flatnonzero(free != previous)
+            x = np.where(free, rhs[order], 0.0)
+            if work:
+                sparse_refactor(colptr, rowind, rowptr, colind, place, A, ordered_shift, free,
+                                parent, changed, values, dense, marks)
+                column_solve(colptr[:-1], colptr[1:], rowind, values, x)
+            previous = free
+        answer = np.zeros(n)
+        answer[order] = x
+        return answer
+    return replay
+
+
+def envelope_replay(Q: sp.csc_matrix, shift: np.ndarray) -> Callable:
+    """:func:`sparse_replay` by the kernel's envelope factor in reverse Cuthill-McKee order:
+    the rows before the first changed contact kept, the rows of at most ``UPDATE_FIXED``
+    newly fixed contacts deleted (:func:`.factor._delete_contact`), else the rows from the
+    first change refactored (:func:`.factor._factor_rows`)."""
+    n = Q.shape[0]
+    order = reverse_cuthill_mckee(Q.indptr.astype(np.int64), Q.indices.astype(np.int64), n)
+    P = Q[order][:, order].tocsc()
+    P.sort_indices()
+    A = (P.indptr.astype(np.int64), P.indices.astype(np.int64), P.data.copy())
+    upper = _upper(A)
+    offsets = np.empty(n + 1, np.int64)
+    _envelope_widths(A, offsets)
+    values, position, none = np.empty(offsets[-1]), np.full(n, -1, np.int64), np.empty(0)
+    cosines, sines, ordered_shift = np.empty(n), np.empty(n), shift[order].copy()
+
+    def replay(blocks: list[np.ndarray], rhs: np.ndarray, work: bool = True) -> np.ndarray:
+        previous = None
+        for policy in blocks:
+            free = policy[order]
+            index = np.flatnonzero(free).astype(np.int64)
+            x = rhs[order][index]
+            changed = np.flatnonzero(free != previous) if previous is not None else \
+                np.arange(n)
+            if not work:
+                previous = free
+                continue
+            if previous is not None and 0 < changed.size <= UPDATE_FIXED \
+                    and not (free & ~previous).any():
+                places = np.searchsorted(np.flatnonzero(previous), changed)
+                for d in range(places.size - 1, -1, -1):
+                    _delete_contact(values, offsets, index.size + d + 1, places[d], cosines,
+                                    sines, x if d == 0 else none)
+            else:
+                position[index] = np.arange(index.size)
+                _factor_rows(upper, index, position, none, RHO_KERNEL, ordered_shift, values,
+                             offsets, int(free[:changed.min()].sum()) if changed.size else
+                             index.size, x)
+                position[index] = -1
+            _backward_substitution(values, offsets, index.size, x)
+            previous = free
+        answer = np.zeros(n)
+        answer[order[index]] = x
+        return answer
+    return replay
+
+
+def replay_times(problem: ImpactProblem, blocks: list[np.ndarray]) -> tuple[float, float]:
+    """(envelope, sparse) seconds of replaying ``blocks``, each the fastest of 7 replays less
+    the fastest of 7 replays of its bookkeeping alone (``work=False``), after checking that
+    both give the last block's solution."""
+    Q = sp.csc_matrix(problem.Q)
+    diag = Q.diagonal()
+    shift = np.where(diag > 0.0, diag, 1.0)
+    rhs = np.random.default_rng(0).standard_normal(Q.shape[0])
+    replays = [envelope_replay(Q, shift), sparse_replay(Q, shift)]
+    envelope, sparse = (replay(blocks, rhs) for replay in replays)
+    assert np.allclose(envelope, sparse, rtol=1e-6, atol=1e-9 * abs(envelope).max())
+    times = []
+    for replay in replays:
+        fastest = {True: np.inf, False: np.inf}
+        for _ in range(7):
+            for work in fastest:
+                start = time.perf_counter()
+                replay(blocks, rhs, work)
+                fastest[work] = min(fastest[work], time.perf_counter() - start)
+        times.append(fastest[True] - fastest[False])
+    return times[0], times[1]
+
+
 def main() -> None:
     arguments = words()
     cap = int(option(arguments, "--search-cap", "1"))
+    timing = "--time" in arguments
     print(f"\npi-robust's Python path at 1e-8, projected search through at most {cap} "
-          "breakpoint(s); factorization multiply-adds over the policy blocks it solves\n")
+          "breakpoint(s); factorization multiply-adds over the policy blocks it solves"
+          + ("; replay times (ms)" if timing else "") + "\n")
     print("| group | problems | not converged | solves | of them active-set | envelope, kept "
-          "rows | sparse, etree ancestors | ratio | envelope, whole | sparse, whole |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "rows | sparse, etree ancestors | ratio | envelope, whole | sparse, whole |"
+          + (" envelope replay | sparse replay | ratio |" if timing else ""))
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|" + ("---:|" * 3 if timing else ""))
     for name, problems in groups(quick_flag()).items():
-        totals = np.zeros(7)
+        totals = np.zeros(9)
         for problem in problems:
             blocks, solves, active, converged = policy_blocks(problem, cap)
             Q = sp.csc_matrix(problem.Q)
             totals += (not converged, solves, active, *envelope_work(Q, blocks),
-                       *sparse_work(Q, blocks))
-        failed, solves, active, envelope_kept, envelope_whole, sparse_kept, sparse_whole = \
-            totals
+                       *sparse_work(Q, blocks),
+                       *(replay_times(problem, blocks) if timing else (0.0, 0.0)))
+        failed, solves, active, envelope_kept, envelope_whole, sparse_kept, sparse_whole, \
+            envelope_time, sparse_time = totals
         print(f"| {name} | {len(problems)} | {failed:.0f} | {solves:.0f} | {active:.0f} | "
               f"{envelope_kept:.3g} | {sparse_kept:.3g} | {envelope_kept / sparse_kept:.1f}x | "
-              f"{envelope_whole:.3g} | {sparse_whole:.3g} |", flush=True)
+              f"{envelope_whole:.3g} | {sparse_whole:.3g} |"
+              + (f" {1e3 * envelope_time:.2f} | {1e3 * sparse_time:.2f} | "
+                 f"{envelope_time / sparse_time:.2f}x |" if timing else ""), flush=True)
 
 
 if __name__ == "__main__":
