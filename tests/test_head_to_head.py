@@ -136,6 +136,15 @@ def test_a_speedup_lifted_over_the_target_by_the_peers_failures_is_not_met() -> 
     assert "it is 1.00x" in text
 
 
+def test_a_peer_that_solves_nothing_meets_no_target_for_pi_robust() -> None:
+    rows = [row("pi-robust/lcp", True, name, 1e-3) for name in "ab"] \
+        + [row("daqp/dual", False, name, 1.0, False) for name in "ab"]
+    [entry] = head_to_head.summarize(rows)
+    assert entry["speedup"] > 3 and math.isnan(entry["common_speedup"])
+    assert entry["met_by_failures"] and not entry["target_met"]
+    assert "no problem did both solve" in head_to_head.markdown([entry], 5)
+
+
 def test_an_earlier_runs_rows_are_summarized_again_without_timing(
         tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """A run's JSON whose summary an older rule wrote (target met) is summarized again from

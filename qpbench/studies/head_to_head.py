@@ -635,8 +635,10 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"on {entry['set']} the speedup passes {TARGET_SPEEDUP:g}x only because "
             f"`{entry['external']['solver']}` failed "
             f"{100 * (1 - entry['external']['success_rate']):.0f}% of the problems, each "
-            "charged the set's largest time; on the problems both pairs solve it is "
-            f"{entry['common_speedup']:.2f}x" for entry in lifted) + ".")
+            "charged the set's largest time; " + (
+                f"on the problems both pairs solve it is {entry['common_speedup']:.2f}x"
+                if math.isfinite(entry["common_speedup"]) else "no problem did both solve")
+            for entry in lifted) + ".")
     if missed:
         lines.append("\nWhere it does not, the section \"Where pi-robust's time goes\" breaks "
                      "a solve's time down, and docs/notes/pi-robust.md says what was tried, "

@@ -656,9 +656,11 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
                      f"`{figures['fastest_external']}`{_per_pass(compared)}."
                      + (" The target asks it of every pass alone too." if passes > 1 else "")
                      + (f" It passes {TARGET_SPEEDUP:g}x only through that pair's failed "
-                        "solves, each charged the largest time: on the steps both solve it is "
-                        f"{figures['common_speedup']:.2f}x." if compared.get("met_by_failures")
-                        else ""))
+                        "solves, each charged the largest time: " + (
+                            f"on the steps both solve it is {figures['common_speedup']:.2f}x."
+                            if math.isfinite(figures["common_speedup"])
+                            else "no step did both solve.")
+                        if compared.get("met_by_failures") else ""))
     if per_scene:
         lines += _per_scene_lines(per_scene, scenes)
     return "\n".join(lines) + "\n"
