@@ -395,7 +395,8 @@ def test_a_pair_far_slower_than_the_fastest_external_one_leaves_the_set() -> Non
     text = head_to_head.markdown([entry], 5)
     assert "`daqp/dual` measured no further after 2 problems (31.0x `osqp/dual`'s time there)" \
         in text
-    assert "more than 30 times the fastest external pair's there" in text
+    assert "more than 30 times those of the fastest external pair that solved every problem" \
+        in text
 
 
 def test_a_pair_with_a_solve_past_the_cap_leaves_once_another_solved_within_it() -> None:
@@ -475,6 +476,38 @@ def test_no_pair_leaves_while_no_external_pair_has_solved_every_problem() -> Non
     below = head_to_head.Running(limit=30.0)
     below.update(frictional, "frictional (ccp)")
     assert below.out["frictional (ccp)"]["piqp/ccp"]["problems"] == 1
+
+
+def test_a_pair_far_slower_than_one_that_solved_all_it_solved_leaves_though_none_solved_all(
+        ) -> None:
+    """No pair solves problem c; quadprog solves a and b fast, proxqp only a and slowly: it
+    leaves against quadprog. daqp solved b, which proxqp did not: proxqp is no pace for it,
+    but quadprog is (and daqp is not 30x slower)."""
+    running = head_to_head.Running(limit=30.0)
+    rows = [row("quadprog/primal", False, "a", 1e-3), row("quadprog/primal", False, "b", 1e-3),
+            row("quadprog/primal", False, "c", 1e-3, False),
+            row("proxqp/dual", False, "a", 0.1), row("proxqp/dual", False, "b", 0.1, False),
+            row("proxqp/dual", False, "c", 0.1, False),
+            row("daqp/dual", False, "a", 1e-2, False), row("daqp/dual", False, "b", 1e-2),
+            row("daqp/dual", False, "c", 1e-2, False)]
+    running.update(rows, "box packings 1k-4k")
+    assert running.out["box packings 1k-4k"] == {"proxqp/dual": {
+        "problems": 3, "slower": pytest.approx(100.0), "than": "quadprog/primal"}}
+
+
+def test_a_solve_past_the_cap_on_a_problem_without_a_solution_takes_its_pair_out() -> None:
+    """A solve over the cap counts on a problem that no pair can be judged on (below its
+    residual floor) as anywhere: time is time."""
+    running = head_to_head.Running(limit=30.0, cap_s=10.0)
+    rows = [row("quadprog/primal", False, "a", 1e-3), row("proxqp/dual", False, "a", 1e-3),
+            {**row("quadprog/primal", False, "floor", 1e-3, False),
+             "status": head_to_head.BELOW_FLOOR},
+            {**row("proxqp/dual", False, "floor", 25.0, False), "status": head_to_head.BELOW_FLOOR,
+             "over_cap": True}]
+    running.update(rows, "box packings 1k-4k")
+    left = running.out["box packings 1k-4k"]["proxqp/dual"]
+    assert left["longest_s"] == 25.0 and left["than"] == "quadprog/primal"
+    assert running.running("box packings 1k-4k", "quadprog/primal")
 
 
 def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,

@@ -23,18 +23,17 @@ made by measurement, not by hand. On the set of a hard family, that family's
 ``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
 
 An external pair whose times on a set's problems so far, summed, are more than
-``out_of_running`` times those of the fastest external pair there is measured no further on
-that set (:class:`Running`): it cannot be the fastest, and on the large box packings a dense
-solver's minute-long solves were most of the benchmark's time. A pair that left a size bucket
-is not measured on the family's larger buckets either (the problems are taken smaller bucket
-first): a dense factorization's time grows faster with the contacts than a sparse one's, and
-one solve of it on the largest packings would take longer than the whole study. For the same
-reason a solve whose untimed warm-up took more than ``solve_cap_s`` (the main table's time
-limit) is timed no further, its warm-up's time standing for it, and its pair leaves the set as
-soon as another external pair has solved the set's problems so far within the cap (on the
-dense piles a dense factorization takes seconds to minutes a solve). The report names every
-such pair, where and after how many problems it left, how much slower it was and, for a solve
-over the cap, how long it took.
+``out_of_running`` times those of the fastest external pair that solved every problem it
+solved is measured no further on that set (:class:`Running`): it cannot be the fastest, and on
+the large box packings a dense solver's minute-long solves were most of the benchmark's time.
+A pair that left a size bucket is not measured on the family's larger buckets either (the
+problems are taken smaller bucket first): a dense factorization's time grows faster with the
+contacts than a sparse one's. For the same reason a solve whose untimed warm-up took more than
+``solve_cap_s`` (the main table's time limit) is timed no further, its warm-up's time standing
+for it, and its pair leaves the set as soon as such a pair within the cap exists (on the dense
+piles a dense factorization takes seconds to minutes a solve). The report names every such
+pair, where and after how many problems it left, how much slower it was and, for a solve over
+the cap, how long it took.
 
 Every solve goes through the one stopwatch (``call_solver``) under the timing protocol
 (docs/design.md section 7, ``qpbench.bench.repeats.time_interleaved``): the problems are taken
@@ -301,13 +300,13 @@ class Running:
     """Which external pairs are still in the running on each set. After each batch of
     problems, :meth:`update` sums each running external pair's ``time_s`` over the set's rows
     so far (the same problems for all of them: a batch times every running pair on each of
-    its problems) and takes out every pair
-    whose sum is more than ``limit`` times the smallest sum among the pairs that solved every
-    one of those problems within ``cap_s`` each (those without a solution, which the figures
-    leave out, aside), and every pair with a solve over ``cap_s`` (a row's ``over_cap``);
-    ``out[set][pair]`` keeps after how many problems it left, how many times slower it was and
-    than which pair, and for a solve over the cap its longest time and the cap. No pair leaves
-    while none has solved them all within the cap. A pair that leaves a size
+    its problems; those without a solution, which the figures leave out, aside) and takes out
+    every pair whose sum is more than ``limit`` times the smallest sum among its paces, and
+    every pair with a solve over ``cap_s`` (a row's ``over_cap``, on any problem) that has a
+    pace. A pair's paces are the other pairs without a solve over the cap that solved every
+    problem it solved, and at least one. ``out[set][pair]`` keeps after how many problems it
+    left, how many times slower it was and than which pair, and for a solve over the cap its
+    longest time and the cap. A pair that leaves a size
     bucket leaves the family's larger buckets too (:func:`larger_buckets`), before it is
     measured there: ``out`` keeps the same record for them, with ``measured_on`` naming the
     bucket where it left."""
@@ -347,24 +346,30 @@ class Running:
             The set to update.
         """
         totals: dict[str, float] = {}
-        solved_all: dict[str, bool] = {}
+        solved: dict[str, set[str]] = {}
         longest: dict[str, float] = {}
         problems: dict[str, set[str]] = {}
         for one in rows:
             solver = one["solver"]
-            if one["set"] != set_name or one["own"] or not self.running(set_name, solver) \
-                    or one["status"] in UNDECIDED:
+            if one["set"] != set_name or one["own"] or not self.running(set_name, solver):
+                continue
+            if one.get("over_cap"):  # (on a problem without a solution too: time is time)
+                longest[solver] = max(longest.get(solver, 0.0), one["time_s"])
+            if one["status"] in UNDECIDED:
                 continue
             totals[solver] = totals.get(solver, 0.0) + one["time_s"]
-            solved_all[solver] = solved_all.get(solver, True) and bool(one["success"])
-            if one.get("over_cap"):
-                longest[solver] = max(longest.get(solver, 0.0), one["time_s"])
+            solved.setdefault(solver, set())
+            if one["success"]:
+                solved[solver].add(one["problem"])
             problems.setdefault(solver, set()).add(one["problem"])
-        finishers = [solver for solver in totals if solved_all[solver] and solver not in longest]
-        if not finishers:
-            return
-        fastest = min(finishers, key=totals.__getitem__)
         for solver, total in totals.items():
+            # the pace: the fastest pair within the cap that solved every problem this one
+            # solved, and at least one (a pair that fails fast sets no pace)
+            paces = [other for other in totals if other != solver and other not in longest
+                     and solved[other] and solved[other] >= solved[solver]]
+            if not paces:
+                continue
+            fastest = min(paces, key=totals.__getitem__)
             if total > self.limit * totals[fastest] or solver in longest:
                 left = {"problems": len(problems[solver]), "slower": total / totals[fastest],
                         "than": fastest}
@@ -588,13 +593,14 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         "(`bench.parquet`) on the grid, dump and box families and per frictional "
         f"formulation, each family's {FAMILY_CANDIDATES} fastest, and on a hard family's set "
         f"that family's {FAMILY_CANDIDATES} fastest; one whose times on a set's problems so "
-        f"far, summed, are more than {out_of_running:g} times the fastest "
-        "external pair's there is measured no further on that set, nor on the larger size "
-        "buckets of its family (it cannot be the fastest; named below)"
+        f"far, summed, are more than {out_of_running:g} times those of the fastest external "
+        "pair that solved every problem it solved (and one at least) is measured no further "
+        "on that set, nor on the larger size buckets of its family (it cannot be the "
+        "fastest; named below)"
         + (f"; so is one with a solve whose untimed warm-up took more than {solve_cap_s:g} s "
-           "(the main table's time limit), once another external pair has solved the set's "
-           "problems so far within it; such a solve is not timed again, its warm-up's time "
-           "stands" if math.isfinite(solve_cap_s) else "") + ". "
+           "(the main table's time limit) once such a pair within the cap exists; such a "
+           "solve is not timed again, its warm-up's time stands"
+           if math.isfinite(solve_cap_s) else "") + ". "
         "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
         + (" in the table and in every pass" if passes > 1 else "")
