@@ -58,6 +58,7 @@ from qpbench.solvers import accuracy, pi_robust
 from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.pi_robust_blocks import BlockSolver
 from qpbench.solvers.pi_robust_kernel.constants import UPDATE_FIXED
+from qpbench.solvers.pi_robust_kernel.entry import _gauss_seidel
 from qpbench.solvers.pi_robust_kernel.factor import (
     _backward_substitution,
     _delete_contact,
@@ -87,14 +88,13 @@ def groups(quick: bool) -> dict[str, list[ImpactProblem]]:
     return found
 
 
-def swept_start(lcp: Lcp, sweeps: int) -> np.ndarray:
-    """``sweeps`` projected Gauss-Seidel sweeps on LCP(Q, b) from zero, in the posed order."""
-    Q, b, diag = np.asarray(lcp.op), lcp.b, lcp.diag
-    impulses = np.zeros(lcp.n)
-    for _ in range(sweeps):
-        for i in range(lcp.n):
-            if diag[i] > 0.0:
-                impulses[i] = max(0.0, impulses[i] - (b[i] + Q[i] @ impulses) / diag[i])
+def swept_start(problem: ImpactProblem, sweeps: int) -> np.ndarray:
+    """``sweeps`` projected Gauss-Seidel sweeps on LCP(Q, b) from zero, in the posed order, by
+    the kernel's own sweeps (:func:`.entry._gauss_seidel`)."""
+    Q = problem.Q
+    impulses = np.zeros(problem.b.size)
+    _gauss_seidel((Q.indptr, Q.indices, Q.data), problem.b, problem.diag_Q, impulses,
+                  np.empty(problem.b.size), sweeps)
     return impulses
 
 
@@ -203,7 +203,8 @@ def policy_blocks(problem: ImpactProblem, cap: int
 
     pi_robust._policy_solve, pi_robust._primal_active_set = recorded, counted
     try:
-        start = swept_start(lcp, accuracy.options_for("pi-robust", ACCURACY)["start_sweeps"])
+        start = swept_start(problem,
+                            accuracy.options_for("pi-robust", ACCURACY)["start_sweeps"])
         _, converged, _, solves, _ = pi_robust._prox_policy_iteration(
             lcp, BlockSolver(lcp), start, lcp.w(start) <= lcp.diag * start,
             budget=settings.python["pi_budget"],
@@ -213,12 +214,40 @@ def policy_blocks(problem: ImpactProblem, cap: int
     return blocks, solves, in_active_set[0], converged
 
 
+def rcm_ordered(Q: sp.csc_matrix) -> tuple[np.ndarray, sp.csc_matrix]:
+    """(the kernel's reverse Cuthill-McKee order of Q, Q in that order with sorted indices)."""
+    n = Q.shape[0]
+    order = reverse_cuthill_mckee(Q.indptr.astype(np.int64), Q.indices.astype(np.int64), n)
+    P = Q[order][:, order].tocsc()
+    P.sort_indices()
+    return order, P
+
+
+def amd_ordered(Q: sp.csc_matrix) -> tuple[np.ndarray, sp.csc_matrix, sp.csc_matrix,
+                                           np.ndarray]:
+    """(CHOLMOD's approximate minimum degree order of Q, Q in that order, the pattern of its
+    Cholesky factor L (sorted, the diagonal first in each column), L's elimination tree: each
+    column's parent, the first row below its diagonal, -1 at a root)."""
+    n = Q.shape[0]
+    order = analyze((Q + sp.identity(n)).tocsc(), mode="simplicial",
+                    ordering_method="amd").P()
+    P = Q[order][:, order].tocsc()
+    P.sort_indices()
+    lower = analyze(P + sp.identity(n), mode="simplicial", ordering_method="natural").cholesky(
+        P + n * abs(P).max() * sp.identity(n)).L().tocsc()
+    lower.sort_indices()
+    parent = np.array([lower.indices[lower.indptr[j] + 1]
+                       if lower.indptr[j + 1] > lower.indptr[j] + 1 else -1 for j in range(n)],
+                      dtype=np.int64)
+    return order, P, lower, parent
+
+
 def envelope_work(Q: sp.csc_matrix, blocks: list[np.ndarray]) -> tuple[float, float]:
     """(multiply-adds of the envelope factor over ``blocks``, each kept from the one before as
     the kernel keeps it; the same with each block factored whole)."""
     n = Q.shape[0]
-    order = reverse_cuthill_mckee(Q.indptr.astype(np.int64), Q.indices.astype(np.int64), n)
-    lower = sp.tril(Q[order][:, order]).tocsr()
+    order, P = rcm_ordered(Q)
+    lower = sp.tril(P).tocsr()
     kept = whole = 0.0
     previous = None
     for policy in blocks:
@@ -245,17 +274,8 @@ def sparse_work(Q: sp.csc_matrix, blocks: list[np.ndarray]) -> tuple[float, floa
     refactoring the elimination-tree ancestors of each block's changed contacts; the same
     with each block factored whole)."""
     n = Q.shape[0]
-    pattern = (Q + sp.identity(n)).tocsc()
-    factor = analyze(pattern, mode="simplicial", ordering_method="amd")
-    order = factor.P()
-    lower = factor.cholesky(pattern + n * abs(pattern).max() * sp.identity(n)).L().tocsc()
+    order, _, lower, parent = amd_ordered(Q)
     counts = np.diff(lower.indptr).astype(float)
-    parent = np.full(n, -1)
-    for j in range(n):
-        below = lower.indices[lower.indptr[j]:lower.indptr[j + 1]]
-        below = below[below > j]
-        if below.size:
-            parent[j] = below.min()
     kept = whole = 0.0
     previous = None
     for policy in blocks:
@@ -326,16 +346,8 @@ def sparse_replay(Q: sp.csc_matrix, shift: np.ndarray) -> Callable:
     degree order: ``replay(blocks, rhs)`` factors each block from the one before and solves
     it once, returning the last solution (in the posed order, zero off its block)."""
     n = Q.shape[0]
-    pattern = (Q + sp.identity(n)).tocsc()
-    order = analyze(pattern, mode="simplicial", ordering_method="amd").P()
-    P = Q[order][:, order].tocsc()
-    P.sort_indices()
-    lower = analyze(P + sp.identity(n), mode="simplicial", ordering_method="natural").cholesky(
-        P + n * abs(P).max() * sp.identity(n)).L().tocsc()
-    lower.sort_indices()
+    order, P, lower, parent = amd_ordered(Q)
     colptr, rowind = lower.indptr.astype(np.int64), lower.indices.astype(np.int64)
-    parent = np.array([rowind[colptr[j] + 1] if colptr[j + 1] > colptr[j] + 1 else -1
-                       for j in range(n)], dtype=np.int64)
     below = sorted((rowind[q], j, q) for j in range(n) for q in range(colptr[j] + 1,
                                                                       colptr[j + 1]))
     rowptr = np.searchsorted([k for k, _, _ in below], np.arange(n + 1)).astype(np.int64)
@@ -368,9 +380,7 @@ def envelope_replay(Q: sp.csc_matrix, shift: np.ndarray) -> Callable:
     newly fixed contacts deleted (:func:`.factor._delete_contact`), else the rows from the
     first change refactored (:func:`.factor._factor_rows`)."""
     n = Q.shape[0]
-    order = reverse_cuthill_mckee(Q.indptr.astype(np.int64), Q.indices.astype(np.int64), n)
-    P = Q[order][:, order].tocsc()
-    P.sort_indices()
+    order, P = rcm_ordered(Q)
     A = (P.indptr.astype(np.int64), P.indices.astype(np.int64), P.data.copy())
     upper = _upper(A)
     offsets = np.empty(n + 1, np.int64)
