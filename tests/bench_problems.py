@@ -1,4 +1,5 @@
-"""Tiny impact problems with exact references, for the harness tests."""
+"""Tiny impact problems with exact references, for the harness tests, and the committed dumps
+the solver tests share."""
 
 from __future__ import annotations
 
@@ -9,6 +10,10 @@ import numpy as np
 
 from qpbench.problem import files
 from qpbench.problem.impact import ImpactProblem, Reference
+
+# a dump of the research fork's 5x5 grid on which block pivoting cycles (problems/head_to_head)
+CYCLING_DUMP = (Path(__file__).resolve().parents[1]
+                / "problems/head_to_head/fork_5x5_grid/itr_15.xml.out")
 
 
 def exact_impulses(problem: ImpactProblem) -> np.ndarray:

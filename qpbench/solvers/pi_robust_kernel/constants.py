@@ -29,7 +29,7 @@ LANES = 8
 # reference counting (its ``_nrt`` option), which otherwise adds an atomic increment and
 # decrement for every array a function binds, slices or passes on. Such a function cannot
 # allocate (numba refuses to compile it) and must not return an array (no count would own
-# it; tests/test_lcp_solvers.py checks every one's return type).
+# it; tests/test_pi_robust_kernel.py checks every one's return type).
 WITHOUT_REFCOUNTS = {"_nrt": False}
 # The contacts are put in reverse Cuthill-McKee order when the envelope in the posed order
 # costs more than WIDE_ENVELOPE_WORK multiply-adds to factor (below that the ordering costs
