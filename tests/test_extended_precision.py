@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import qpbench.solvers  # noqa: F401  (registers the solvers)
-from qpbench.problem import metrics
+from qpbench.problem import extended_reference, metrics
 from qpbench.problem.extended_reference import (
     CERTIFIED_BELOW,
     ExtendedReference,
@@ -65,6 +65,18 @@ def test_an_exact_solution_has_exact_residual_zero_and_rounds_to_the_reference()
     rounded = np.array([float(value) for value in impulses])
     assert problem.m_norm(problem.v_plus(rounded) - problem.reference.v_plus) \
         <= 1e-12 * problem.m_norm(problem.v_minus)
+
+
+def test_exact_elimination_stops_within_its_work_and_leaves_the_problem_uncertified(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """mass-ratio-7-s7's first active block is nearly singular, so refinement stalls and
+    exact elimination solves it: certified within the bound, left uncertified (None, not an
+    unbounded wait) under a bound its elimination passes."""
+    problem = mass_ratio(7, 7)
+    start = np.asarray(pi_robust(7, 7).impulses)
+    assert solve_exactly(problem, start) is not None
+    monkeypatch.setattr(extended_reference, "ELIMINATION_WORK", 1e9)
+    assert solve_exactly(problem, start) is None
 
 
 def test_a_non_solution_has_a_positive_exact_residual() -> None:

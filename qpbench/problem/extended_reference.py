@@ -16,7 +16,12 @@ are formed exactly (``fractions.Fraction``) and every residual below is exact:
    unique, v+ = v- + M^-1 G l is) are left alone and l_A moves by the least correction.
    When refinement stalls (a nearly singular block), the block is solved by exact Gaussian
    elimination in reverse Cuthill-McKee order; a zero pivot of the positive semi-definite
-   block marks a free direction, set to zero.
+   block marks a free direction, set to zero. Its rationals grow with the pivots taken (to
+   tens of thousands of bits on a grid's block of a few hundred contacts), so the eliminations
+   of one problem may form entries of at most :data:`ELIMINATION_WORK` squared bits in all
+   (the cost of an operation on rationals grows about as the square of their length); past
+   that the problem is left uncertified, its time bounded by the same count on every
+   machine.
 3. Policy iteration in exact arithmetic: when an l_i of A is negative, the contact that
    reaches zero first on the segment from the last non-negative point to the new one leaves
    A (a ratio test, as in active-set methods); else every contact with w_i < 0 joins A.
@@ -58,6 +63,10 @@ REFINEMENT_RATIO = 1e-3
 SINGULAR_CUTOFF = 1e-14
 # active-set changes at most
 POLICY_CHANGES = 30
+# the squared bit lengths, summed over the entries they form, of one problem's exact
+# eliminations at most (a nearly singular block of a few hundred contacts needs more than this
+# for one elimination, and a new one after each change of its active set)
+ELIMINATION_WORK = 4e12
 METHOD = "extended-precision(exact rational)"
 
 Rows = list[dict[int, Fraction]]
@@ -205,10 +214,17 @@ def _block_residual(lcp: ExactLcp, index: np.ndarray, impulses: list[Fraction]) 
     return max(abs(w[i]) for i in index) / lcp.scale
 
 
-def _eliminated_block(lcp: ExactLcp, active: np.ndarray) -> list[Fraction] | None:
+class _WorkSpent(Exception):
+    """The exact eliminations of one problem formed ELIMINATION_WORK squared bits."""
+
+
+def _eliminated_block(lcp: ExactLcp, active: np.ndarray, spent: list[float]
+                      ) -> list[Fraction] | None:
     """l with ``Q_AA l_A = -b_A`` exactly by sparse Gaussian elimination (reverse
     Cuthill-McKee order, diagonal pivots), zero off A; a zero pivot's variable is set to 0.
-    None when the block system has no solution (a zero pivot whose right side is not 0)."""
+    None when the block system has no solution (a zero pivot whose right side is not 0).
+    ``spent[0]`` counts the squared bit lengths of the entries formed; :class:`_WorkSpent`
+    is raised once it passes ELIMINATION_WORK."""
     index = [int(i) for i in np.flatnonzero(active)]
     position = {i: k for k, i in enumerate(index)}
     size = len(index)
@@ -230,8 +246,13 @@ def _eliminated_block(lcp: ExactLcp, active: np.ndarray) -> list[Fraction] | Non
             factor = block[i].pop(k) / pivot
             for j, q in block[k].items():
                 if j > k:
-                    block[i][j] = block[i].get(j, Fraction(0)) - factor * q
+                    entry = block[i].get(j, Fraction(0)) - factor * q
+                    block[i][j] = entry
+                    spent[0] += (entry.numerator.bit_length()
+                                 + entry.denominator.bit_length()) ** 2
             rhs[i] -= factor * rhs[k]
+            if spent[0] > ELIMINATION_WORK:
+                raise _WorkSpent
     x = [Fraction(0)] * size
     for k in range(size - 1, -1, -1):
         rest = rhs[k] - sum((q * x[j] for j, q in block[k].items() if j > k), Fraction(0))
@@ -269,7 +290,8 @@ def solve_exactly(problem: ImpactProblem, start: np.ndarray, lcp: ExactLcp | Non
     -------
     tuple of (list of Fraction, Fraction) or None
         The certified l and its exact natural residual; None when :data:`POLICY_CHANGES`
-        active sets did not give one, or a block had no solution.
+        active sets did not give one, a block had no solution, or the eliminations spent
+        :data:`ELIMINATION_WORK`.
     """
     lcp = lcp or exact_lcp(problem)
     Q = problem.Q.toarray()
@@ -277,10 +299,14 @@ def solve_exactly(problem: ImpactProblem, start: np.ndarray, lcp: ExactLcp | Non
     active = problem.diag_Q * start > problem.w(start)
     feasible = [Fraction(float(value)) for value in start]
     tolerance = CERTIFIED_BELOW * lcp.scale
+    spent = [0.0]
     for _ in range(POLICY_CHANGES):
         impulses, block_residual = _refined_block(lcp, Q, active, feasible)
         if block_residual > CERTIFIED_BELOW:
-            impulses = _eliminated_block(lcp, active)
+            try:
+                impulses = _eliminated_block(lcp, active, spent)
+            except _WorkSpent:
+                return None
             if impulses is None:
                 return None
         w = slack(lcp, impulses)
