@@ -76,8 +76,8 @@ def test_larger_problems_unsolved_ones_and_ones_without_a_verdict_are_left_out()
 def test_a_frictional_problem_counts_once_in_each_formulations_set() -> None:
     rows = [row("f", "pi-robust/ccp", 2e-5, set_name="frictional (ccp)"),
             row("f", "daqp/ccp", 9e-5, set_name="frictional (ccp)"),
-            row("f", "pi-robust/staggered", 8e-5, set_name="frictional (staggered)"),
-            row("f", "daqp/staggered", 4e-5, set_name="frictional (staggered)")]
+            row("f", "pi-robust/staggered", 8e-5, set_name="frictional (coulomb)"),
+            row("f", "daqp/staggered", 4e-5, set_name="frictional (coulomb)")]
     summary = few_contacts_summary(rows, UNDECIDED)
     assert [(entry["set"], entry["lowest"]) for entry in summary["problems"]] == [
-        ("frictional (ccp)", True), ("frictional (staggered)", False)]
+        ("frictional (ccp)", True), ("frictional (coulomb)", False)]

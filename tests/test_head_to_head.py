@@ -21,7 +21,7 @@ from qpbench.problem.generate import generate
 from qpbench.scenes.builders import scene_xml
 from qpbench.simulation.scaling import box_pile, circle_pile
 from qpbench.solvers.registry import get
-from qpbench.studies import head_to_head, head_to_head_sets
+from qpbench.studies import head_to_head, head_to_head_pairs, head_to_head_sets
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +40,7 @@ def test_the_candidates_are_the_fastest_external_pairs_of_the_main_table() -> No
         + bench_rows("pi-robust", "qpbench", "grid", [1e-5, 1e-5])  # ours: never a candidate
         + bench_rows("other", "z", "k3", [1e-6, 1e-6])  # not a candidate family
         + bench_rows("fric", "y", "incline", [1e-3], kind="frictional", formulation="ccp"))
-    chosen = head_to_head.fastest_external(frame, candidates=2)
+    chosen = head_to_head_pairs.fastest_external(frame, candidates=2, accuracy=1e-8)
     assert chosen["impact"] == ["fast/dual", "slow/dual"]
     assert chosen["frictional"] == ["fric/ccp"]
 
@@ -53,11 +53,28 @@ def test_each_candidate_familys_fastest_pair_is_a_candidate_too() -> None:
         # slowest over both families, yet the fastest on the dumps
         + bench_rows("dumps", "z", "grid", [9e-3, 9e-3]) + bench_rows("dumps", "z", "dump",
                                                                        [1e-4]))
-    chosen = head_to_head.fastest_external(frame, candidates=1)
+    chosen = head_to_head_pairs.fastest_external(frame, candidates=1, accuracy=1e-8)
     # the fastest overall first, then each family's FAMILY_CANDIDATES fastest not chosen yet
     assert chosen["impact"][0] == "fast/dual"
     assert set(chosen["impact"]) == {"fast/dual", "second/dual", "dumps/dual"}
-    assert head_to_head.FAMILY_CANDIDATES == 3
+    assert head_to_head_pairs.FAMILY_CANDIDATES == 3
+
+
+def test_the_frictional_candidates_are_the_fastest_of_each_model_and_formulation() -> None:
+    """Siconos' fc2d solvers, NSGS and the LCP solve Coulomb's law as staggered projections do:
+    the fastest of them all is a candidate, then each formulation's fastest; ccp pairs are
+    ranked apart (Anitescu's relaxation is another law)."""
+    def frictional(solver: str, formulation: str, time: float) -> list[dict]:
+        return bench_rows(solver, "x", "incline", [time, time], kind="frictional",
+                          formulation=formulation)
+
+    frame = pd.DataFrame(
+        frictional("siconos-cpg", "fc2d", 1e-4) + frictional("siconos-nsgs", "fc2d", 2e-4)
+        + frictional("daqp", "staggered", 9e-4) + frictional("piqp", "staggered", 5e-4)
+        + frictional("daqp", "ccp", 3e-4) + frictional("osqp", "ccp", 4e-3))
+    chosen = head_to_head_pairs.fastest_external(frame, candidates=3, accuracy=1e-8)
+    # coulomb: the fastest over fc2d and staggered, then staggered's fastest; then ccp's
+    assert chosen["frictional"] == ["siconos-cpg/fc2d", "piqp/staggered", "daqp/ccp"]
 
 
 def row(solver: str, own: bool, problem: str, time: float, success: bool = True) -> dict:
@@ -179,12 +196,16 @@ def test_timing_needs_a_folder_and_a_table(tmp_path: Path, capsys: pytest.Captur
     assert code != 0 and "--results are needed" in capsys.readouterr().err
 
 
-def test_a_frictional_problems_set_is_its_pairs_formulation() -> None:
+def test_a_frictional_problems_set_is_the_law_its_pairs_formulation_solves() -> None:
     from friction_cases import pair_on_floor
 
     problem = pair_on_floor(mu=0.5)
-    assert head_to_head.set_of(problem, "staggered") == "frictional (staggered)"
+    for formulation in ("staggered", "fc2d", "nsgs", "lcp"):
+        assert head_to_head.set_of(problem, formulation) == "frictional (coulomb)"
     assert head_to_head.set_of(problem, "ccp") == "frictional (ccp)"
+    problem.normal.family, problem.normal.name = "siconos", "gfc2d_granularflowonwall_00069_00350"
+    assert head_to_head.set_of(problem, "fc2d") == "Siconos granular (coulomb)"
+    assert head_to_head.set_of(problem, "ccp") == "Siconos granular (ccp)"
 
 
 def test_a_capture_of_any_7x7_grid_scene_is_in_the_7x7_set() -> None:

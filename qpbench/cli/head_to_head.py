@@ -29,13 +29,8 @@ from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 from qpbench.studies.few_contacts import few_contacts_summary
-from qpbench.studies.head_to_head import (
-    BENCH_COLUMNS,
-    UNDECIDED,
-    head_to_head,
-    markdown,
-    summarize,
-)
+from qpbench.studies.head_to_head import UNDECIDED, head_to_head, markdown, summarize
+from qpbench.studies.head_to_head_pairs import BENCH_COLUMNS
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 

@@ -40,6 +40,23 @@ KIND = "frictional"
 MODELS = ("coulomb", "ccp")  # the exact law, and Anitescu's relaxation (sliding separates)
 
 
+def model_of(formulation: str) -> str:
+    """The model a frictional formulation's answers are judged by.
+
+    Parameters
+    ----------
+    formulation : str
+        A frictional formulation (``qpbench.problem.formulations.FRICTIONAL_FORMULATIONS``).
+
+    Returns
+    -------
+    str
+        ``ccp`` (Anitescu's relaxation) for ``ccp``; ``coulomb`` (the exact law) for every
+        other: ``staggered``, ``lcp``, ``nsgs`` and ``fc2d`` solve the same law.
+    """
+    return "ccp" if formulation == "ccp" else "coulomb"
+
+
 @dataclass
 class FrictionalReference:
     """The verified answer of a frictional problem.

@@ -16,7 +16,7 @@ import numpy as np
 from qpbench.problem import friction_metrics, metrics
 from qpbench.problem.extended_reference import FLOOR_KEY
 from qpbench.problem.formulations import pose
-from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.friction import FrictionalProblem, model_of
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers.base import (
     BACKEND_TIMES,
@@ -171,7 +171,7 @@ def judge(spec: SolverSpec, problem: ImpactProblem | FrictionalProblem, output: 
         backend-reported times (NaN where not reported).
     """
     if isinstance(problem, FrictionalProblem):
-        model = "ccp" if spec.formulation == "ccp" else "coulomb"
+        model = model_of(spec.formulation)
         measured = friction_metrics.evaluate(problem, output.impulses, accuracy, model)
         finite = friction_metrics.is_finite(output.impulses, problem)
     else:

@@ -6,8 +6,8 @@ not for a speedup but for the lowest time of any pair, problem by problem. This 
 the head-to-head's rows (``qpbench.studies.head_to_head.measure_batch``): for every problem of
 at most ``FEW_CONTACTS`` contacts in every set, pi-robust's pair of that set that solved it
 fastest against the fastest external pair that solved it, each solve's ``time_s`` the fastest
-over the passes. A frictional problem is in two sets (``staggered`` and ``ccp``), each
-comparing the pairs of one formulation, and counts once in each. A problem pi-robust did not
+over the passes. A frictional problem is in two sets (``coulomb`` and ``ccp``), each
+comparing the pairs of one law, and counts once in each. A problem pi-robust did not
 solve counts against it; one no external pair solved, for it; one no pair solved is left out.
 """
 
@@ -102,7 +102,7 @@ def few_contacts_markdown(summary: dict[str, Any]) -> str:
     verdict = "met" if summary["target_met"] else "not met"
     return (f"Problems of at most {summary['few_contacts']} contacts, where a solve is mostly "
             f"the call itself ({len(problems)} in the sets {', '.join(sets)}; a frictional "
-            "problem once per formulation): pi-robust's pair is the fastest of all pairs on "
+            "problem once per law): pi-robust's pair is the fastest of all pairs on "
             f"{summary['lowest']} of {len(problems)} (target: on every one, **{verdict}**); "
             "the fastest external pair takes "
             f"{_ratio(ratios[0])}-{_ratio(ratios[-1])} its time, median "

@@ -6,18 +6,20 @@ adds a seed offset drawn at run time, so that the generated problems are ones no
 and the report lists their seeds, read from the problem files): the SCISim research fork's 50
 dumps of its 5x5 grid scene, the first impacts of its 50 7x7 grid scenes, impacts captured
 from its 5x5 and 3x3 grid scenes, generated grids and box packings, the first impacts of dense
-piles of circles and of boxes (a set per size bucket), the hard families (a set each) and the
-frictional families (pi-robust as the inner solver of ``staggered`` and on ``ccp``). A
-problem's set is named by its family and, for grids, box packings and piles, its size
-(``qpbench.studies.head_to_head_sets``).
+piles of circles and of boxes (a set per size bucket), the hard families (a set each), the
+frictional families and Siconos' granular flows (pi-robust as the inner solver of
+``staggered`` and on ``ccp``). A problem's set is named by its family and, for grids, box
+packings and piles, its size (``qpbench.studies.head_to_head_sets``).
 
-The external pairs: for impact problems the ``candidates`` fastest external pairs of the main
-benchmark (``results/bench.parquet``: shifted geometric mean of charged times at 1e-8 over
-the families ``dump``, ``grid``, ``box`` and the captured grid scenes) and the
-``FAMILY_CANDIDATES`` fastest on each of those families alone (a pair fastest on one set may
-rank lower over all four, and the main table's protocol may rank it second), for frictional
-problems the fastest external ``staggered`` and ``ccp`` pairs there, so that the choice is
-made by measurement, not by hand. On the set of a hard family, that family's
+The external pairs (``qpbench.studies.head_to_head_pairs``): for impact problems the
+``candidates`` fastest external pairs of the main benchmark (``results/bench.parquet``:
+shifted geometric mean of charged times at 1e-8 over the families ``dump``, ``grid``, ``box``
+and the captured grid scenes) and the ``FAMILY_CANDIDATES`` fastest on each of those families
+alone (a pair fastest on one set may rank lower over all four, and the main table's protocol
+may rank it second), for frictional problems the fastest external pairs of each model there
+(Coulomb's law, whatever the formulation: Siconos' own ``fc2d`` solvers too; Anitescu's
+``ccp``) and each formulation's fastest, so that the choice is made by measurement, not by
+hand. On the set of a hard family, that family's
 ``FAMILY_CANDIDATES`` fastest external pairs in the main table run too (only there:
 ``candidates["families"]``). pi-robust's own pairs are ``pi-robust/lcp`` (impact) and
 ``pi-robust/staggered`` and ``pi-robust/ccp`` (frictional).
@@ -53,8 +55,9 @@ left out of the sets' figures, as the report does. Per set and pair: the shifted
 time of the set where a solve failed, and ``speedup = SGM(fastest external) / SGM(pi-robust)``
 (above 1: pi-robust faster), against the target of 3, met when every pass alone gives at least
 3 too and pi-robust solves every problem the external pair solves. The frictional problems form
-two sets, one per formulation (``staggered``, ``ccp``), so that each compares pairs that solve
-the same model; a problem that neither pair solves (staggered projections need not converge) is
+two sets, one per model (``coulomb``: pi-robust's ``staggered`` against every formulation of the
+exact law; ``ccp``), so that each compares pairs that solve the same law, and Siconos' granular
+flows two more; a problem that neither pair solves (staggered projections need not converge) is
 charged to both and named. Staggered pairs run here up to ``STAGGERED_MAX_OUTER`` rounds, every
 pair alike, instead of the accuracy table's cap: at 1e-8 rough-box-30 needs about 1,700 rounds,
 and under the table's 200 no pair solves it, so the set would compare nothing there. On the
@@ -70,7 +73,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from qpbench.bench import stats
@@ -94,8 +96,13 @@ from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import BELOW_FLOOR, NO_SOLUTION, judge
 from qpbench.studies.few_contacts import few_contacts_markdown, few_contacts_summary
+from qpbench.studies.head_to_head_pairs import (
+    FAMILY_CANDIDATES,
+    OWN_FRICTIONAL,
+    OWN_IMPACT,
+    fastest_external,
+)
 from qpbench.studies.head_to_head_sets import (
-    HARD_FAMILIES,
     SETS,
     generated_seeds,
     larger_buckets,
@@ -110,9 +117,6 @@ UNDECIDED = (NO_SOLUTION, BELOW_FLOOR)
 STAGGERED_MAX_OUTER = 2_000  # rounds of the staggered loop, for every staggered pair here
 # contacts of a batch of problems timed together, at most (a larger problem is timed alone)
 BATCH_CONTACTS = 1_000
-OWN_IMPACT = ("pi-robust/lcp",)
-OWN_FRICTIONAL = ("pi-robust/staggered", "pi-robust/ccp")
-FRICTIONAL_FORMULATIONS = ("staggered", "ccp")
 # where pi-robust's compiled kernel hands a problem to the sparse path: chosen on the grid
 # family (other seeds) and a dense pile, so the large grid buckets name it
 WORK_LIMIT_CHOSEN = (
@@ -146,95 +150,6 @@ TUNED_ON = {
                       "steps of a pile of 10,000 circles, its prox weight (1e-9) on piles of "
                       "10,000 circles and boxes, checked on piles of 1,000 to 5,000",
 }
-# the main benchmark's families whose fastest external pairs are the impact candidates
-CANDIDATE_FAMILIES = ("dump", "grid", "box", "scene:grid5_itr_0")
-# each of those families' (and each hard family's) own fastest external pairs measured besides:
-# the main table's ranking is made under another protocol (five repeats, not twenty, other
-# problems between them), so the pair fastest here may rank second or third there
-FAMILY_CANDIDATES = 3
-
-
-# the columns of the main benchmark's table that fastest_external ranks by
-BENCH_COLUMNS = ("problem", "family", "kind", "solver", "formulation", "backend", "accuracy",
-                 "success", "time_s", "time_limit_s")
-
-
-def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float = ACCURACY
-                     ) -> dict[str, list[str]]:
-    """The external pairs to measure, chosen from the main benchmark's table.
-
-    {"impact": the ``candidates`` fastest external impact pairs on CANDIDATE_FAMILIES, and the
-    FAMILY_CANDIDATES fastest on each of those families where they are not among them already,
-    "frictional": the ``candidates // 3`` (at least one) fastest external pairs of each
-    frictional formulation, "families": per hard family (HARD_FAMILIES), its FAMILY_CANDIDATES
-    fastest external pairs not among "impact" (measured on the family's set only)}, by
-    :func:`ranked` at ``accuracy``.
-
-    Parameters
-    ----------
-    bench : pd.DataFrame
-        The main benchmark's rows, with BENCH_COLUMNS.
-    candidates : int
-        How many of the fastest external impact pairs.
-    accuracy : float, optional
-        The level ranked at; ACCURACY by default.
-
-    Returns
-    -------
-    dict
-        ``impact`` and ``frictional`` pair keys, fastest first, and ``families``: family ->
-        pair keys.
-    """
-    level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
-                  & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
-    frictional = level["kind"].astype(str) == "frictional"
-    chosen: dict[str, Any] = {}
-    impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
-    chosen["impact"] = ranked(impact)[:candidates]
-    for family in CANDIDATE_FAMILIES:  # a family's own fastest, should they rank lower overall
-        for key in ranked(impact[impact["family"].astype(str) == family])[:FAMILY_CANDIDATES]:
-            if key not in chosen["impact"]:
-                chosen["impact"].append(key)
-    chosen["frictional"] = []
-    for formulation in FRICTIONAL_FORMULATIONS:
-        fastest = ranked(level[frictional & (level["formulation"].astype(str) == formulation)])
-        chosen["frictional"] += fastest[:max(1, candidates // 3)]
-    chosen["families"] = {}
-    for family in HARD_FAMILIES:
-        rows = level[~frictional & (level["family"].astype(str) == family)]
-        fastest = [key for key in ranked(rows)[:FAMILY_CANDIDATES]
-                   if key not in chosen["impact"]]
-        if fastest:
-            chosen["families"][family] = fastest
-    return chosen
-
-
-def ranked(frame: pd.DataFrame) -> list[str]:
-    """``solver/formulation`` keys of a results table's rows, fastest first.
-
-    Ranked by the shifted geometric mean of their charged times (``qpbench.bench.stats``);
-    only pairs with a row for every problem of ``frame``.
-
-    Parameters
-    ----------
-    frame : pd.DataFrame
-        Result rows of one accuracy level.
-
-    Returns
-    -------
-    list of str
-        The pair keys, fastest first; empty for an empty frame.
-    """
-    if frame.empty:
-        return []
-    frame = frame.assign(key=stats.solver_keys(frame), charged=stats.charged_times(frame))
-    shift = stats.time_scale_shift(frame)
-    problems = frame["problem"].nunique()
-    sgm = {key: stats.shifted_geometric_mean(group["charged"], shift)
-           for key, group in frame.groupby("key") if group["problem"].nunique() == problems}
-    return sorted(sgm, key=sgm.get)
-
-
 def measure_batch(pairs: Sequence[tuple[SolverSpec, ImpactProblem | FrictionalProblem]],
                   repeats: int, accuracy: float = ACCURACY, pass_number: int = 0,
                   cold_repeats: int = HEAD_TO_HEAD_COLD_REPEATS,
@@ -590,12 +505,13 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         f"table's {accuracy_table.OPTIONS['staggered']['max_outer']} elsewhere), every pair alike; "
         "a failed solve is charged the set's largest time; SGM shifted on the set's "
         "own time scale. External pairs: the fastest of the main benchmark "
-        "(`bench.parquet`) on the grid, dump and box families and per frictional "
-        f"formulation, each family's {FAMILY_CANDIDATES} fastest, and on a hard family's set "
-        f"that family's {FAMILY_CANDIDATES} fastest; one whose times on a set's problems so "
-        f"far, summed, are more than {out_of_running:g} times those of the fastest external "
-        "pair that solved every problem it solved (and one at least) is measured no further "
-        "on that set, nor on the larger size buckets of its family (it cannot be the "
+        "(`bench.parquet`) on the grid, dump and box families and per frictional law "
+        "(Coulomb's, whichever the formulation, Siconos' `fc2d` included; `ccp`) with each "
+        f"formulation's fastest, each family's {FAMILY_CANDIDATES} fastest, and on a hard "
+        f"family's set that family's {FAMILY_CANDIDATES} fastest; one whose times on a set's "
+        f"problems so far, summed, are more than {out_of_running:g} times those of the fastest "
+        "external pair that solved every problem it solved (and one at least) is measured no "
+        "further on that set, nor on the larger size buckets of its family (it cannot be the "
         "fastest; named below)"
         + (f"; so is one with a solve whose untimed warm-up took more than {solve_cap_s:g} s "
            "(the main table's time limit) once such a pair within the cap exists; such a "
@@ -851,7 +767,7 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
         ``few_contacts`` (``few_contacts.few_contacts_summary``), ``markdown``,
         the problem count, the generated problems' seeds per family and the sets not measured.
     """
-    chosen = fastest_external(bench, candidates)
+    chosen = fastest_external(bench, candidates, ACCURACY)
     # fewer contacts first within a set: a pair too slow leaves before the largest problems
     problems = sorted((problem for problem in files.load_all(files.find([str(folder)]))
                        if set_of(problem) is not None),

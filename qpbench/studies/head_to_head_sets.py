@@ -7,7 +7,9 @@ impacts captured from dense piles (scenes ``circle_pile_N`` and ``box_pile_N`` o
 as a set file's ``[[piles]]`` makes them) a set per size bucket (``grids 10-14``, ``box
 packings 1k-4k``, ``dense piles 1k``), so that a speedup is shown per size rather than
 averaged over sizes whose times differ by orders of magnitude. A frictional problem's set
-is its pair's formulation's.
+is named by the model its pair's formulation solves (``coulomb`` or ``ccp``), so that each set
+compares pairs that solve one law; Siconos' granular flows (imported, family ``siconos``) form
+sets of their own.
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
-from qpbench.problem.friction import FrictionalProblem
+from qpbench.problem.friction import MODELS, FrictionalProblem, model_of
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.siconos_import import FAMILY as SICONOS_FAMILY
 
 # generated families of a set each, named by the family; each family's fastest external pair
 # of the main benchmark runs on its set
@@ -36,15 +39,19 @@ SIZE_BUCKETS = {"grid": ("grids", GRID_BUCKETS), "box": ("box packings", BOX_BUC
 PILE_FAMILY = re.compile(r"scene:(?:circle|box)_pile_(\d+)")
 SETS = ("fork 5x5 grid dumps", "fork 7x7 grid scenes", "grid scene captures",
         *(name for name, _, _ in GRID_BUCKETS), *(name for name, _, _ in BOX_BUCKETS),
-        *(name for name, _, _ in PILE_BUCKETS), *HARD_FAMILIES, "frictional (staggered)",
-        "frictional (ccp)")
+        *(name for name, _, _ in PILE_BUCKETS), *HARD_FAMILIES,
+        *(f"frictional ({model})" for model in MODELS),
+        *(f"Siconos granular ({model})" for model in MODELS))
 
 
 def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
     """The head-to-head set a problem of ``problems/head_to_head.toml`` belongs to.
 
-    A frictional problem's set is that of the pair's ``formulation`` (``frictional
-    (staggered)`` or ``frictional (ccp)``: each compares pairs of one formulation, one model).
+    A frictional problem's set is that of the model the pair's ``formulation`` solves
+    (:func:`~qpbench.problem.friction.model_of`): ``frictional (coulomb)`` for staggered
+    projections, the LCP, NSGS and Siconos' ``fc2d`` alike, ``frictional (ccp)`` for Anitescu's
+    relaxation; for a granular flow imported from Siconos, ``Siconos granular (coulomb)`` or
+    ``Siconos granular (ccp)`` (another Siconos problem: ``Siconos (coulomb)``, ...).
     A generated grid or box packing, and an impact of a dense pile (``PILE_FAMILY``: its size
     the pile's bodies), is in the set of its size's bucket (:func:`size_bucket`), a problem of
     a hard family in the set named by the family.
@@ -54,7 +61,8 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
     problem : ImpactProblem or FrictionalProblem
         The problem; an impact problem's set is named by its family (and size).
     formulation : str, optional
-        The pair's formulation, for a frictional problem; empty by default.
+        The pair's formulation, for a frictional problem; empty by default (the Coulomb
+        set).
 
     Returns
     -------
@@ -63,7 +71,10 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
         of no set.
     """
     if isinstance(problem, FrictionalProblem):
-        return f"frictional ({formulation})"
+        prefix = "frictional"
+        if problem.family == SICONOS_FAMILY:
+            prefix = "Siconos granular" if "granular" in problem.name else "Siconos"
+        return f"{prefix} ({model_of(formulation)})"
     family = str(problem.family or "")
     if family == "dump":
         return "fork 5x5 grid dumps"

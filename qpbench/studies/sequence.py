@@ -71,7 +71,8 @@ from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import all_solvers, usable_solvers
 from qpbench.solvers.run import BELOW_FLOOR, judge
-from qpbench.studies.head_to_head import pass_range, ranked, target_sentence
+from qpbench.studies.head_to_head import pass_range, target_sentence
+from qpbench.studies.head_to_head_pairs import ranked
 
 OWN = "pi-robust/lcp"
 # the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
