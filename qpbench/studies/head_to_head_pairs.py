@@ -73,12 +73,11 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float) -> d
     chosen["frictional"] = []
     formulations = level["formulation"].astype(str)
     for model in MODELS:
-        rows = level[frictional & (formulations.map(model_of) == model)]
-        keys = ranked(rows)[:max(1, candidates // 3)]
-        for formulation in sorted(set(rows["formulation"].astype(str))):
-            keys += ranked(rows[rows["formulation"].astype(str) == formulation])[:1]
-        chosen["frictional"] += [key for number, key in enumerate(keys)
-                                 if key not in keys[:number]]
+        of_model = frictional & (formulations.map(model_of) == model)
+        keys = ranked(level[of_model])[:max(1, candidates // 3)]
+        for formulation in sorted(set(formulations[of_model])):
+            keys += ranked(level[of_model & (formulations == formulation)])[:1]
+        chosen["frictional"] += list(dict.fromkeys(keys))  # each once, in order
     chosen["families"] = {}
     for family in HARD_FAMILIES:
         rows = level[~frictional & (level["family"].astype(str) == family)]
