@@ -194,6 +194,45 @@ def test_the_compiled_coulomb_residual_is_qpbenchs_to_the_last_bit() -> None:
                 fm.residual(problem, impulses)
 
 
+def test_the_compiled_loop_reads_ws_blocks_as_scipys_slices_store_them() -> None:
+    """The blocks the compiled loop takes from W's own arrays are, array for array, the CSR
+    arrays of the problem's W_NT, W_TN and W_TT (so its products sum in SciPy's order)."""
+    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.staggered_compiled import _block
+
+    for problem in [pair_on_floor(mu=0.6, seed=1), *_generated_frictional()]:
+        n = problem.n_contacts
+        W = csc_arrays(problem.W)
+        W_TT = problem.W_TT.tocsr()
+        for block, (first_row, end_row, first_column) in (
+                (problem.W_NT, (0, n, n)), (problem.W_TN, (n, 2 * n, 0)),
+                (W_TT, (n, 2 * n, n))):
+            for got, stored in zip(_block(W, first_row, end_row, first_column),
+                                   (block.indptr, block.indices, block.data), strict=True):
+                np.testing.assert_array_equal(got, stored, err_msg=problem.name)
+
+
+def test_the_compiled_loop_reads_the_staggered_row_once_per_level_and_state() -> None:
+    """``staggered_compiled.loop_settings`` serves every problem from one reading of the row,
+    which holds only while none of its entries depends on the problem's scale, and reads it
+    again while a measurement overrides it."""
+    from qpbench.solvers import accuracy, staggered_compiled
+
+    for eps in (1e-2, 1e-8, 1e-10):
+        assert accuracy.options_for(staggered_compiled.ROW, eps, 1.0) == \
+            accuracy.options_for(staggered_compiled.ROW, eps, 3.7e4)
+    settings = staggered_compiled.loop_settings(1e-8)
+    assert settings.inner_eps == pytest.approx(1e-9)
+    cap = accuracy.options_for(staggered_compiled.ROW, 1e-8)["max_outer"]
+    assert settings.max_outer == cap
+    assert staggered_compiled.loop_settings(1e-8) is settings
+    with accuracy.overridden(staggered_compiled.ROW, max_outer=cap + 7):
+        overridden = staggered_compiled.loop_settings(1e-8)
+        assert overridden.max_outer == cap + 7
+        assert overridden.packed[staggered_compiled.OPTION_MAX_OUTER] == cap + 7
+    assert staggered_compiled.loop_settings(1e-8).max_outer == cap
+
+
 def test_a_declined_compiled_loop_leaves_the_answer_to_the_python_loop(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """When a normal solve inside the compiled loop is not certified, the loop ends with

@@ -301,9 +301,12 @@ class FrictionalProblem:
 
     @cached_property
     def W_TT(self) -> sp.csc_matrix:
-        """W_TT = T^T M^-1 T, the tangential block of W (n x n): the friction QP's matrix."""
+        """W_TT = T^T M^-1 T, the tangential block of W (n x n): the friction QP's matrix,
+        its indices sorted."""
         n = self.n_contacts
-        return sp.csc_matrix(sp.csr_matrix(self.W)[n:, n:])
+        W_TT = sp.csc_matrix(sp.csr_matrix(self.W)[n:, n:])
+        W_TT.sort_indices()
+        return W_TT
 
     @cached_property
     def W_NT(self) -> sp.csr_matrix:

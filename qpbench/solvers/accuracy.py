@@ -218,9 +218,11 @@ OPTIONS: dict[str, dict[str, OptionValue]] = {
     "nsgs": {"tol": _relative, "max_sweeps": 100_000, "check_every": 10,
              "stall_sweeps": 1_000, "pivot_contacts": 300, "pivots_per_contact": 50},
     # staggered projections X/staggered: its outer loop and the box Gauss-Seidel written here
-    # (the box QP of X = pi, pgs, lemke, ...); each inner solve reads X's own row at inner_accuracy
+    # (the box QP of X = pi, pgs, lemke, ...); each inner solve reads X's own row at inner_accuracy;
+    # anderson_depth: the rounds mixed into the next round's start (0: the plain loop; chosen
+    # on rough-box-30 seeds, checked on others, docs/notes/pi-robust.md)
     "staggered": {"max_outer": 200, "inner_accuracy": _tenth, "box_max_sweeps": 100_000,
-                  "box_check_every": 10},
+                  "box_check_every": 10, "anderson_depth": 5},
     # --- Siconos (qpbench/solvers/siconos_.py): tol is Siconos' own relative error
     # (||l - max(0, l - w)||_2 / ||q||_2 for an LCP); the dense solvers decline above
     # max_contacts, fc2d's Lemke and enumeration (an LCP of 3 unknowns per contact) above

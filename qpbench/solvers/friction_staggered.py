@@ -17,7 +17,16 @@ multibody systems", SIGGRAPH Asia 2008; the loop follows SCISim's ``StaggeredPro
    conversion inside its time). The answer is clipped into the box (IPOPT relaxes bounds
    slightly). W's blocks are the formulation's matrices, built before the clock;
 3. qpbench's Coulomb residual (``friction_metrics.residual``) of ``(l_N, l_T)``; stop at
-   ``<= eps``, or after ``max_outer`` rounds (the accuracy table's ``staggered`` row).
+   ``<= eps``, or after ``max_outer`` rounds (the accuracy table's ``staggered`` row);
+4. the l_T the next round starts from: that answer in SCISim's loop; here, with the table's
+   ``anderson_depth`` m > 0, the Anderson mixing of the last m + 1 rounds
+   (``qpbench.solvers.anderson``; Walker and Ni 2011), the loop being a fixed-point
+   iteration ``l_T <- G(l_T)``, with the history restarted whenever ``||G(x) - x||`` grows.
+   Each round's iterate is still a staggered one (the normal answer for the l_T it started
+   from, the box answer for that normal answer), judged as in step 3; only where the next
+   round starts changes, so that far fewer rounds are needed where contacts change between
+   sticking and sliding (docs/notes/pi-robust.md, "pi-robust/staggered: the call, and the
+   rounds").
 
 A warm start r is checked first (returned as it is when it already meets eps) and its l_T
 starts the loop. Both inner solves run at accuracy ``inner_accuracy`` (eps / 10, as Acary,
@@ -49,6 +58,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import TINY
 from qpbench.solvers import (
     accuracy,
+    anderson,
     box_sweeps,
     colouring,
     cvxpy_,
@@ -62,7 +72,7 @@ from qpbench.solvers.friction_ccp import derived, frictionless_solvers
 from qpbench.solvers.quiet import c_stdout_silenced
 
 FORMULATION = "staggered"
-ROW = "staggered"  # the accuracy row of the outer loop and of the box Gauss-Seidel
+ROW = staggered_compiled.ROW  # the accuracy row of the outer loop and of the box sweeps
 
 
 @dataclass
@@ -408,8 +418,14 @@ def _share_matrices(sub: ImpactProblem, normal: ImpactProblem) -> None:
 
 
 def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: int,
-              warm_start: np.ndarray | None) -> SolverOutput:
+              warm_start: np.ndarray | None, depth: int = 0) -> SolverOutput:
     """Run the staggered-projections loop of the module docstring on ``problem``.
+
+    With ``depth`` > 0 each round after the first starts from the Anderson mixing of the last
+    ``depth + 1`` rounds' friction impulses (``qpbench.solvers.anderson.anderson_start``)
+    instead of the last answer; the history restarts from the current round when the
+    fixed-point residual ``||G(x) - x||`` grows. Every round's iterate stays a staggered one:
+    the normal answer for the l_T the round started from and the box answer for it.
 
     Parameters
     ----------
@@ -424,6 +440,9 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
     warm_start : np.ndarray or None
         r = (l_N, l_T), shape (2n,); returned as it is when it already meets ``eps``, and
         its l_T starts the loop; None or an unusable guess starts at 0.
+    depth : int, optional
+        Anderson acceleration's depth (the accuracy table's ``anderson_depth``); 0 (the
+        default) for the plain loop.
 
     Returns
     -------
@@ -448,14 +467,18 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
                 return _output(warm, residual, eps, "warm start already converged", 0, inner)
     status = f"max_outer ({max_outer}) reached"
     rounds = 0
+    start = tangential  # l_T that the next round starts from
+    starts: list[np.ndarray] = []  # the last rounds' starts and answers, oldest first
+    answers: list[np.ndarray] = []
+    last_step = np.inf
     while rounds < max_outer:
         rounds += 1
-        solved_normal, normal_status = inner.normal(tangential, normal)
+        solved_normal, normal_status = inner.normal(start, normal)
         if solved_normal is None:
             status = f"normal QP failed: {normal_status}"
             break
         normal = solved_normal
-        solved_tangential, box_status = inner.friction(normal, tangential)
+        solved_tangential, box_status = inner.friction(normal, start)
         if solved_tangential is None:
             status = f"friction QP failed: {box_status}"
             break
@@ -467,6 +490,16 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
         if residual <= eps:
             status = "converged"
             break
+        if depth > 0:
+            step = anderson.step_length(start, tangential)
+            if step > last_step:
+                starts, answers = [], []
+            last_step = step
+            starts = [*starts, start][-(depth + 1):]
+            answers = [*answers, tangential][-(depth + 1):]
+            start = anderson.anderson_start(np.array(starts), np.array(answers))
+        else:
+            start = tangential
     if best is None:
         return SolverOutput(impulses=None, status=status, claimed_success=False,
                             iterations=inner.iterations if inner.known else None,
@@ -521,15 +554,15 @@ def make_solve(spec: SolverSpec, box_solver: BoxSolver) -> Callable[..., SolverO
 
     def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None = None
               ) -> SolverOutput:
-        options = accuracy.options_for(ROW, eps, problem.scale)
         if spec.name in COMPILED_LOOPS:
-            box_options = accuracy.options_for(ROW, options["inner_accuracy"], problem.scale)
-            answer = staggered_compiled.solve(problem, eps, warm_start, options, box_options)
+            answer = staggered_compiled.solve(problem, eps, warm_start)
             if answer is not None:
                 return answer
+        options = accuracy.options_for(ROW, eps, problem.scale)
         inner = Inner(problem, normal_solve, box_solver, spec.warm_start,
                       options["inner_accuracy"])
-        return staggered(problem, inner, eps, options["max_outer"], warm_start)
+        return staggered(problem, inner, eps, options["max_outer"], warm_start,
+                         int(options["anderson_depth"]))
 
     return solve
 

@@ -6,15 +6,17 @@ inside: the normal QP by pi-robust's compiled kernel
 compiled projected Gauss-Seidel (``qpbench.solvers.box_sweeps``), so that no round returns to
 Python. Each round, from (l_N, l_T):
 
-1. ``b_N = q_N + W_NT l_T``; l_N = pi-robust on LCP(W_NN, b_N) at the inner accuracy, started
-   from the last l_N, then ``max(l_N, 0)``;
+1. ``b_N = q_N + W_NT l_T`` for the l_T the round starts from; l_N = pi-robust on
+   LCP(W_NN, b_N) at the inner accuracy, started from the last l_N, then ``max(l_N, 0)``;
 2. the box QP ``(W_TT, q_T + W_TN l_N, -mu l_N, mu l_N)`` (every box empty: l_T = 0) by
-   ``box_sweeps.box_gauss_seidel`` from the last l_T, as the Python loop's box solver, until
-   the box residual is at most ``inner accuracy * scale`` (checked every ``box_check_every``
-   sweeps);
+   ``box_sweeps.box_gauss_seidel`` from the round's l_T, as the Python loop's box solver,
+   until the box residual is at most ``inner accuracy * scale`` (checked every
+   ``box_check_every`` sweeps);
 3. qpbench's Coulomb residual (:func:`coulomb_residual`, the formula of
    ``qpbench.problem.friction_metrics``); the best iterate is kept; stop at ``<= eps`` or after
-   ``max_outer`` rounds.
+   ``max_outer`` rounds;
+4. the next round's l_T: the answer, or with ``anderson_depth`` > 0 the Anderson mixing of
+   the last rounds (``qpbench.solvers.anderson``), as the Python loop does.
 
 Then one normal solve given the best l_T, kept when it is no worse (or meets eps). Products
 are summed in SciPy's order (CSC products column by column, CSR products row by row). A
@@ -26,17 +28,19 @@ time of both counts. The options are the accuracy table's rows of ``staggered`` 
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.solvers import accuracy, pi_robust
+from qpbench.solvers import accuracy, anderson, pi_robust
 from qpbench.solvers.base import SolverOutput
 from qpbench.solvers.box_sweeps import box_gauss_seidel
 from qpbench.solvers.colouring import colour_order
+from qpbench.solvers.pi_robust import NO_START
 from qpbench.solvers.pi_robust_kernel import entry as kernel
 
 # how a call ends
@@ -44,6 +48,10 @@ CONVERGED, MAX_OUTER, WARM_START, FALLBACK = 0, 1, 2, 3
 # which answer it returns
 BEST_ITERATE, FINAL_NORMAL_SOLVE, GIVEN_START = 0, 1, 2
 RETURNED = ("best iterate", "final normal solve", "warm start")
+ROW = "staggered"  # the accuracy table's row of the loop (``friction_staggered.ROW``)
+# the places of the loop's options in ``LoopSettings.packed``
+(OPTION_EPS, OPTION_MAX_OUTER, OPTION_ORDER_ABOVE, OPTION_INNER_EPS, OPTION_BOX_MAX_SWEEPS,
+ OPTION_BOX_CHECK_EVERY, OPTION_ANDERSON_DEPTH) = range(7)
 
 Csc = tuple[np.ndarray, np.ndarray, np.ndarray]  # (indptr, indices, data)
 
@@ -115,6 +123,49 @@ def coulomb_residual(W: Csc, q: np.ndarray, diag_N: np.ndarray, mu: np.ndarray, 
 
 
 @njit(cache=True)
+def _diagonal(A: Csc) -> np.ndarray:
+    """The diagonal of a square matrix given by its CSR (or CSC) arrays; 0 where unstored."""
+    indptr, indices, data = A
+    rows = indptr.size - 1
+    diagonal = np.zeros(rows)
+    for i in range(rows):
+        for k in range(indptr[i], indptr[i + 1]):
+            if indices[k] == i:
+                diagonal[i] += data[k]
+    return diagonal
+
+
+@njit(cache=True)
+def _block(W: Csc, first_row: int, end_row: int, first_column: int) -> Csc:
+    """CSR arrays of ``W[first_row:end_row, first_column:first_column + n]``, n = W's size / 2.
+
+    W is symmetric with sorted indices, so its CSC arrays are its CSR arrays: each row of the
+    block is the part of a column of W in the column range, in stored order (as SciPy's
+    slicing of W's CSR form gives it).
+    """
+    indptr, indices, data = W
+    n = (indptr.size - 1) // 2
+    rows = end_row - first_row
+    starts = np.zeros(rows + 1, dtype=np.int32)
+    for i in range(rows):
+        count = 0
+        for k in range(indptr[first_row + i], indptr[first_row + i + 1]):
+            if first_column <= indices[k] < first_column + n:
+                count += 1
+        starts[i + 1] = starts[i] + count
+    columns = np.empty(starts[rows], dtype=np.int32)
+    entries = np.empty(starts[rows])
+    for i in range(rows):
+        place = starts[i]
+        for k in range(indptr[first_row + i], indptr[first_row + i + 1]):
+            if first_column <= indices[k] < first_column + n:
+                columns[place] = indices[k] - first_column
+                entries[place] = data[k]
+                place += 1
+    return starts, columns, entries
+
+
+@njit(cache=True)
 def _normal_solve(W_NN: Csc, W_NT: Csc, q: np.ndarray, diag_N: np.ndarray,
                   tangential: np.ndarray, start: np.ndarray, order_above: int,
                   max_work: float, normal_options: np.ndarray):
@@ -145,52 +196,45 @@ def _box_solve(W_TT: Csc, diag_T: np.ndarray, colour_order: np.ndarray, W_TN: Cs
 
 
 @njit(cache=True)
-def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
-                        q: np.ndarray, diag_N: np.ndarray, diag_T: np.ndarray, mu: np.ndarray,
-                        scale: float, colour_order: np.ndarray, warm_start: np.ndarray,
-                        eps: float, max_outer: int, normal_options: np.ndarray,
-                        order_above: int, max_work: float, box_tolerance: float,
-                        box_max_sweeps: int, box_check_every: int):
+def staggered_pi_robust(W: Csc, W_NN: Csc, q: np.ndarray, diag_N: np.ndarray, mu: np.ndarray,
+                        scale: float, warm_start: np.ndarray, normal_options: np.ndarray,
+                        max_work: float, loop_options: np.ndarray):
     """Staggered projections with pi-robust inside (module docstring), in one compiled call.
+
+    W's blocks of the two QPs are read from W's own arrays (:func:`_block`), and the loop's
+    options come packed in one array (:func:`loop_settings`): a call's arguments are few,
+    since each costs the dispatcher time to type.
 
     Parameters
     ----------
     W : Csc
-        W's CSC arrays, shape (2n, 2n), for the Coulomb residual.
+        W's CSC arrays, shape (2n, 2n), indices sorted: for the Coulomb residual, and, W being
+        symmetric (so its CSC arrays are its CSR arrays), the coupling blocks W_NT, W_TN and
+        the tangential block W_TT (the box QP's P), whose diagonal and whose contacts in a
+        stable order of their greedy colours
+        (``qpbench.solvers.colouring.colour_order``) the box sweeps take.
     W_NN : Csc
         The normal block's CSC arrays (pi-robust's Q).
-    W_NT, W_TN : Csc
-        The coupling blocks' CSR arrays.
-    W_TT : Csc
-        The tangential block's CSR arrays, indices sorted (the box QP's P).
     q : np.ndarray
         The free velocity, shape (2n,).
-    diag_N, diag_T : np.ndarray
-        The diagonals of W_NN and W_TT, shape (n,).
+    diag_N : np.ndarray
+        The diagonal of W_NN, shape (n,).
     mu : np.ndarray
         The friction coefficients, shape (n,).
     scale : float
         The problem's residual scale (a velocity).
-    colour_order : np.ndarray
-        The contacts in a stable order of their greedy colours on W_TT.
     warm_start : np.ndarray
         r, shape (2n,), or an empty array for none.
-    eps : float
-        The Coulomb residual to reach.
-    max_outer : int
-        The most rounds.
     normal_options : np.ndarray
         pi-robust's kernel options at the inner accuracy, packed.
-    order_above : int
-        Above this many contacts the kernel reorders a wide envelope.
     max_work : float
         The kernel's most work for one envelope factorization; above it, it declines.
-    box_tolerance : float
-        The box residual to reach (inner accuracy times scale).
-    box_max_sweeps : int
-        The most sweeps of each box solve.
-    box_check_every : int
-        Sweeps between the box residual's checks.
+    loop_options : np.ndarray
+        The loop's options (``LoopSettings.packed``): the Coulomb residual to reach, the most
+        rounds, the contacts above which the kernel reorders a wide envelope, the inner
+        accuracy (the box residual to reach is it times ``scale``), the most sweeps of each
+        box solve, the sweeps between the box residual's checks and Anderson acceleration's
+        depth (the Python loop's ``depth``; 0 for the plain loop).
 
     Returns
     -------
@@ -210,6 +254,17 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
         Which answer: BEST_ITERATE, FINAL_NORMAL_SOLVE or GIVEN_START.
     """
     n = diag_N.size
+    eps = loop_options[OPTION_EPS]
+    max_outer = int(loop_options[OPTION_MAX_OUTER])
+    order_above = int(loop_options[OPTION_ORDER_ABOVE])
+    box_tolerance = loop_options[OPTION_INNER_EPS] * scale
+    box_max_sweeps = int(loop_options[OPTION_BOX_MAX_SWEEPS])
+    box_check_every = int(loop_options[OPTION_BOX_CHECK_EVERY])
+    depth = int(loop_options[OPTION_ANDERSON_DEPTH])
+    W_NT, W_TN = _block(W, 0, n, n), _block(W, n, 2 * n, 0)
+    W_TT = _block(W, n, 2 * n, n)
+    diag_T = _diagonal(W_TT)
+    sweep_order = colour_order(W_TT[0], W_TT[1])
     normal, tangential = np.zeros(n), np.zeros(n)
     best, best_residual = np.zeros(0), np.inf
     iterations, solves = 0, 0
@@ -221,16 +276,19 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
             return best, best_residual, WARM_START, 0, 0, 0, GIVEN_START
     ending = MAX_OUTER
     rounds = 0
+    start = tangential  # l_T that the next round starts from
+    starts, answers = np.empty((depth + 1, n)), np.empty((depth + 1, n))  # oldest first
+    kept, last_step = 0, np.inf
     while rounds < max_outer:
         rounds += 1
-        normal, used, ok = _normal_solve(W_NN, W_NT, q, diag_N, tangential, normal,
+        normal, used, ok = _normal_solve(W_NN, W_NT, q, diag_N, start, normal,
                                          order_above, max_work, normal_options)
         if not ok:
             return best, best_residual, FALLBACK, rounds, iterations, solves, BEST_ITERATE
         iterations += used
         solves += 1
-        tangential, sweeps, counted = _box_solve(W_TT, diag_T, colour_order, W_TN, q, mu,
-                                                 normal, tangential, box_tolerance,
+        tangential, sweeps, counted = _box_solve(W_TT, diag_T, sweep_order, W_TN, q, mu,
+                                                 normal, start, box_tolerance,
                                                  box_max_sweeps, box_check_every)
         if counted:
             iterations += sweeps
@@ -242,6 +300,20 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
         if residual <= eps:
             ending = CONVERGED
             break
+        if depth > 0:  # as the Python loop: restart when ||G(x) - x|| grows, then mix
+            step = anderson.step_length(start, tangential)
+            if step > last_step:
+                kept = 0
+            last_step = step
+            if kept == depth + 1:
+                starts[:depth] = starts[1:]
+                answers[:depth] = answers[1:]
+                kept = depth
+            starts[kept], answers[kept] = start, tangential
+            kept += 1
+            start = anderson.anderson_start(starts[:kept], answers[:kept])
+        else:
+            start = tangential
     if best.size == 0:  # no finite residual in any round: the Python loop says so
         return best, best_residual, FALLBACK, rounds, iterations, solves, BEST_ITERATE
     # one normal solve given the best friction impulse (SCISim: "to prevent penetration")
@@ -265,6 +337,48 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, W_NT: Csc, W_TN: Csc, W_TT: Csc,
 _warm = False
 
 
+class LoopSettings(NamedTuple):
+    """The ``staggered`` row's options at one level, for the compiled loop."""
+
+    packed: np.ndarray  # the loop's options, at the places named above
+    inner_eps: float  # the accuracy of the inner solves
+    max_outer: int  # the most rounds
+
+
+def loop_settings(eps: float) -> LoopSettings:
+    """The ``staggered`` row's options at level ``eps`` for the compiled loop.
+
+    Read once per level and per state of the row (``accuracy.overridden`` may change it for
+    a measurement): its entries are relative to the problem's scale (none reads it), so one
+    reading serves every problem; the box residual to reach is the inner accuracy times the
+    scale, formed in the loop.
+
+    Parameters
+    ----------
+    eps : float
+        The Coulomb residual to reach.
+
+    Returns
+    -------
+    LoopSettings
+        The packed options, the inner accuracy and the most rounds. Cached: callers must not
+        change them.
+    """
+    return _loop_settings(eps, tuple(accuracy.OPTIONS[ROW].items()))
+
+
+@functools.lru_cache(maxsize=64)
+def _loop_settings(eps: float, row: tuple) -> LoopSettings:
+    """:func:`loop_settings` for the row's entries ``row`` (the cache's key)."""
+    options = accuracy.options_for(ROW, eps)
+    inner_eps = float(options["inner_accuracy"])
+    box_options = accuracy.options_for(ROW, inner_eps)
+    packed = np.array([eps, options["max_outer"], pi_robust.ORDERING_ABOVE, inner_eps,
+                       box_options["box_max_sweeps"], box_options["box_check_every"],
+                       options["anderson_depth"]], dtype=float)
+    return LoopSettings(packed=packed, inner_eps=inner_eps, max_outer=int(options["max_outer"]))
+
+
 def warm_up() -> None:
     """Compiles (or loads from numba's cache) the loop once in this process.
 
@@ -274,24 +388,27 @@ def warm_up() -> None:
     if _warm:
         return
     kernel.warm_up()
+    anderson.warm_up()
     one = (np.array([0, 1], dtype=np.int32), np.array([0], dtype=np.int32), np.array([1.0]))
     W = (np.array([0, 1, 2], dtype=np.int32), np.array([0, 1], dtype=np.int32),
          np.array([1.0, 1.0]))
-    zero = (np.array([0, 0], dtype=np.int32), np.zeros(0, dtype=np.int32), np.zeros(0))
-    options = kernel.options_of(accuracy.options_for(pi_robust.NAME, 1e-9))
-    staggered_pi_robust(W, one, zero, zero, one, np.array([-1.0, 0.5]), np.ones(1), np.ones(1),
-                        np.array([0.5]), 1.0, np.zeros(1, dtype=np.int64), np.empty(0), 1e-8,
-                        10, options, 64, 1e7, 1e-9, 100, 10)
+    settings = loop_settings(1e-8)
+    normal = pi_robust.settings_for(settings.inner_eps)
+    staggered_pi_robust(W, one, np.array([-1.0, 0.5]), np.ones(1), np.array([0.5]), 1.0,
+                        np.empty(0), normal.kernel, normal.compiled_work_limit,
+                        settings.packed)
     _warm = True
 
 
-def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None,
-          options: dict[str, Any], box_options: dict[str, Any]) -> SolverOutput | None:
+def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None
+          ) -> SolverOutput | None:
     """pi-robust/staggered in one compiled call, or None when the Python loop must run.
 
-    The Python loop runs instead with no contacts, more than pi-robust's
-    ``compiled_limit``, on ``FALLBACK``, or when the residual lies at eps and qpbench's
-    own metric decides otherwise.
+    The options are the accuracy table's rows of ``staggered`` (:func:`loop_settings`) and of
+    ``pi-robust`` at the inner accuracy (``pi_robust.settings_for``), as in the Python loop.
+    The Python loop runs instead with no contacts, more than pi-robust's ``compiled_limit``,
+    on ``FALLBACK``, or when the residual lies at eps and qpbench's own metric decides
+    otherwise.
 
     Parameters
     ----------
@@ -301,10 +418,6 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None,
         The Coulomb residual to reach.
     warm_start : np.ndarray or None
         A guess of r = (l_N, l_T); None for none.
-    options : dict[str, Any]
-        The ``staggered`` row's options at eps (``max_outer``, ``inner_accuracy``).
-    box_options : dict[str, Any]
-        The same row at the inner accuracy (``box_max_sweeps``, ``box_check_every``).
 
     Returns
     -------
@@ -312,36 +425,29 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None,
         r, status, the Coulomb residual's test as claim, the inner iterations and the
         loop's facts in ``info``; None when the Python loop must run.
     """
-    n = problem.n_contacts
-    inner_eps = options["inner_accuracy"]
-    settings = pi_robust.settings_for(inner_eps)
-    if not 0 < n <= settings.compiled_limit:
+    settings = loop_settings(eps)
+    normal = pi_robust.settings_for(settings.inner_eps)
+    diag_N = problem.diag_N
+    if not 0 < diag_N.size <= normal.compiled_limit:
         return None
-    W_TT = problem.W_TT
-    W_TT.sort_indices()
-    sweep_order = colour_order(W_TT.indptr, W_TT.indices)
-    start = np.empty(0) if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
+    start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     impulses, residual, ending, rounds, iterations, solves, returned = staggered_pi_robust(
-        pi_robust.csc_arrays(problem.W), pi_robust.csc_arrays(problem.normal.Q),
-        _arrays(problem.W_NT), _arrays(problem.W_TN), _arrays(W_TT), problem.q,
-        problem.diag_N, W_TT.diagonal(), problem.mu, problem.scale, sweep_order, start,
-        eps, int(options["max_outer"]), settings.kernel, pi_robust.ORDERING_ABOVE,
-        settings.compiled_work_limit, inner_eps * problem.scale,
-        int(box_options["box_max_sweeps"]), int(box_options["box_check_every"]))
+        pi_robust.csc_arrays(problem.W), pi_robust.csc_arrays(problem.normal.Q), problem.q,
+        diag_N, problem.mu, problem.scale, start, normal.kernel, normal.compiled_work_limit,
+        settings.packed)
     if ending == FALLBACK:
         return None
     if abs(residual - eps) <= 1e-9 * eps and (  # at the line: qpbench's own metric decides
             (friction_metrics.residual(problem, impulses) <= eps) != (residual <= eps)):
         return None
-    status = {CONVERGED: "converged", WARM_START: "warm start already converged"}.get(
-        ending, f"max_outer ({options['max_outer']}) reached")
+    if ending == CONVERGED:
+        status = "converged"
+    elif ending == WARM_START:
+        status = "warm start already converged"
+    else:
+        status = f"max_outer ({settings.max_outer}) reached"
     return SolverOutput(impulses=impulses, status=status, claimed_success=bool(residual <= eps),
                         iterations=int(iterations) if solves else None,
                         info={"outer_iterations": int(rounds), "inner_solves": int(solves),
                               "residual": float(residual), "returned": RETURNED[returned],
                               "compiled": True})
-
-
-def _arrays(matrix: Any) -> Csc:
-    """(indptr, indices, data) of a SciPy CSR or CSC matrix, as stored."""
-    return matrix.indptr, matrix.indices, matrix.data

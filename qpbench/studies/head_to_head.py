@@ -59,10 +59,11 @@ two sets, one per model (``coulomb``: pi-robust's ``staggered`` against every fo
 exact law; ``ccp``), so that each compares pairs that solve the same law, and Siconos' granular
 flows two more; a problem that neither pair solves (staggered projections need not converge) is
 charged to both and named. Staggered pairs run here up to ``STAGGERED_MAX_OUTER`` rounds, every
-pair alike, instead of the accuracy table's cap: at 1e-8 rough-box-30 needs about 1,700 rounds,
-and under the table's 200 no pair solves it, so the set would compare nothing there. On the
-problems of a few contacts, where a solve is mostly the call itself, the verdict is per
-problem instead (``qpbench.studies.few_contacts``): pi-robust the fastest pair on each.
+pair alike, instead of the accuracy table's cap: at 1e-8 rough-box-30 of seed 0 needs about
+1,700 rounds (with the loop's Anderson mixing too), and under the table's 200 no pair solves it,
+so the set would compare nothing there. On the problems of a few contacts, where a solve is
+mostly the call itself, the verdict is per problem instead (``qpbench.studies.few_contacts``):
+pi-robust the fastest pair on each.
 """
 
 from __future__ import annotations
