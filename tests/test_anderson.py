@@ -52,3 +52,19 @@ def test_staggered_rounds_fall_with_anderson_mixing_and_the_answer_meets_the_law
     for output in (mixed, plain):
         assert friction_metrics.residual(problem, output.impulses) <= 1e-8
     assert 3 * mixed.info["outer_iterations"] <= plain.info["outer_iterations"]
+
+
+@pytest.mark.parametrize("seed", [0, 630601])
+def test_on_the_wedge_which_has_no_solution_mixing_does_not_extrapolate_without_end(
+        seed: int) -> None:
+    """Without a fixed point the fit would extrapolate further each round (impulses of 3e14
+    after 2,000 rounds on seed 630601, each round slower); with the longest mixes refused the
+    answer stays within two orders of magnitude of the plain loop's."""
+    problem = generate("wedge", 1, seed=seed)[0]
+    spec = registry.get("pi-robust/staggered", "frictional")
+    with accuracy.overridden("staggered", max_outer=2000):
+        mixed = call_solver(spec, problem, 1e-8)
+        with accuracy.overridden("staggered", anderson_depth=0):
+            plain = call_solver(spec, problem, 1e-8)
+    assert mixed.info["outer_iterations"] == 2000
+    assert np.abs(mixed.impulses).max() <= 100 * np.abs(plain.impulses).max()

@@ -25,6 +25,11 @@ import numpy as np
 from numba import njit
 
 DEPENDENT = 1e-10  # a difference whose new part is below this share of its length is dropped
+# a mixed start longer than this many times the longest answer mixed is refused (the map's
+# own answer starts the round instead): where the iteration has no fixed point (a problem
+# without a solution) the fit extrapolates ever further, and the inner solves slow down;
+# 2 and 10 refused mixes that rough boxes need (docs/notes/pi-robust.md)
+GROWTH = 1e3
 
 
 @njit(cache=True)
@@ -70,7 +75,8 @@ def anderson_start(starts: np.ndarray, answers: np.ndarray) -> np.ndarray:
     -------
     np.ndarray
         ``g_k - dG gamma``, shape (n,); ``g_k`` itself when k = 1, when every difference is
-        dropped, or when the fit is not finite.
+        dropped, or when the mixed start is not finite or is more than ``GROWTH`` times as
+        long as the longest of the answers.
     """
     rounds, n = starts.shape
     latest = answers[rounds - 1].copy()
@@ -113,9 +119,12 @@ def anderson_start(starts: np.ndarray, answers: np.ndarray) -> np.ndarray:
         if gamma[j] != 0.0:
             for i in range(n):
                 start[i] -= gamma[j] * answer_differences[j, i]
-    for i in range(n):
-        if not math.isfinite(start[i]):
-            return latest
+    longest = 0.0
+    for k in range(rounds):
+        longest = max(longest, math.sqrt(_dot(answers[k], answers[k])))
+    length = math.sqrt(_dot(start, start))
+    if not math.isfinite(length) or length > GROWTH * longest:
+        return latest
     return start
 
 

@@ -587,16 +587,19 @@ def twin(spec: SolverSpec) -> SolverSpec:
         return make_solve(inner, box_solver), (f"staggered projections: normal QP by "
                                                f"{inner.key}, friction box QP by {box_name}")
 
-    def prepare() -> None:  # the inner solver's set-up, the compiled box sweeps and loop
+    sweeps_here = spec.backend not in BOUNDED_BACKENDS
+
+    def prepare() -> None:  # the inner solver's set-up, the compiled mixing, sweeps and loop
         if spec.prepare is not None:
             spec.prepare()
-        box_sweeps.warm_up()
+        anderson.warm_up()
+        if sweeps_here:
+            box_sweeps.warm_up()
         if spec.name in COMPILED_LOOPS:
             staggered_compiled.warm_up()
 
-    sweeps_here = spec.backend not in BOUNDED_BACKENDS
     return derived(spec, FORMULATION, build, warm_start=True, own_stopping_rule=True,
-                   prepare=prepare if sweeps_here else spec.prepare)
+                   prepare=prepare)
 
 
 registry.register_derivation(
