@@ -128,15 +128,57 @@ def anderson_start(starts: np.ndarray, answers: np.ndarray) -> np.ndarray:
     return start
 
 
+@njit(cache=True)
+def next_start(starts: np.ndarray, answers: np.ndarray, kept: int, last_step: float,
+               start: np.ndarray, answer: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """The next round's start after the round from ``start`` to ``answer``, the history
+    updated in place: the one rule of both staggered loops.
+
+    The history restarts from this round when its step ``||answer - start||`` is longer than
+    the round before's; it keeps the last ``depth + 1`` rounds (``depth + 1`` the history's
+    rows), whose :func:`anderson_start` is the next start (a copy of ``answer`` at depth 0).
+
+    Parameters
+    ----------
+    starts, answers : np.ndarray
+        The history, shape (depth + 1, n), oldest first; its first ``kept`` rows are filled.
+    kept : int
+        The rounds the history holds.
+    last_step : float
+        The step of the round before (infinite before the first round).
+    start, answer : np.ndarray
+        This round's start x_k and answer G(x_k), shape (n,).
+
+    Returns
+    -------
+    next_start : np.ndarray
+        The start of the next round, shape (n,).
+    kept : int
+        The rounds the history now holds.
+    step : float
+        This round's step, the next call's ``last_step``.
+    """
+    depth = starts.shape[0] - 1
+    step = step_length(start, answer)
+    if step > last_step:
+        kept = 0
+    if kept == depth + 1:
+        starts[:depth] = starts[1:]
+        answers[:depth] = answers[1:]
+        kept = depth
+    starts[kept], answers[kept] = start, answer
+    kept += 1
+    return anderson_start(starts[:kept], answers[:kept]), kept, step
+
+
 _warm = False
 
 
 def warm_up() -> None:
-    """Compiles (or loads from numba's cache) both functions once in this process."""
+    """Compiles (or loads from numba's cache) the functions once in this process."""
     global _warm
     if _warm:
         return
-    history = np.array([[0.0, 0.0], [1.0, 0.5]])
-    anderson_start(history, history + 0.25)
-    step_length(history[0], history[1])
+    history = np.zeros((2, 2))
+    next_start(history, history.copy(), 0, np.inf, np.zeros(2), np.ones(2))
     _warm = True

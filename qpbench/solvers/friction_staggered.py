@@ -422,9 +422,9 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
     """Run the staggered-projections loop of the module docstring on ``problem``.
 
     With ``depth`` > 0 each round after the first starts from the Anderson mixing of the last
-    ``depth + 1`` rounds' friction impulses (``qpbench.solvers.anderson.anderson_start``)
-    instead of the last answer; the history restarts from the current round when the
-    fixed-point residual ``||G(x) - x||`` grows. Every round's iterate stays a staggered one:
+    ``depth + 1`` rounds' friction impulses (``qpbench.solvers.anderson.next_start``) instead
+    of the last answer; the history restarts from the current round when the fixed-point
+    residual ``||G(x) - x||`` grows. Every round's iterate stays a staggered one:
     the normal answer for the l_T the round started from and the box answer for it.
 
     Parameters
@@ -468,9 +468,8 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
     status = f"max_outer ({max_outer}) reached"
     rounds = 0
     start = tangential  # l_T that the next round starts from
-    starts: list[np.ndarray] = []  # the last rounds' starts and answers, oldest first
-    answers: list[np.ndarray] = []
-    last_step = np.inf
+    starts, answers = np.empty((depth + 1, n)), np.empty((depth + 1, n))  # the mixing's history
+    kept, last_step = 0, np.inf
     while rounds < max_outer:
         rounds += 1
         solved_normal, normal_status = inner.normal(start, normal)
@@ -490,16 +489,8 @@ def staggered(problem: FrictionalProblem, inner: Inner, eps: float, max_outer: i
         if residual <= eps:
             status = "converged"
             break
-        if depth > 0:
-            step = anderson.step_length(start, tangential)
-            if step > last_step:
-                starts, answers = [], []
-            last_step = step
-            starts = [*starts, start][-(depth + 1):]
-            answers = [*answers, tangential][-(depth + 1):]
-            start = anderson.anderson_start(np.array(starts), np.array(answers))
-        else:
-            start = tangential
+        start, kept, last_step = anderson.next_start(starts, answers, kept, last_step,
+                                                     np.asarray(start, dtype=float), tangential)
     if best is None:
         return SolverOutput(impulses=None, status=status, claimed_success=False,
                             iterations=inner.iterations if inner.known else None,

@@ -277,7 +277,7 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, q: np.ndarray, diag_N: np.ndarray, mu
     ending = MAX_OUTER
     rounds = 0
     start = tangential  # l_T that the next round starts from
-    starts, answers = np.empty((depth + 1, n)), np.empty((depth + 1, n))  # oldest first
+    starts, answers = np.empty((depth + 1, n)), np.empty((depth + 1, n))  # the mixing's history
     kept, last_step = 0, np.inf
     while rounds < max_outer:
         rounds += 1
@@ -300,20 +300,8 @@ def staggered_pi_robust(W: Csc, W_NN: Csc, q: np.ndarray, diag_N: np.ndarray, mu
         if residual <= eps:
             ending = CONVERGED
             break
-        if depth > 0:  # as the Python loop: restart when ||G(x) - x|| grows, then mix
-            step = anderson.step_length(start, tangential)
-            if step > last_step:
-                kept = 0
-            last_step = step
-            if kept == depth + 1:
-                starts[:depth] = starts[1:]
-                answers[:depth] = answers[1:]
-                kept = depth
-            starts[kept], answers[kept] = start, tangential
-            kept += 1
-            start = anderson.anderson_start(starts[:kept], answers[:kept])
-        else:
-            start = tangential
+        start, kept, last_step = anderson.next_start(starts, answers, kept, last_step, start,
+                                                     tangential)
     if best.size == 0:  # no finite residual in any round: the Python loop says so
         return best, best_residual, FALLBACK, rounds, iterations, solves, BEST_ITERATE
     # one normal solve given the best friction impulse (SCISim: "to prevent penetration")
