@@ -219,16 +219,16 @@ def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor()
 
     problem = hard_problem("grid", 5, seed=0)
     entry.warm_up()  # its own call of the kernel comes before the patch
-    kernel = entry.envelope_pi_robust
+    kernel = entry.pi_robust_into
 
     def refusing(*args: object, **kwargs: object) -> None:
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
-    entry.envelope_pi_robust = refusing
+    entry.pi_robust_into = refusing
     try:
         row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     finally:
-        entry.envelope_pi_robust = kernel
+        entry.pi_robust_into = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
@@ -237,11 +237,11 @@ def test_pi_robust_returns_a_certified_answer_as_confirmed_would() -> None:
     """solve() returns the kernel's certified answer itself, without calling _confirmed: the
     output is the one _confirmed gives that answer (same l, status, count and info)."""
     from qpbench.solvers import pi_robust
-    from qpbench.solvers.pi_robust_kernel.entry import envelope_pi_robust
 
     settings = pi_robust.settings_for(1e-8)
     for problem in [hard_problem("grid", 5, seed=0), generate("grid", 7, seed=0)[0]]:
-        answer = pi_robust.kernel_call(envelope_pi_robust, problem, settings, None)
+        impulses, scalars = pi_robust.kernel_into(problem, settings, None)
+        answer = (impulses, *scalars)
         assert answer[6], "the kernel certified its answer"
         confirmed = pi_robust._confirmed(problem, settings, answer[0], answer)
         returned = pi_robust.solve(problem, 1e-8)
@@ -324,9 +324,9 @@ def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decid
     from qpbench.solvers import lemke
     from qpbench.solvers.pi_robust_kernel import entry as kernel
 
-    def failed_in_full(*args: object) -> tuple:
-        b = args[3]
-        return np.zeros_like(b), False, kernel.PATH_NONE, 0, 0, 0, False
+    def failed_in_full(*args: np.ndarray) -> tuple:
+        args[4][:] = 0.0  # l, written into the caller's array
+        return False, kernel.PATH_NONE, 0, 0, 0, False
 
     calls = []
     original = lemke.lemke
@@ -336,7 +336,7 @@ def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decid
         impulses, _, _, pivots = original(*args, **kwargs)
         return impulses, False, "pivoting ended above tolerance", pivots
 
-    monkeypatch.setattr(kernel, "envelope_pi_robust", failed_in_full)
+    monkeypatch.setattr(kernel, "pi_robust_into", failed_in_full)
     monkeypatch.setattr(lemke, "lemke", above_tolerance)
     problem = generate("grid", 4, seed=3)[0]
     row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)

@@ -478,6 +478,36 @@ def test_the_kernels_packed_options_unpack_to_the_accuracy_table_row() -> None:
 
 
 
+@pytest.mark.parametrize("family, size, seed", [("k3", None, 0), ("cradle", 5, 1), ("grid", 5, 2),
+                                                ("grid", 9, 3), ("mass-ratio", 7, 4)])
+def test_the_narrow_entry_gives_the_wide_entrys_answer(family: str, size: int | None,
+                                                       seed: int) -> None:
+    """pi_robust_into, which solve() calls (l written into the caller's array, diag(Q) read
+    from Q), answers as envelope_pi_robust does from the same start: the same l to the last
+    bit and the same counts, from zero (a first entry NaN) and from a start."""
+    from qpbench.problem.formulations import pose
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_kernel import entry
+
+    problem = generate(family, size, seed=seed)[0]
+    pose(problem, "lcp")
+    settings = pi_robust.settings_for(1e-8)
+    Q = problem.Q
+    half = 0.5 * pi_robust.solve(problem, 1e-8).impulses
+    for start in (None, half):
+        wide = entry.envelope_pi_robust(
+            Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
+            pi_robust.NO_START if start is None else start, pi_robust.ORDERING_ABOVE,
+            settings.compiled_work_limit, settings.kernel)
+        impulses, narrow = pi_robust.kernel_into(problem, settings, start)
+        assert np.array_equal(impulses, wide[0])
+        assert narrow == wide[1:]
+    # a start of the wrong size starts from zero, as in the Python path
+    impulses, narrow = pi_robust.kernel_into(problem, settings, np.ones(problem.b.size + 1))
+    _, cold = pi_robust.kernel_into(problem, settings, None)
+    assert narrow == cold
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_a_prox_steps_drift_is_followed_to_the_first_free_contact_at_zero(compiled: bool) -> None:
     """A settled prox step's change d of l, as long as the step before's (a drift along Q_FF's

@@ -596,6 +596,8 @@ class Settings(NamedTuple):
     """pi-robust's accuracy-table row at one level, split by who reads it."""
 
     kernel: np.ndarray  # the compiled path's options, packed (pi_robust_kernel.entry.options_of)
+    # pi_robust_into's: ORDERING_ABOVE, compiled_work_limit, then ``kernel``
+    call_options: np.ndarray
     python: dict  # the Python path's keyword arguments (without tol's scale: it is relative)
     dense_limit: int
     compiled_limit: int
@@ -625,10 +627,12 @@ def settings_for(eps: float) -> Settings:
                                                 "compiled_work_limit")}
     kernel = kernel_entry.options_of(options)
     options.pop("start_sweeps")  # the compiled path's alone
-    return Settings(kernel=kernel, python=options,
+    work_limit = float(limits["compiled_work_limit"])
+    return Settings(kernel=kernel, call_options=kernel_entry.call_options_of(
+                        ORDERING_ABOVE, work_limit, kernel), python=options,
                     dense_limit=int(limits["dense_limit"]),
                     compiled_limit=int(limits["compiled_limit"]),
-                    compiled_work_limit=float(limits["compiled_work_limit"]))
+                    compiled_work_limit=work_limit)
 
 
 def _unconfirmed(problem: ImpactProblem, settings: Settings, answer: tuple,
@@ -649,11 +653,10 @@ def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: 
     ``kernel`` gets Q's CSC arrays, b, diag(Q), the start (empty: from zero),
     ``after_start``, the ordering threshold, the work limit and the packed options.
 
-    The relaxed solve runs this inside the stopwatch, straight after the posing has emptied
-    the caches, and :func:`solve` makes the same call itself, so it touches as little Python
-    as it can: Q is CSC by construction (``ImpactProblem.Q``), b and diag(Q) float arrays,
-    and Q's index arrays go as SciPy made them (32-bit at these sizes, the type
-    :func:`prepare` compiles the kernel for).
+    The relaxed solve runs this inside the stopwatch, so it touches as little Python as it
+    can: Q is CSC by construction (``ImpactProblem.Q``), b and diag(Q) float arrays, and Q's
+    index arrays go as SciPy made them (32-bit at these sizes, the type :func:`prepare`
+    compiles the kernel for). :func:`solve` calls the narrower :func:`kernel_into`.
 
     Parameters
     ----------
@@ -685,6 +688,43 @@ def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: 
     return kernel(Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
                   NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
                   *after_start, ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
+
+
+def kernel_into(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray | None
+                ) -> tuple[np.ndarray, tuple]:
+    """Solve ``problem`` by the compiled kernel through its narrow entry ``pi_robust_into``,
+    as :func:`solve` does inside the stopwatch; l is written into an array made here, which
+    first holds the start (a first entry NaN: from zero, as ``entry.clean_start`` has it).
+
+    Parameters
+    ----------
+    problem : ImpactProblem
+        The posed problem.
+    settings : Settings
+        The accuracy level's row (:func:`settings_for`): its ``call_options``.
+    warm_start : np.ndarray or None
+        A start; None, or one not of one entry a contact, starts from zero (``Lcp.start``).
+
+    Returns
+    -------
+    tuple
+        l, and ``pi_robust_into``'s scalars (converged, path, solves, interior iterations,
+        factorizations, certified).
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When a factor fails in the kernel.
+    """
+    n = problem.b.size
+    impulses = np.empty(n)
+    if warm_start is not None and np.size(warm_start) == n:
+        impulses[:] = np.ravel(warm_start)
+    else:
+        impulses[0] = np.nan
+    Q = problem.Q
+    return impulses, kernel_entry.pi_robust_into(Q.indptr, Q.indices, Q.data, problem.b,
+                                                 impulses, settings.call_options)
 
 
 def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
@@ -810,33 +850,32 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
     Notes
     -----
     Up to the accuracy table's ``compiled_limit`` contacts the compiled kernel
-    (``pi_robust_kernel.entry.envelope_pi_robust``) runs straight from the posed problem. Its
-    answer is returned when its rounding bound certifies it (the usual case, built here without
-    further calls, as :func:`_confirmed` would build it) or when qpbench's residual confirms it
-    (:func:`_unconfirmed`); otherwise the Python path (:func:`pi_robust`) runs.
+    (``pi_robust_kernel.entry.envelope_pi_robust``, called through its narrow entry
+    ``pi_robust_into``: l written into an array made here) runs straight from the posed
+    problem. Its answer is returned when its rounding bound certifies it (the usual case, built
+    here without further calls, as :func:`_confirmed` would build it) or when qpbench's residual
+    confirms it (:func:`_unconfirmed`); otherwise the Python path (:func:`pi_robust`) runs.
     """
     settings = settings_for(eps)
     # b's size is the number of contacts (b is posed; n_contacts would read G's shape)
-    compiled = 0 < problem.b.size <= settings.compiled_limit
+    n = problem.b.size
+    compiled = 0 < n <= settings.compiled_limit
     if compiled:
         kernel = kernel_entry
-        Q = problem.Q
         try:
-            answer = kernel.envelope_pi_robust(
-                Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-                NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
-                ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
+            impulses, answer = kernel_into(problem, settings, warm_start)
         except np.linalg.LinAlgError:
             answer = None
         if answer is not None:
-            if answer[6] and answer[2] != kernel.PATH_INTERIOR:  # (the usual answer)
+            converged, path, solves, interior, factorizations, certified = answer
+            if certified and path != kernel.PATH_INTERIOR:  # (the usual answer)
                 # certified by the kernel's rounding bound: _confirmed's output, without the
                 # call
-                return SolverOutput(answer[0], "converged", True, answer[3], {},
-                                    {"path": kernel.PATH_NAMES[answer[2]], "compiled": True,
-                                     "factorizations": answer[5],
+                return SolverOutput(impulses, "converged", True, solves, {},
+                                    {"path": kernel.PATH_NAMES[path], "compiled": True,
+                                     "factorizations": factorizations,
                                      "confirmed_by": "rounding bound"})
-            confirmed = _unconfirmed(problem, settings, answer, warm_start)
+            confirmed = _unconfirmed(problem, settings, (impulses, *answer), warm_start)
             if confirmed is not None:
                 return confirmed
     lcp = Lcp.of(problem, dense_limit=settings.dense_limit)

@@ -12,7 +12,7 @@ fastest of rounds that each time every part below once, in turn:
 * ``harness_s``: ``call_solver`` around a solve function that returns zeros (blind copy,
   formulation, stopwatch): what every solver pays;
 * ``trivial_s``: pi-robust's ``time_s`` on a one-contact problem (its fixed Python cost);
-* ``kernel_s``: the compiled call ``pi_robust_kernel.entry.envelope_pi_robust`` alone (0
+* ``kernel_s``: the compiled call ``pi_robust_kernel.entry.pi_robust_into`` alone (0
   when the compiled path is not taken), ``python_path_s``: the Python fallback
   ``pi_robust.pi_robust`` when it runs; ``outside_kernel_s = total_s - kernel_s -
   python_path_s`` (set-up in Python, confirming the answer, the harness), never below 0;
@@ -238,7 +238,7 @@ def _back_to_back(spec: SolverSpec, problem: ImpactProblem) -> Callable[[], floa
 
     def once() -> float:
         start = time.perf_counter()
-        pi_robust.kernel_call(kernel.envelope_pi_robust, blind, settings, None)
+        pi_robust.kernel_into(blind, settings, None)
         return time.perf_counter() - start
 
     def twice() -> float:
@@ -289,7 +289,7 @@ def measure(problem: ImpactProblem, trivial: ImpactProblem, repeats: int = BREAK
         python_calls: list[float] = []
         factor_calls: list[float] = []
         with ExitStack() as timers:
-            timers.enter_context(_timed(((kernel, "envelope_pi_robust"),), kernel_calls))
+            timers.enter_context(_timed(((kernel, "pi_robust_into"),), kernel_calls))
             timers.enter_context(_timed(((pi_robust, "pi_robust"),), python_calls))
             timers.enter_context(_timed(FACTOR_CALLS, factor_calls))
             parts["instrumented"].append(call_solver(spec, problem, ACCURACY).time_s)
@@ -344,7 +344,7 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
         "in turn (so that a burst of load on the host falls on all parts alike), each part's "
         "fastest round kept; single-threaded BLAS. total = `time_s`; harness = `call_solver` "
         "around a solver that returns zeros; trivial = pi-robust on one contact; kernel = the"
-        " compiled call `envelope_pi_robust` alone; Python path = the fallback when it runs; "
+        " compiled call `pi_robust_into` alone; Python path = the fallback when it runs; "
         "of it, factorizations = the Python path's matrix factorizations (LAPACK, CHOLMOD or "
         "SuperLU; the rest of that path is its products, step lengths and bookkeeping in "
         "Python); outside = total - kernel - Python path; back to back = the same compiled call "

@@ -7,12 +7,17 @@ pairs. Then one of these is timed, in an order drawn afresh every round:
 
 - ``solve``: pi-robust's solve function (``qpbench.solvers.pi_robust.solve``), what the
   harness's stopwatch holds, less the harness;
-- ``kernel``: the compiled entry ``envelope_pi_robust`` alone, through numba's dispatcher;
-- ``entry point``: the same compiled overload called past the dispatcher (no typing of the
-  arguments);
-- ``empty kernel``: a compiled function of the kernel's nine arguments that returns a copy of
-  b and the kernel's six scalars, and nothing else: the call boundary alone;
-- ``empty kernel, one integer``: the same, returning one integer (no array to hand back).
+- ``narrow``: the compiled entry ``pi_robust_into`` as ``solve`` calls it
+  (``pi_robust.kernel_into``: six arrays in, l written into one of them, six scalars back);
+- ``wide``: the compiled entry ``envelope_pi_robust`` alone (nine arguments in, a new array
+  and six scalars back), through numba's dispatcher;
+- ``wide, entry point``: the same compiled overload called past the dispatcher (no typing of
+  the arguments);
+- ``empty, wide``: a compiled function of the wide entry's nine arguments that returns a copy
+  of b and six scalars, and nothing else: the call boundary alone;
+- ``empty, narrow``: one of the narrow entry's six arguments that copies b into the array
+  made for l and returns six scalars;
+- ``empty, one integer``: the wide one's arguments, returning one integer.
 
 It prints the median over the rounds (30, 10 with ``--quick``) and problems of each, for
 problems of a few contacts (three K3, three K4 and three cradles of 3 balls) and for six dumps.
@@ -44,6 +49,12 @@ def _empty_kernel(indptr, indices, data, b, diag, warm_start, order_above, work_
 
 
 @njit
+def _empty_narrow_kernel(indptr, indices, data, b, out, call_options):
+    out[:] = b
+    return True, 1, 0, 0, 0, True
+
+
+@njit
 def _empty_kernel_integer(indptr, indices, data, b, diag, warm_start, order_above, work_limit,
                           options):
     return 1
@@ -62,15 +73,26 @@ def main() -> None:
     arguments = kernel_arguments(small[0])
     signature = tuple(entry.envelope_pi_robust.typeof_pyval(value) for value in arguments)
     entry_point = entry.envelope_pi_robust.overloads[signature].entry_point
+    settings = pi_robust.settings_for(ACCURACY)
+
+    def empty_narrow(problem: ImpactProblem) -> object:
+        Q = problem.Q
+        impulses = np.empty(problem.b.size)
+        impulses[0] = np.nan
+        return _empty_narrow_kernel(Q.indptr, Q.indices, Q.data, problem.b, impulses,
+                                    settings.call_options)
+
     _empty_kernel(*arguments)
     _empty_kernel_integer(*arguments)
+    empty_narrow(small[0])
     variants: dict[str, Callable[[ImpactProblem], object]] = {
         "solve": lambda problem: pi_robust.solve(problem, ACCURACY),
-        "kernel": lambda problem: entry.envelope_pi_robust(*kernel_arguments(problem)),
-        "entry point": lambda problem: entry_point(*kernel_arguments(problem)),
-        "empty kernel": lambda problem: _empty_kernel(*kernel_arguments(problem)),
-        "empty kernel, one integer": lambda problem: _empty_kernel_integer(
-            *kernel_arguments(problem)),
+        "narrow": lambda problem: pi_robust.kernel_into(problem, settings, None),
+        "wide": lambda problem: entry.envelope_pi_robust(*kernel_arguments(problem)),
+        "wide, entry point": lambda problem: entry_point(*kernel_arguments(problem)),
+        "empty, wide": lambda problem: _empty_kernel(*kernel_arguments(problem)),
+        "empty, narrow": empty_narrow,
+        "empty, one integer": lambda problem: _empty_kernel_integer(*kernel_arguments(problem)),
     }
     generator = np.random.default_rng(0)
     print(f"\nmedian over {rounds} rounds, DAQP, PIQP and quadprog solving a dump before every "

@@ -73,8 +73,8 @@ from qpbench.solvers.pi_robust_kernel.structures import (
 
 # what qpbench.solvers.pi_robust and qpbench.solvers.staggered_compiled read from the kernel
 __all__ = ["PATH_INTERIOR", "PATH_NAMES", "PATH_NONE", "PATH_SWEEPS", "_matvec",
-           "contact_block_sweeps", "envelope_pi_robust", "options_of", "relaxed_pi_robust",
-           "warm_up"]
+           "call_options_of", "contact_block_sweeps",
+           "envelope_pi_robust", "options_of", "pi_robust_into", "relaxed_pi_robust", "warm_up"]
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -433,6 +433,83 @@ def relaxed_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     return impulses, z, converged, path, solves, interior, factorizations, certified
 
 
+# the entries of its ``call_options`` before envelope_pi_robust's packed options
+CALL_ORDER_ABOVE = 0
+CALL_WORK_LIMIT = 1
+CALL_HEAD = 2
+
+
+def call_options_of(order_above: int, max_envelope_work: float, packed_options: np.ndarray
+                    ) -> np.ndarray:
+    """Pack :func:`pi_robust_into`'s options: the ordering threshold, the work limit, then
+    ``packed_options`` (:func:`.structures.options_of`).
+
+    Parameters
+    ----------
+    order_above : int
+        As for :func:`envelope_pi_robust`.
+    max_envelope_work : float
+        As for :func:`envelope_pi_robust`.
+    packed_options : np.ndarray
+        The kernel's packed options.
+
+    Returns
+    -------
+    np.ndarray
+        ``CALL_HEAD + len(packed_options)`` floats.
+    """
+    return np.concatenate(([float(order_above), float(max_envelope_work)], packed_options))
+
+
+@njit(cache=True)
+def pi_robust_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
+                   out: np.ndarray, call_options: np.ndarray):
+    """Solve LCP(Q, b) by :func:`envelope_pi_robust`, l written into ``out``.
+
+    The same solve through a narrower call: six array arguments, and scalars back, where
+    :func:`envelope_pi_robust` takes nine arguments and hands back a new array. Crossing from
+    Python, numba's dispatcher types every argument and boxes every returned object, an array
+    dearest of all; on a problem of a few contacts, called after other work has taken over
+    the caches, that crossing is a large part of the call (docs/notes/pi-robust.md, section
+    "The call boundary"). diag(Q) is read from Q's own entries here.
+
+    Parameters
+    ----------
+    indptr, indices, data : np.ndarray
+        Q's CSC arrays, as for :func:`envelope_pi_robust`.
+    b : np.ndarray
+        The LCP's constant term (n entries).
+    out : np.ndarray
+        n floats: in, the start (one non-finite entry: start from zero, as
+        :func:`clean_start` has it); out, l.
+    call_options : np.ndarray
+        The ordering threshold, the work limit and the packed options
+        (:func:`call_options_of`).
+
+    Returns
+    -------
+    tuple
+        :func:`envelope_pi_robust`'s converged, path, solves, interior, factorizations and
+        certified (its l is in ``out``).
+
+    Raises
+    ------
+    np.linalg.LinAlgError
+        When a factor fails; the caller then runs the Python path.
+    """
+    n = b.size
+    diag = np.zeros(n)
+    for column in range(n):
+        for k in range(indptr[column], indptr[column + 1]):
+            if indices[k] == column:
+                diag[column] += data[k]
+    impulses, converged, path, solves, interior, factorizations, certified = envelope_pi_robust(
+        indptr, indices, data, b, diag, out, int(call_options[CALL_ORDER_ABOVE]),
+        call_options[CALL_WORK_LIMIT], call_options[CALL_HEAD:])
+    out[:] = impulses
+    return converged, path, solves, interior, factorizations, certified
+
+
 _warm = False
 
 
@@ -453,6 +530,8 @@ def warm_up() -> None:
     options = options_of(accuracy.options_for("pi-robust", 1e-8))
     for order_above in (64, 0):  # both branches' types
         envelope_pi_robust(*csc, b, diag, np.empty(0), order_above, 1e9, options)
+        pi_robust_into(*csc, b, np.full(b.size, np.nan), call_options_of(order_above, 1e9,
+                                                                         options))
     relaxed = (np.array([0, 2, 4], dtype=np.int32), np.array([0, 1, 0, 1], dtype=np.int32),
                np.array([2.0, 1.0, 1.0, 2.0]))  # one contact's two relaxed columns
     relaxed_pi_robust(*relaxed, np.array([-1.0, -1.0]), np.array([2.0, 2.0]), np.empty(0),
