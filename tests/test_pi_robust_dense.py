@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from qpbench.problem import metrics
+from qpbench.problem.formulations import pose
 from qpbench.problem.generate import generate
 from qpbench.solvers.registry import get
 from qpbench.solvers.run import solve_and_judge
@@ -104,16 +105,22 @@ def test_pi_robust_answers_problems_of_a_few_contacts_at_1e8(family: str,
 
 
 def test_pi_robust_counts_the_dense_tries_solves_when_the_general_path_ends_the_solve() -> None:
-    """On near-duplicate contacts whose dense try spends its budget, the general path then
-    solves the problem, and the reported solves include the dense try's."""
-    from qpbench.solvers.pi_robust_kernel.constants import DENSE_BUDGET
+    """On near-duplicate contacts solved whole (the wide entry, which does not drop parallel
+    contacts first) whose dense try spends its budget, the general path then solves the
+    problem, and the reported solves include the dense try's."""
+    from qpbench.solvers import pi_robust
+    from qpbench.solvers.pi_robust_kernel import entry
+    from qpbench.solvers.pi_robust_kernel.constants import DENSE_BUDGET, PATH_POLICY_ITERATION
 
+    settings = pi_robust.settings_for(1e-8)
     fell_through = 0
     for seed in range(40):
         problem = generate("near-duplicate", 2, seed=seed)[0]
-        row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
-        assert row["success"], seed
-        if output.info["path"] == "policy iteration":
+        pose(problem, "lcp")
+        impulses, converged, path, solves, *_ = pi_robust.kernel_call(
+            entry.envelope_pi_robust, problem, settings, None)
+        assert converged and metrics.residual(problem, impulses) <= 1e-8, seed
+        if path == PATH_POLICY_ITERATION:
             fell_through += 1
-            assert output.iterations > DENSE_BUDGET
+            assert solves > DENSE_BUDGET
     assert fell_through > 0

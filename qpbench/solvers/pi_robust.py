@@ -63,7 +63,9 @@ Up to ``compiled_limit`` contacts the whole algorithm runs first as one compiled
 (``qpbench.solvers.pi_robust_kernel``: numba, contacts in reverse Cuthill-McKee order,
 envelope Cholesky factors, a start improved by ``start_sweeps`` projected Gauss-Seidel
 sweeps, new factors that copy the rows they share with a kept one; on a few contacts, block
-pivoting on a dense copy of Q first, ``pi_robust_kernel.dense``); its answer is reported
+pivoting on a dense copy of Q first, ``pi_robust_kernel.dense``; where contacts are parallel,
+the problem without the looser of each group first, ``pi_robust_kernel.parallel``); its
+answer is reported
 when a rounding bound or qpbench's own residual confirms it, otherwise (or when a factor
 fails) this Python path runs, and the time of both counts. When the kernel has run policy
 iteration and the interior point in full and failed, Lemke's method goes first: the Python
@@ -744,7 +746,7 @@ def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
     info: dict = {"path": envelope.PATH_NAMES[path], "compiled": True,
                   "factorizations": factorizations,
                   "confirmed_by": "rounding bound" if certified else "qpbench residual"}
-    if path == envelope.PATH_INTERIOR:
+    if path % envelope.PATH_PARALLEL_DROPPED == envelope.PATH_INTERIOR:
         info["interior_iterations"] = interior
     # (impulses, status, claimed_success, iterations, backend_times, info): positional, with
     # no keyword arguments and no default factory, on the path every solve takes
@@ -868,9 +870,9 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
             answer = None
         if answer is not None:
             converged, path, solves, interior, factorizations, certified = answer
-            if certified and path != kernel.PATH_INTERIOR:  # (the usual answer)
-                # certified by the kernel's rounding bound: _confirmed's output, without the
-                # call
+            if certified and path % kernel.PATH_PARALLEL_DROPPED != kernel.PATH_INTERIOR:
+                # the usual answer, certified by the kernel's rounding bound: _confirmed's
+                # output, without the call
                 return SolverOutput(impulses, "converged", True, solves, {},
                                     {"path": kernel.PATH_NAMES[path], "compiled": True,
                                      "factorizations": factorizations,

@@ -17,8 +17,9 @@ order in which they build on each other:
 - :mod:`.pivoting`: block principal pivoting on one prox step;
 - :mod:`.prox`: proximal policy iteration, its drift extrapolation, polish and finish;
 - :mod:`.interior`: the ordered solve: policy iteration, then the interior point;
-- :mod:`.entry`: the entry points ``envelope_pi_robust``, ``relaxed_pi_robust``,
-  ``contact_block_sweeps`` and ``warm_up``.
+- :mod:`.parallel`: the presolve that drops the looser of parallel contacts;
+- :mod:`.entry`: the entry points ``envelope_pi_robust``, its narrow call ``pi_robust_into``
+  (the presolve first), ``relaxed_pi_robust``, ``contact_block_sweeps`` and ``warm_up``.
 
 Importing the package itself loads nothing else (in particular not numba).
 """

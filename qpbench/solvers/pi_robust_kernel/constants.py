@@ -72,6 +72,15 @@ PROX_CONVERGED, PROX_BUDGET, PROX_STALLED = 0, 1, 2
 # Paths of a whole solve, and their names in a solver's ``info["path"]``.
 PATH_START, PATH_POLICY_ITERATION, PATH_INTERIOR, PATH_NONE, PATH_DECLINED, PATH_SWEEPS, \
     PATH_DENSE = 0, 1, 2, 3, 4, 5, 6
-PATH_NAMES = ("start", "policy iteration", "interior point + policy iteration",
-              "interior point did not converge", "declined: envelope too wide",
-              "start sweeps", "dense pivoting")
+SOLVE_PATHS = ("start", "policy iteration", "interior point + policy iteration",
+               "interior point did not converge", "declined: envelope too wide",
+               "start sweeps", "dense pivoting")
+# A path of the problem without its looser parallel contacts (:mod:`.parallel`) is reported
+# as that path plus PATH_PARALLEL_DROPPED.
+PATH_PARALLEL_DROPPED = len(SOLVE_PATHS)
+PATH_NAMES = SOLVE_PATHS + tuple(f"{name}, looser parallel contacts dropped"
+                                 for name in SOLVE_PATHS)
+# Contacts i and j count as parallel when Q_ij^2 >= (1 - PARALLEL_DEFECT) Q_ii Q_jj: columns
+# of G at an angle of about sqrt(PARALLEL_DEFECT) rad or less, about where rounding leaves
+# the Cauchy-Schwarz defect of two equal columns (1e-16 relative per product).
+PARALLEL_DEFECT = 1e-14

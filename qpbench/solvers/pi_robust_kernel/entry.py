@@ -22,8 +22,11 @@ overhead and with Q sparse throughout (but for the dense copy of step 2):
    (:mod:`.interior`);
 6. a converged answer is certified by its residual plus a rounding bound (:mod:`.residual`).
 
-:func:`relaxed_pi_robust` does the same on Anitescu's relaxation of a frictional problem,
-its start swept contact by contact (:func:`contact_block_sweeps`). Compilation:
+:func:`pi_robust_into`, the call from Python, makes the same solve through fewer arguments,
+first on the problem without the looser of its parallel contacts when it has any
+(:mod:`.parallel`). :func:`relaxed_pi_robust` runs :func:`envelope_pi_robust` on Anitescu's
+relaxation of a frictional problem, its start swept contact by contact
+(:func:`contact_block_sweeps`). Compilation:
 ``cache=True`` (machine code cached beside the modules); :func:`warm_up` compiles or loads it
 once per process, and pi-robust calls it in its set-up, outside the timed solve.
 """
@@ -45,6 +48,7 @@ from qpbench.solvers.pi_robust_kernel.constants import (
     PATH_INTERIOR,
     PATH_NAMES,
     PATH_NONE,
+    PATH_PARALLEL_DROPPED,
     PATH_START,
     PATH_SWEEPS,
     SWEEP_SHARE,
@@ -62,6 +66,7 @@ from qpbench.solvers.pi_robust_kernel.ordering import (
     _upper_into,
     reverse_cuthill_mckee,
 )
+from qpbench.solvers.pi_robust_kernel.parallel import diagonal_into, looser_parallel, without
 from qpbench.solvers.pi_robust_kernel.residual import _certified, _matvec, _natural_residual_into
 from qpbench.solvers.pi_robust_kernel.structures import (
     Csc,
@@ -72,7 +77,8 @@ from qpbench.solvers.pi_robust_kernel.structures import (
 )
 
 # what qpbench.solvers.pi_robust and qpbench.solvers.staggered_compiled read from the kernel
-__all__ = ["PATH_INTERIOR", "PATH_NAMES", "PATH_NONE", "PATH_SWEEPS", "_matvec",
+__all__ = ["PATH_INTERIOR", "PATH_NAMES", "PATH_NONE", "PATH_PARALLEL_DROPPED", "PATH_SWEEPS",
+           "_matvec",
            "call_options_of", "contact_block_sweeps",
            "envelope_pi_robust", "options_of", "pi_robust_into", "relaxed_pi_robust", "warm_up"]
 
@@ -464,14 +470,20 @@ def call_options_of(order_above: int, max_envelope_work: float, packed_options: 
 @njit(cache=True)
 def pi_robust_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b: np.ndarray,
                    out: np.ndarray, call_options: np.ndarray):
-    """Solve LCP(Q, b) by :func:`envelope_pi_robust`, l written into ``out``.
+    """Solve LCP(Q, b) by :func:`envelope_pi_robust`, l written into ``out``; first without
+    its looser parallel contacts, when it has any.
 
     The same solve through a narrower call: six array arguments, and scalars back, where
     :func:`envelope_pi_robust` takes nine arguments and hands back a new array. Crossing from
     Python, numba's dispatcher types every argument and boxes every returned object, an array
     dearest of all; on a problem of a few contacts, called after other work has taken over
     the caches, that crossing is a large part of the call (docs/notes/pi-robust.md, section
-    "The call boundary"). diag(Q) is read from Q's own entries here.
+    "The call boundary"). diag(Q) is read from Q's own entries here, in the pass that also
+    tells whether two contacts are parallel (:func:`.parallel.diagonal_into`); if so, the
+    problem without the looser of each parallel group is solved first
+    (:func:`_without_parallel`), and its answer, those contacts at zero, is taken when
+    qpbench's residual of the whole problem accepts it (path plus ``PATH_PARALLEL_DROPPED``);
+    else the whole problem is solved, and both solves count.
 
     Parameters
     ----------
@@ -490,24 +502,72 @@ def pi_robust_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b:
     -------
     tuple
         :func:`envelope_pi_robust`'s converged, path, solves, interior, factorizations and
-        certified (its l is in ``out``).
+        certified (l is in ``out``).
 
     Raises
     ------
     np.linalg.LinAlgError
         When a factor fails; the caller then runs the Python path.
     """
-    n = b.size
-    diag = np.zeros(n)
-    for column in range(n):
-        for k in range(indptr[column], indptr[column + 1]):
-            if indices[k] == column:
-                diag[column] += data[k]
+    diag = np.empty(b.size)
+    order_above = int(call_options[CALL_ORDER_ABOVE])
+    work_limit = call_options[CALL_WORK_LIMIT]
+    packed = call_options[CALL_HEAD:]
+    extra_solves = extra_interior = extra_factorizations = 0
+    if diagonal_into(indptr, indices, data, diag):  # first without looser parallel contacts
+        accepted, converged, path, solves, interior, factorizations, certified = \
+            _without_parallel(indptr, indices, data, b, diag, out, order_above, work_limit,
+                              packed)
+        if accepted:
+            return converged, path, solves, interior, factorizations, certified
+        extra_solves, extra_interior, extra_factorizations = solves, interior, factorizations
     impulses, converged, path, solves, interior, factorizations, certified = envelope_pi_robust(
-        indptr, indices, data, b, diag, out, int(call_options[CALL_ORDER_ABOVE]),
-        call_options[CALL_WORK_LIMIT], call_options[CALL_HEAD:])
+        indptr, indices, data, b, diag, out, order_above, work_limit, packed)
     out[:] = impulses
-    return converged, path, solves, interior, factorizations, certified
+    return converged, path, solves + extra_solves, interior + extra_interior, \
+        factorizations + extra_factorizations, certified
+
+
+@njit(cache=True)
+def _without_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                      b: np.ndarray, diag: np.ndarray, out: np.ndarray, order_above: int,
+                      max_envelope_work: float, packed_options: np.ndarray):
+    """Solve LCP(Q, b) without its looser parallel contacts (:mod:`.parallel`), l into ``out``
+    when qpbench's residual of the whole problem accepts the answer mapped back (the dropped
+    contacts at zero).
+
+    Arguments as :func:`pi_robust_into`'s, the options unpacked; ``out`` holds the start.
+    Returns whether the answer was accepted (``out`` untouched otherwise), then
+    :func:`envelope_pi_robust`'s scalars of the smaller solve, its path plus
+    ``PATH_PARALLEL_DROPPED`` and its certificate on the whole problem.
+    """
+    n = b.size
+    kept, small_indptr, small_indices, small_data, small_b = without(
+        indptr, indices, data, b, looser_parallel(indptr, indices, data, b, diag))
+    start = out[kept]  # (a start with a non-finite entry: none, as in clean_start)
+    for value in out:
+        if not np.isfinite(value):
+            start = out[:0]
+            break
+    small, converged, path, solves, interior, factorizations, _ = envelope_pi_robust(
+        small_indptr, small_indices, small_data, small_b, diag[kept], start, order_above,
+        max_envelope_work, packed_options)
+    if converged:
+        whole = np.zeros(n)
+        whole[kept] = small
+        csc = (indptr, indices, data)
+        scale = TINY  # as envelope_pi_robust's
+        for i in range(n):
+            if abs(b[i]) > scale or b[i] != b[i]:
+                scale = abs(b[i])
+        product = np.empty(n)
+        tol = unpacked(packed_options).tol
+        residual = _natural_residual_into(csc, b, diag, scale, whole, product)
+        if residual <= tol:
+            out[:] = whole
+            return True, True, path + PATH_PARALLEL_DROPPED, solves, interior, factorizations, \
+                _certified(csc, b, scale, whole, residual, tol, product)
+    return False, converged, path, solves, interior, factorizations, False
 
 
 _warm = False
