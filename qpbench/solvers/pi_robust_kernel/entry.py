@@ -78,9 +78,8 @@ from qpbench.solvers.pi_robust_kernel.structures import (
 
 # what qpbench.solvers.pi_robust and qpbench.solvers.staggered_compiled read from the kernel
 __all__ = ["PATH_INTERIOR", "PATH_NAMES", "PATH_NONE", "PATH_PARALLEL_DROPPED", "PATH_SWEEPS",
-           "_matvec",
-           "call_options_of", "contact_block_sweeps",
-           "envelope_pi_robust", "options_of", "pi_robust_into", "relaxed_pi_robust", "warm_up"]
+           "_matvec", "call_options_of", "contact_block_sweeps", "envelope_pi_robust",
+           "options_of", "pi_robust_into", "relaxed_pi_robust", "warm_up"]
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
@@ -536,7 +535,7 @@ def _without_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     when qpbench's residual of the whole problem accepts the answer mapped back (the dropped
     contacts at zero).
 
-    Arguments as :func:`pi_robust_into`'s, the options unpacked; ``out`` holds the start.
+    Arguments as :func:`pi_robust_into`'s, its call options split; ``out`` holds the start.
     Returns whether the answer was accepted (``out`` untouched otherwise), then
     :func:`envelope_pi_robust`'s scalars of the smaller solve, its path plus
     ``PATH_PARALLEL_DROPPED`` and its certificate on the whole problem.
@@ -544,6 +543,8 @@ def _without_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
     n = b.size
     kept, small_indptr, small_indices, small_data, small_b = without(
         indptr, indices, data, b, looser_parallel(indptr, indices, data, b, diag))
+    if kept.size == n:  # (parallel, yet neither looser: a zero diagonal, or NaN in b)
+        return False, False, PATH_NONE, 0, 0, 0, False
     start = out[kept]  # (a start with a non-finite entry: none, as in clean_start)
     for value in out:
         if not np.isfinite(value):
