@@ -1,19 +1,18 @@
 """Parallel contacts: the looser constraint of each parallel group, dropped before a solve.
 
-Contact i's constraint is ``w_i = g_i^T v + b_i >= 0`` on the velocity after the impact, and
-``Q_ij = g_i^T M^-1 g_j``. Two contacts whose columns g_i and g_j are parallel and point the
-same way (``g_j = c g_i``, c > 0: a contact captured twice, or two points of one edge with
-the same arms) meet Cauchy-Schwarz with equality in the ``M^-1`` inner product,
-``Q_ij^2 = Q_ii Q_jj``, and every column of Q is then ``Q_kj = c Q_ki``: Q_FF is singular
-whenever both are free. Their constraints are ``g_i^T v >= -b_i`` and ``g_i^T v >= -b_j / c``,
-so the one with the larger ``b / sqrt(Q_ii)`` is implied by the other: in an answer of the
-problem without it, its ``w`` is at least the other's, so it may stay at l = 0. Dropping the
-looser contact of every parallel pair (the first of equals kept) halves a problem of
-duplicated contacts, and the solve of what is left has independent columns where the whole
-had dependent ones. It is a presolve of the kind that removes duplicate rows of a linear
-program (Andersen and Andersen, "Presolving in linear programming", Math. Program. 71,
-1995); the caller maps the answer back and accepts it only on qpbench's residual of the
-whole problem, since parallel is decided up to rounding (``PARALLEL_DEFECT``).
+With ``Q = A^T A`` (``A = M^-1/2 G``, column a_i a contact's), LCP(Q, b) reads
+``w_i = a_i^T y + b_i >= 0`` at ``y = A l``. Two contacts whose columns are parallel and point
+the same way (``a_j = c a_i``, c > 0: a contact captured twice) meet Cauchy-Schwarz with
+equality, ``Q_ij^2 = Q_ii Q_jj``, and every column of Q is then ``Q_kj = c Q_ki``: Q_FF is
+singular whenever both are free. Since ``c = sqrt(Q_jj / Q_ii)``, ``w_j = c w_i + (b_j -
+c b_i)``, so when ``b_j / sqrt(Q_jj) >= b_i / sqrt(Q_ii)`` contact j's constraint is implied
+by contact i's: in an answer of the problem without j, ``w_j >= c w_i >= 0``, and j may stay
+at l = 0. Dropping the looser contact of every parallel pair (the first of equals kept)
+halves a problem of duplicated contacts and leaves fewer dependent columns. It is a presolve
+of the kind that removes duplicate rows of a linear program (Andersen and Andersen,
+"Presolving in linear programming", Math. Program. 71, 1995); the caller maps the answer back
+and accepts it only on qpbench's residual of the whole problem, since parallel is decided up
+to rounding (``PARALLEL_DEFECT``).
 """
 
 from __future__ import annotations
