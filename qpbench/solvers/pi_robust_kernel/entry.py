@@ -36,7 +36,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from qpbench.problem.metrics import TINY
 from qpbench.solvers import accuracy
 from qpbench.solvers.pi_robust_kernel.constants import (
     DENSE_BUDGET,
@@ -67,7 +66,12 @@ from qpbench.solvers.pi_robust_kernel.ordering import (
     reverse_cuthill_mckee,
 )
 from qpbench.solvers.pi_robust_kernel.parallel import diagonal_into, looser_parallel, without
-from qpbench.solvers.pi_robust_kernel.residual import _certified, _matvec, _natural_residual_into
+from qpbench.solvers.pi_robust_kernel.residual import (
+    _certified,
+    _matvec,
+    _natural_residual_into,
+    residual_scale,
+)
 from qpbench.solvers.pi_robust_kernel.structures import (
     Csc,
     OrderedLcp,
@@ -212,10 +216,7 @@ def envelope_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
         posed_indices[k] = indices[k]
     indptr, indices = posed_indptr, posed_indices
     A_posed = (indptr, indices, data)
-    scale = TINY  # qpbench's metrics.scale, max(max |b_i|, TINY) (NaN when b has one)
-    for i in range(n):
-        if abs(b[i]) > scale or b[i] != b[i]:
-            scale = abs(b[i])
+    scale = residual_scale(b)
     start = clean_start(warm_start, n)  # (a new array: the sweeps change it in place)
     start_product, inverse, magnitude = reals[:n], reals[n:2 * n], reals[2 * n:3 * n]
     start_residual = _natural_residual_into(A_posed, b, diag, scale, start, start_product)
@@ -557,10 +558,7 @@ def _without_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
         whole = np.zeros(n)
         whole[kept] = small
         csc = (indptr, indices, data)
-        scale = TINY  # as envelope_pi_robust's
-        for i in range(n):
-            if abs(b[i]) > scale or b[i] != b[i]:
-                scale = abs(b[i])
+        scale = residual_scale(b)
         product = np.empty(n)
         tol = unpacked(packed_options).tol
         residual = _natural_residual_into(csc, b, diag, scale, whole, product)

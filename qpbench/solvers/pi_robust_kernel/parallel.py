@@ -24,15 +24,23 @@ from qpbench.solvers.pi_robust_kernel.constants import PARALLEL_DEFECT, WITHOUT_
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
+def _alignment(entry: float, diag_i: float) -> float:
+    """``Q_ij |Q_ij| / Q_ii`` for the entry Q_ij (0 where Q_ii is not positive): contacts i and
+    j are parallel when it exceeds ``(1 - PARALLEL_DEFECT) Q_jj``, that is ``Q_ij > 0`` and
+    ``Q_ij^2 > (1 - PARALLEL_DEFECT) Q_ii Q_jj``. No negative entry makes it positive."""
+    return entry * abs(entry) / diag_i if diag_i > 0.0 else 0.0
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
 def diagonal_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
                   diag: np.ndarray) -> bool:
     """Write diag(Q) into ``diag`` and tell whether any two contacts are parallel.
 
     One pass over Q's entries, which every solve makes to read its diagonal anyway: most
     problems have no parallel contacts, and this is what they pay. In column j, the entries
-    above the diagonal (rows i < j, whose D_i is known by then) give the largest
-    ``Q_ij |Q_ij| / Q_ii``, which no negative entry raises; contacts i and j are parallel (as
-    in :func:`looser_parallel`) when it exceeds ``(1 - PARALLEL_DEFECT) Q_jj``.
+    above the diagonal (rows i < j, whose D_i is known by then) give their largest
+    :func:`_alignment`, and a pair is parallel when it exceeds ``(1 - PARALLEL_DEFECT) Q_jj``
+    (as in :func:`looser_parallel`).
 
     Parameters
     ----------
@@ -55,8 +63,8 @@ def diagonal_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
             i = indices[k]
             if i == j:
                 diag[j] += data[k]
-            elif i < j and diag[i] > 0.0:
-                largest = max(largest, data[k] * abs(data[k]) / diag[i])
+            elif i < j:
+                largest = max(largest, _alignment(data[k], diag[i]))
         if largest > (1.0 - PARALLEL_DEFECT) * diag[j]:
             parallel = True
     return parallel
@@ -67,9 +75,10 @@ def looser_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b
                     diag: np.ndarray) -> np.ndarray:
     """Mark the contacts whose constraint a parallel contact's implies.
 
-    Contacts i and j are parallel when ``Q_ij > 0`` and ``Q_ij^2 >= (1 - PARALLEL_DEFECT)
-    Q_ii Q_jj`` (both diagonals positive). Of a parallel pair, the one with the larger
-    ``b / sqrt(Q_ii)`` is looser; of equals, the later one.
+    Contacts i and j are parallel when :func:`_alignment` of Q_ij exceeds ``(1 -
+    PARALLEL_DEFECT) Q_jj`` (both diagonals positive), the test of :func:`diagonal_into`. Of a
+    parallel pair, the one with the larger ``b / sqrt(Q_ii)`` is looser; of equals, the later
+    one.
 
     Parameters
     ----------
@@ -93,9 +102,7 @@ def looser_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b
         tightness_j = b[j] / np.sqrt(diag[j])
         for k in range(indptr[j], indptr[j + 1]):
             i = indices[k]
-            if i == j or diag[i] <= 0.0 or data[k] <= 0.0:
-                continue
-            if data[k] * data[k] < (1.0 - PARALLEL_DEFECT) * diag[i] * diag[j]:
+            if i == j or _alignment(data[k], diag[i]) <= (1.0 - PARALLEL_DEFECT) * diag[j]:
                 continue
             tightness_i = b[i] / np.sqrt(diag[i])
             if tightness_i < tightness_j or (tightness_i == tightness_j and i < j):

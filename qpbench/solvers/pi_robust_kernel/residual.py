@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from qpbench.problem.metrics import TINY
 from qpbench.solvers.pi_robust_kernel.constants import WITHOUT_REFCOUNTS
 from qpbench.solvers.pi_robust_kernel.structures import Csc, Posed
 
@@ -41,6 +42,27 @@ def natural_residual(csc: Csc, b: np.ndarray, diag: np.ndarray, scale: float,
         so that it equals ``qpbench.problem.metrics.residual`` even where rounding dominates.
     """
     return _natural_residual_into(csc, b, diag, scale, impulses, np.empty(impulses.size))
+
+
+@njit(cache=True, **WITHOUT_REFCOUNTS)
+def residual_scale(b: np.ndarray) -> float:
+    """qpbench's ``metrics.scale`` of the residual: ``max(max |b_i|, TINY)``.
+
+    Parameters
+    ----------
+    b : np.ndarray
+        The LCP's constant term.
+
+    Returns
+    -------
+    float
+        The scale; NaN when b has a NaN.
+    """
+    scale = TINY
+    for value in b:
+        if abs(value) > scale or value != value:
+            scale = abs(value)
+    return scale
 
 
 @njit(cache=True, **WITHOUT_REFCOUNTS)
