@@ -181,7 +181,7 @@ def test_pi_robust_staggered_runs_its_loop_compiled_with_the_python_loops_answer
 
 
 def test_the_compiled_coulomb_residual_is_qpbenchs_to_the_last_bit() -> None:
-    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.pi_robust_call import csc_arrays
     from qpbench.solvers.staggered_compiled import coulomb_residual
 
     rng = np.random.default_rng(7)
@@ -197,7 +197,7 @@ def test_the_compiled_coulomb_residual_is_qpbenchs_to_the_last_bit() -> None:
 def test_the_compiled_loop_reads_ws_blocks_as_scipys_slices_store_them() -> None:
     """The blocks the compiled loop takes from W's own arrays are, array for array, the CSR
     arrays of the problem's W_NT, W_TN and W_TT (so its products sum in SciPy's order)."""
-    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.pi_robust_call import csc_arrays
     from qpbench.solvers.staggered_compiled import _block
 
     for problem in [pair_on_floor(mu=0.6, seed=1), *_generated_frictional()]:

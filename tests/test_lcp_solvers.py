@@ -189,7 +189,7 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
     over 1e-6 .. 1e6; the rounding bound covers any order, and the loose bound that is tried
     first is never below it."""
     from qpbench.solvers.lcp import Lcp
-    from qpbench.solvers.pi_robust import csc_arrays
+    from qpbench.solvers.pi_robust_call import csc_arrays
     from qpbench.solvers.pi_robust_kernel.residual import (
         _loose_rounding_bound,
         natural_residual,
@@ -215,20 +215,20 @@ def test_compiled_residual_is_qpbench_residual_bit_for_bit() -> None:
 def test_pi_robust_falls_back_to_the_python_path_when_the_kernel_cannot_factor() -> None:
     """A block that Cholesky refuses (here: a kernel made to raise) sends the solve to the
     Python path, which still converges and says so."""
-    from qpbench.solvers.pi_robust_kernel import entry
+    from qpbench.solvers.pi_robust_kernel import call, entry
 
     problem = hard_problem("grid", 5, seed=0)
     entry.warm_up()  # its own call of the kernel comes before the patch
-    kernel = entry.pi_robust_into
+    kernel = call.call_pi_robust_into
 
     def refusing(*args: object, **kwargs: object) -> None:
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
-    entry.pi_robust_into = refusing
+    call.call_pi_robust_into = refusing
     try:
         row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)
     finally:
-        entry.pi_robust_into = kernel
+        call.call_pi_robust_into = kernel
     assert row["success"] and output.claimed_success
     assert output.info["compiled"] == "declined or not confirmed; Python path"
 
@@ -322,6 +322,7 @@ def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decid
     answer is judged like any other. Both failures are forced here, so the test holds whatever
     arithmetic the CPU's kernel does."""
     from qpbench.solvers import lemke
+    from qpbench.solvers.pi_robust_kernel import call
     from qpbench.solvers.pi_robust_kernel import entry as kernel
 
     def failed_in_full(*args: np.ndarray) -> tuple:
@@ -336,7 +337,7 @@ def test_pi_robust_runs_the_python_path_after_the_kernel_when_lemke_cannot_decid
         impulses, _, _, pivots = original(*args, **kwargs)
         return impulses, False, "pivoting ended above tolerance", pivots
 
-    monkeypatch.setattr(kernel, "pi_robust_into", failed_in_full)
+    monkeypatch.setattr(call, "call_pi_robust_into", failed_in_full)
     monkeypatch.setattr(lemke, "lemke", above_tolerance)
     problem = generate("grid", 4, seed=3)[0]
     row, output = solve_and_judge(get("pi-robust"), problem, 1e-8)

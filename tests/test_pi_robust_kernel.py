@@ -486,7 +486,7 @@ def test_the_narrow_entry_gives_the_wide_entrys_answer(family: str, size: int | 
     from Q), answers as envelope_pi_robust does from the same start: the same l to the last
     bit and the same counts, from zero (a first entry NaN) and from a start."""
     from qpbench.problem.formulations import pose
-    from qpbench.solvers import pi_robust
+    from qpbench.solvers import pi_robust, pi_robust_call
     from qpbench.solvers.pi_robust_kernel import entry
 
     problem = generate(family, size, seed=seed)[0]
@@ -497,7 +497,7 @@ def test_the_narrow_entry_gives_the_wide_entrys_answer(family: str, size: int | 
     for start in (None, half):
         wide = entry.envelope_pi_robust(
             Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-            pi_robust.NO_START if start is None else start, pi_robust.ORDERING_ABOVE,
+            pi_robust_call.NO_START if start is None else start, pi_robust_call.ORDERING_ABOVE,
             settings.compiled_work_limit, settings.kernel)
         impulses, narrow = pi_robust.kernel_into(problem, settings, start)
         assert np.array_equal(impulses, wide[0])

@@ -80,17 +80,14 @@ otherwise it reports failure and returns its best l.
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 
 from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import accuracy, lemke, relaxation
+from qpbench.solvers import lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
@@ -101,11 +98,18 @@ from qpbench.solvers.lcp_interior import (
     jacobi_scaled,
 )
 from qpbench.solvers.pi_robust_blocks import UPDATE_CONTACTS, BlockSolver
+from qpbench.solvers.pi_robust_call import (
+    NAME,
+    Settings,
+    kernel_call,
+    kernel_into,
+    settings_for,
+)
+from qpbench.solvers.pi_robust_kernel import call as kernel_calls
 from qpbench.solvers.pi_robust_kernel import entry as kernel_entry
 from qpbench.solvers.pi_robust_kernel.constants import COUPLED, DRIFT_RATIO
 from qpbench.solvers.registry import register
 
-NAME = "pi-robust"
 # the proximal weight of the interior point where it runs first (Jacobi-scaled units: Q~ has a
 # unit diagonal); its answer then misses the LCP by at most 1e-10 max(l~). A larger weight
 # leaves a residual floor above the finest accuracy level on dense piles; a smaller one makes
@@ -567,76 +571,6 @@ def _lemke_fallback(lcp: Lcp, tol: float, lemke_answer: LemkeAnswer | None,
     return best, False, "interior point did not converge", solves, info
 
 
-ORDERING_ABOVE = 64  # contacts; fewer are factored in their own order
-NO_START = np.empty(0)  # the kernel's "start from zero"
-
-
-def csc_arrays(Q: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(indptr, indices, data) of the problem's own CSC Q, the matrix qpbench's residual uses.
-
-    Indices are 32-bit integers, as SciPy stores them (no copy then), for the kernel.
-
-    Parameters
-    ----------
-    Q : sp.spmatrix
-        The matrix; converted to CSC when it is in another format.
-
-    Returns
-    -------
-    indptr, indices : np.ndarray
-        The column starts and row indices, int32 (the CSC matrix's own arrays when they are
-        int32 already).
-    data : np.ndarray
-        The entries, column by column (the CSC matrix's own array, not a copy).
-    """
-    Q = Q if sp.isspmatrix_csc(Q) else sp.csc_matrix(Q)
-    return (Q.indptr.astype(np.int32, copy=False), Q.indices.astype(np.int32, copy=False),
-            Q.data)
-
-
-class Settings(NamedTuple):
-    """pi-robust's accuracy-table row at one level, split by who reads it."""
-
-    kernel: np.ndarray  # the compiled path's options, packed (pi_robust_kernel.entry.options_of)
-    # pi_robust_into's: ORDERING_ABOVE, compiled_work_limit, then ``kernel``
-    call_options: np.ndarray
-    python: dict  # the Python path's keyword arguments (without tol's scale: it is relative)
-    dense_limit: int
-    compiled_limit: int
-    compiled_work_limit: float
-
-
-@functools.lru_cache(maxsize=64)
-def settings_for(eps: float) -> Settings:
-    """The accuracy table's row for level ``eps``, read once per level.
-
-    Tolerances here are relative to the problem's scale, so they do not depend on it.
-
-    Parameters
-    ----------
-    eps : float
-        qpbench's accuracy level, a bound on the relative residual.
-
-    Returns
-    -------
-    Settings
-        The row split into the kernel's packed options, the Python path's keyword arguments
-        (without ``start_sweeps`` and the limits) and the three limits. Cached: callers must
-        not change it.
-    """
-    options = accuracy.options_for(NAME, eps, 1.0)
-    limits = {key: options.pop(key) for key in ("dense_limit", "compiled_limit",
-                                                "compiled_work_limit")}
-    kernel = kernel_entry.options_of(options)
-    options.pop("start_sweeps")  # the compiled path's alone
-    work_limit = float(limits["compiled_work_limit"])
-    return Settings(kernel=kernel, call_options=kernel_entry.call_options_of(
-                        ORDERING_ABOVE, work_limit, kernel), python=options,
-                    dense_limit=int(limits["dense_limit"]),
-                    compiled_limit=int(limits["compiled_limit"]),
-                    compiled_work_limit=work_limit)
-
-
 def _unconfirmed(problem: ImpactProblem, settings: Settings, answer: tuple,
                  warm_start: np.ndarray | None) -> SolverOutput | None:
     """The output for the compiled kernel's ``answer`` that it did not certify itself: when
@@ -646,87 +580,6 @@ def _unconfirmed(problem: ImpactProblem, settings: Settings, answer: tuple,
     if confirmed is None and _failed_in_full(answer):
         return _after_kernel_failure(problem, settings, answer, warm_start)
     return confirmed
-
-
-def kernel_call(kernel: Callable[..., tuple], problem: ImpactProblem, settings: Settings,
-                warm_start: np.ndarray | None, *after_start: np.ndarray) -> tuple:
-    """Call a compiled entry point of the kernel on ``problem``.
-
-    ``kernel`` gets Q's CSC arrays, b, diag(Q), the start (empty: from zero),
-    ``after_start``, the ordering threshold, the work limit and the packed options.
-
-    The relaxed solve runs this inside the stopwatch, so it touches as little Python as it
-    can: Q is CSC by construction (``ImpactProblem.Q``), b and diag(Q) float arrays, and Q's
-    index arrays go as SciPy made them (32-bit at these sizes, the type :func:`prepare`
-    compiles the kernel for). :func:`solve` calls the narrower :func:`kernel_into`.
-
-    Parameters
-    ----------
-    kernel : Callable[..., tuple]
-        The entry point, ``pi_robust_kernel.entry.envelope_pi_robust`` or
-        ``relaxed_pi_robust``.
-    problem : ImpactProblem
-        The posed problem (for the relaxed entry, ``FrictionalProblem.relaxed()``).
-    settings : Settings
-        The accuracy level's row (:func:`settings_for`): its work limit and packed options.
-    warm_start : np.ndarray or None
-        A start, flattened to float; None starts from zero.
-    *after_start : np.ndarray
-        Arguments the entry point takes after the start (the relaxed entry's friction
-        coefficients mu).
-
-    Returns
-    -------
-    tuple
-        The entry point's answer: for ``envelope_pi_robust`` (l, converged, path, solves,
-        interior iterations, factorizations, certified); ``relaxed_pi_robust`` puts r first.
-
-    Raises
-    ------
-    np.linalg.LinAlgError
-        When a factor fails in the kernel.
-    """
-    Q = problem.Q
-    return kernel(Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q,
-                  NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel(),
-                  *after_start, ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
-
-
-def kernel_into(problem: ImpactProblem, settings: Settings, warm_start: np.ndarray | None
-                ) -> tuple[np.ndarray, tuple]:
-    """Solve ``problem`` by the compiled kernel through its narrow entry ``pi_robust_into``,
-    as :func:`solve` does inside the stopwatch; l is written into an array made here, which
-    first holds the start (a first entry NaN: from zero, as ``entry.clean_start`` has it).
-
-    Parameters
-    ----------
-    problem : ImpactProblem
-        The posed problem.
-    settings : Settings
-        The accuracy level's row (:func:`settings_for`): its ``call_options``.
-    warm_start : np.ndarray or None
-        A start; None, or one not of one entry a contact, starts from zero (``Lcp.start``).
-
-    Returns
-    -------
-    tuple
-        l, and ``pi_robust_into``'s scalars (converged, path, solves, interior iterations,
-        factorizations, certified).
-
-    Raises
-    ------
-    np.linalg.LinAlgError
-        When a factor fails in the kernel.
-    """
-    n = problem.b.size
-    impulses = np.empty(n)
-    if warm_start is not None and np.size(warm_start) == n:
-        impulses[:] = np.ravel(warm_start)
-    else:
-        impulses[0] = np.nan
-    Q = problem.Q
-    return impulses, kernel_entry.pi_robust_into(Q.indptr, Q.indices, Q.data, problem.b,
-                                                 impulses, settings.call_options)
 
 
 def _confirmed(problem: ImpactProblem, settings: Settings, impulses: np.ndarray,
@@ -853,10 +706,11 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
     -----
     Up to the accuracy table's ``compiled_limit`` contacts the compiled kernel
     (``pi_robust_kernel.entry.envelope_pi_robust``, called through its narrow entry
-    ``pi_robust_into``: l written into an array made here) runs straight from the posed
-    problem. Its answer is returned when its rounding bound certifies it (the usual case, built
-    here without further calls, as :func:`_confirmed` would build it) or when qpbench's residual
-    confirms it (:func:`_unconfirmed`); otherwise the Python path (:func:`pi_robust`) runs.
+    ``pi_robust_into``, past numba's dispatcher where the arrays allow: ``kernel_into``)
+    runs straight from the posed problem. Its answer is returned when its rounding bound
+    certifies it (the usual case, built here without further calls, as :func:`_confirmed`
+    would build it) or when qpbench's residual confirms it (:func:`_unconfirmed`); otherwise
+    the Python path (:func:`pi_robust`) runs.
     """
     settings = settings_for(eps)
     # b's size is the number of contacts (b is posed; n_contacts would read G's shape)
@@ -890,7 +744,7 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 def prepare() -> None:
     """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
-    kernel_entry.warm_up()
+    kernel_calls.warm_up()
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

@@ -36,11 +36,11 @@ from numba import njit
 
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.solvers import accuracy, anderson, pi_robust
+from qpbench.solvers import accuracy, anderson, pi_robust_call
 from qpbench.solvers.base import SolverOutput
 from qpbench.solvers.box_sweeps import box_gauss_seidel
 from qpbench.solvers.colouring import colour_order
-from qpbench.solvers.pi_robust import NO_START
+from qpbench.solvers.pi_robust_call import NO_START
 from qpbench.solvers.pi_robust_kernel import entry as kernel
 
 # how a call ends
@@ -361,7 +361,7 @@ def _loop_settings(eps: float, row: tuple) -> LoopSettings:
     options = accuracy.options_for(ROW, eps)
     inner_eps = float(options["inner_accuracy"])
     box_options = accuracy.options_for(ROW, inner_eps)
-    packed = np.array([eps, options["max_outer"], pi_robust.ORDERING_ABOVE, inner_eps,
+    packed = np.array([eps, options["max_outer"], pi_robust_call.ORDERING_ABOVE, inner_eps,
                        box_options["box_max_sweeps"], box_options["box_check_every"],
                        options["anderson_depth"]], dtype=float)
     return LoopSettings(packed=packed, inner_eps=inner_eps, max_outer=int(options["max_outer"]))
@@ -381,7 +381,7 @@ def warm_up() -> None:
     W = (np.array([0, 1, 2], dtype=np.int32), np.array([0, 1], dtype=np.int32),
          np.array([1.0, 1.0]))
     settings = loop_settings(1e-8)
-    normal = pi_robust.settings_for(settings.inner_eps)
+    normal = pi_robust_call.settings_for(settings.inner_eps)
     staggered_pi_robust(W, one, np.array([-1.0, 0.5]), np.ones(1), np.array([0.5]), 1.0,
                         np.empty(0), normal.kernel, normal.compiled_work_limit,
                         settings.packed)
@@ -393,7 +393,7 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None
     """pi-robust/staggered in one compiled call, or None when the Python loop must run.
 
     The options are the accuracy table's rows of ``staggered`` (:func:`loop_settings`) and of
-    ``pi-robust`` at the inner accuracy (``pi_robust.settings_for``), as in the Python loop.
+    ``pi-robust`` at the inner accuracy (``pi_robust_call.settings_for``), as in the Python loop.
     The Python loop runs instead with no contacts, more than pi-robust's ``compiled_limit``,
     on ``FALLBACK``, or when the residual lies at eps and qpbench's own metric decides
     otherwise.
@@ -414,15 +414,15 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None
         loop's facts in ``info``; None when the Python loop must run.
     """
     settings = loop_settings(eps)
-    normal = pi_robust.settings_for(settings.inner_eps)
+    normal = pi_robust_call.settings_for(settings.inner_eps)
     diag_N = problem.diag_N
     if not 0 < diag_N.size <= normal.compiled_limit:
         return None
     start = NO_START if warm_start is None else np.asarray(warm_start, dtype=float).ravel()
     impulses, residual, ending, rounds, iterations, solves, returned = staggered_pi_robust(
-        pi_robust.csc_arrays(problem.W), pi_robust.csc_arrays(problem.normal.Q), problem.q,
-        diag_N, problem.mu, problem.scale, start, normal.kernel, normal.compiled_work_limit,
-        settings.packed)
+        pi_robust_call.csc_arrays(problem.W), pi_robust_call.csc_arrays(problem.normal.Q),
+        problem.q, diag_N, problem.mu, problem.scale, start, normal.kernel,
+        normal.compiled_work_limit, settings.packed)
     if ending == FALLBACK:
         return None
     if abs(residual - eps) <= 1e-9 * eps and (  # at the line: qpbench's own metric decides

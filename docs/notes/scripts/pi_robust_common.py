@@ -24,7 +24,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
 from qpbench.scenes.model import Scene
 from qpbench.simulation.stepper import Simulator
-from qpbench.solvers import accuracy, pi_robust
+from qpbench.solvers import accuracy, pi_robust, pi_robust_call
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.pi_robust import settings_for
 from qpbench.solvers.registry import get
@@ -111,8 +111,8 @@ def kernel_arguments(problem: ImpactProblem) -> tuple:
     ``lcp``), as pi-robust's ``solve`` passes them, at ``ACCURACY`` from no start."""
     settings = settings_for(ACCURACY)
     Q = problem.Q
-    return (Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q, pi_robust.NO_START,
-            pi_robust.ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
+    return (Q.indptr, Q.indices, Q.data, problem.b, problem.diag_Q, pi_robust_call.NO_START,
+            pi_robust_call.ORDERING_ABOVE, settings.compiled_work_limit, settings.kernel)
 
 
 def dump_kernel_calls() -> list[tuple]:

@@ -20,6 +20,8 @@ order in which they build on each other:
 - :mod:`.parallel`: the presolve that drops the looser of parallel contacts;
 - :mod:`.entry`: the entry points ``envelope_pi_robust``, its narrow call ``pi_robust_into``
   (the presolve first), ``relaxed_pi_robust``, ``contact_block_sweeps`` and ``warm_up``.
+- :mod:`.call`: the call of ``pi_robust_into`` from Python, past numba's dispatcher where the
+  arrays are of the compiled types.
 
 Importing the package itself loads nothing else (in particular not numba).
 """

@@ -442,13 +442,14 @@ def relaxed_pi_robust(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
 # the entries of its ``call_options`` before envelope_pi_robust's packed options
 CALL_ORDER_ABOVE = 0
 CALL_WORK_LIMIT = 1
-CALL_HEAD = 2
+CALL_FROM_ZERO = 2  # 1: start from zero, whatever ``out`` holds; 0: ``out`` holds the start
+CALL_HEAD = 3
 
 
-def call_options_of(order_above: int, max_envelope_work: float, packed_options: np.ndarray
-                    ) -> np.ndarray:
-    """Pack :func:`pi_robust_into`'s options: the ordering threshold, the work limit, then
-    ``packed_options`` (:func:`.structures.options_of`).
+def call_options_of(order_above: int, max_envelope_work: float, packed_options: np.ndarray,
+                    from_zero: bool = False) -> np.ndarray:
+    """Pack :func:`pi_robust_into`'s options: the ordering threshold, the work limit, whether
+    to start from zero, then ``packed_options`` (:func:`.structures.options_of`).
 
     Parameters
     ----------
@@ -458,13 +459,17 @@ def call_options_of(order_above: int, max_envelope_work: float, packed_options: 
         As for :func:`envelope_pi_robust`.
     packed_options : np.ndarray
         The kernel's packed options.
+    from_zero : bool, optional
+        Start from zero, so that the caller need not write into ``out`` before the call;
+        False (default): ``out`` holds the start.
 
     Returns
     -------
     np.ndarray
         ``CALL_HEAD + len(packed_options)`` floats.
     """
-    return np.concatenate(([float(order_above), float(max_envelope_work)], packed_options))
+    return np.concatenate(([float(order_above), float(max_envelope_work), float(from_zero)],
+                           packed_options))
 
 
 @njit(cache=True)
@@ -493,10 +498,10 @@ def pi_robust_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b:
         The LCP's constant term (n entries).
     out : np.ndarray
         n floats: in, the start (one non-finite entry: start from zero, as
-        :func:`clean_start` has it); out, l.
+        :func:`clean_start` has it), unless ``call_options`` says to start from zero; out, l.
     call_options : np.ndarray
-        The ordering threshold, the work limit and the packed options
-        (:func:`call_options_of`).
+        The ordering threshold, the work limit, whether to start from zero and the packed
+        options (:func:`call_options_of`).
 
     Returns
     -------
@@ -509,6 +514,8 @@ def pi_robust_into(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, b:
     np.linalg.LinAlgError
         When a factor fails; the caller then runs the Python path.
     """
+    if call_options[CALL_FROM_ZERO] != 0.0 and out.size > 0:
+        out[0] = np.nan  # read as no start (clean_start)
     diag = np.empty(b.size)
     order_above = int(call_options[CALL_ORDER_ABOVE])
     work_limit = call_options[CALL_WORK_LIMIT]
