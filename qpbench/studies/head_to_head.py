@@ -561,9 +561,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
             f"on {entry['set']} the speedup passes {TARGET_SPEEDUP:g}x only because "
             f"`{entry['external']['solver']}` failed "
             f"{100 * (1 - entry['external']['success_rate']):.0f}% of the problems, each "
-            "charged the set's largest time; " + (
-                f"on the problems both pairs solve it is {entry['common_speedup']:.2f}x"
-                if math.isfinite(entry["common_speedup"]) else "no problem did both solve")
+            "charged the set's largest time; "
+            + both_solve_phrase(entry["common_speedup"], "problem")
             for entry in lifted) + ".")
     if missed:
         lines.append("\nWhere it does not, the section \"Where pi-robust's time goes\" breaks "
@@ -684,6 +683,26 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
                f"{', '.join(missed)}."
     return f"The {target:g}x target holds on: {', '.join(held)}; it does not hold on: " \
            f"{', '.join(missed)}."
+
+
+def both_solve_phrase(common_speedup: float, thing: str) -> str:
+    """pi-robust's speedup on the ``thing``s that both pairs solve, as a phrase.
+
+    Parameters
+    ----------
+    common_speedup : float
+        The speedup over what both pairs solve; not finite when they solve nothing in common.
+    thing : str
+        What was solved, singular (``problem``, ``step``).
+
+    Returns
+    -------
+    str
+        ``on the {thing}s both pairs solve it is N.NNx``, or ``no {thing} did both solve``.
+    """
+    if math.isfinite(common_speedup):
+        return f"on the {thing}s both pairs solve it is {common_speedup:.2f}x"
+    return f"no {thing} did both solve"
 
 
 def problem_batches(problems: Sequence[ImpactProblem | FrictionalProblem], size: int,

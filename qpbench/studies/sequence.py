@@ -71,7 +71,7 @@ from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import all_solvers, usable_solvers
 from qpbench.solvers.run import BELOW_FLOOR, judge
-from qpbench.studies.head_to_head import pass_range, target_sentence
+from qpbench.studies.head_to_head import both_solve_phrase, pass_range, target_sentence
 from qpbench.studies.head_to_head_pairs import ranked
 
 OWN = "pi-robust/lcp"
@@ -657,10 +657,8 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
                      f"`{figures['fastest_external']}`{_per_pass(compared)}."
                      + (" The target asks it of every pass alone too." if passes > 1 else "")
                      + (f" It passes {TARGET_SPEEDUP:g}x only through that pair's failed "
-                        "solves, each charged the largest time: " + (
-                            f"on the steps both solve it is {figures['common_speedup']:.2f}x."
-                            if math.isfinite(figures["common_speedup"])
-                            else "no step did both solve.")
+                        "solves, each charged the largest time: "
+                        + both_solve_phrase(figures["common_speedup"], "step") + "."
                         if compared.get("met_by_failures") else ""))
     if per_scene:
         lines += _per_scene_lines(per_scene, scenes)
