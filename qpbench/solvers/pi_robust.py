@@ -73,7 +73,8 @@ path (the same methods again) runs only when Lemke neither solves the problem no
 ray whose direction proves that it has no solution (``lemke.no_solution_certified``: y >= 0,
 Q y = 0, b^T y < 0, checked in floating point, not taken on trust). The kernel is loaded
 from numba's cache (compiled once, ``cache=True``) by :func:`prepare`, which the harness calls
-before it starts any clock.
+before it starts any clock; ``qpbench.solvers.pi_robust_call`` reads this solver's row of the
+accuracy table and makes the calls of the kernel.
 Converged means qpbench's ``residual(l) <= tol`` (confirmed with qpbench's own metric);
 otherwise it reports failure and returns its best l.
 """
