@@ -553,11 +553,7 @@ def _without_parallel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
         indptr, indices, data, b, looser_parallel(indptr, indices, data, b, diag))
     if kept.size == n:  # (parallel, yet neither looser: a zero diagonal, or NaN in b)
         return False, False, PATH_NONE, 0, 0, 0, False
-    start = out[kept]  # (a start with a non-finite entry: none, as in clean_start)
-    for value in out:
-        if not np.isfinite(value):
-            start = out[:0]
-            break
+    start = clean_start(out, n)[kept]  # (zeros when out has a non-finite entry)
     small, converged, path, solves, interior, factorizations, _ = envelope_pi_robust(
         small_indptr, small_indices, small_data, small_b, diag[kept], start, order_above,
         max_envelope_work, packed_options)
