@@ -6,7 +6,11 @@ Interior-Point Methods", SIAM 1997, chapter 8. Iterates keep ``l, w > 0`` and dr
 ``r = Q l + b - w`` and ``mu = l^T w / n`` to zero. Each step solves
 ``(Q + W L^-1) dl = rhs`` twice with one Cholesky factor (positive definite for
 l, w > 0 even when Q is singular), then ``dw = Q dl + r``; one common step length
-(0.99 of the way to the boundary) keeps ``r`` shrinking by ``1 - alpha``.
+(0.99 of the way to the boundary) keeps ``r`` shrinking by ``1 - alpha``. Up to
+``CENTRALITY_CORRECTORS`` more solves with the same factor then lengthen that step
+(Gondzio's multiple centrality correctors, :func:`_centrality_corrected`): where a
+factorization costs far more than a solve (large sparse problems), they take the place of
+some iterations.
 
 Those systems are solved over the contacts (:class:`NormalMatrix`), or, when the problem has
 fewer moving degrees of freedom than contacts, over the degrees of freedom through Q's factor
@@ -32,6 +36,13 @@ from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
 # what a try_finish of interior_point returns for an iterate it chose not to try
 NOT_TRIED = np.empty(0)
+# Gondzio's centrality correctors (_centrality_corrected): at most this many a step; each
+# aims at a step STEP_GAIN longer and is kept when it gains ACCEPTED_GAIN of that; the
+# products l_i w_i it steers into [CENTRAL_LOW, CENTRAL_HIGH] times sigma mu
+CENTRALITY_CORRECTORS = 3
+STEP_GAIN = 0.2
+ACCEPTED_GAIN = 0.1
+CENTRAL_LOW, CENTRAL_HIGH = 0.1, 10.0
 
 
 def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
@@ -40,6 +51,63 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     if not np.any(shrinking):
         return 1.0
     return float(min(1.0, np.min(-value[shrinking] / change[shrinking])))
+
+
+def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarray,
+                          dw: np.ndarray, target: float,
+                          normal: NormalMatrix | FactoredNormalMatrix,
+                          step_of_change: Callable[[np.ndarray], np.ndarray]
+                          ) -> tuple[np.ndarray, np.ndarray, float]:
+    """The direction (dl, dw) lengthened by Gondzio's multiple centrality correctors.
+
+    Gondzio, "Multiple centrality corrections in a primal-dual method for linear
+    programming", Comput. Optim. Appl. 6, 1996. Let alpha be the longest step to the boundary
+    along (dl, dw). Each corrector looks at the point a step ``alpha + STEP_GAIN`` (at most 1)
+    along the direction, where some products ``v_i = (l_i + a dl_i)(w_i + a dw_i)`` are far from
+    the target ``sigma mu`` (too small ones stop the step), and asks for the change
+    ``t - v``, v projected into ``[CENTRAL_LOW, CENTRAL_HIGH] * target`` (and no product cut
+    by more than ``CENTRAL_HIGH * target``): ``(Q + W L^-1) c = (t - v) / l`` with the
+    iteration's factor, ``dw`` changed by ``Q c`` (the linearized feasibility is kept).
+    The corrected direction is kept while its step to the boundary grows by at least
+    ``ACCEPTED_GAIN * STEP_GAIN``; at most ``CENTRALITY_CORRECTORS`` of them, none once the
+    full step fits.
+
+    Parameters
+    ----------
+    impulses, slack : np.ndarray
+        The iterate's l > 0 and w > 0 (scaled), shape (n,).
+    dl, dw : np.ndarray
+        Mehrotra's predictor-corrector direction, shape (n,).
+    target : float
+        ``sigma mu``, the products' target.
+    normal : NormalMatrix or FactoredNormalMatrix
+        Holds this iteration's factor of ``Q~ + W L^-1`` (its ``solve``).
+    step_of_change : callable
+        ``dw``'s change for a change c of dl (``(Q~ + prox I) c``).
+
+    Returns
+    -------
+    dl, dw : np.ndarray
+        The direction, corrected or as given.
+    step : float
+        Its longest step to the boundary, at most 1.
+    """
+    step = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+    lower, upper = CENTRAL_LOW * target, CENTRAL_HIGH * target
+    for _ in range(CENTRALITY_CORRECTORS):
+        if step >= 1.0:
+            break
+        reach = min(1.0, step + STEP_GAIN)
+        products = (impulses + reach * dl) * (slack + reach * dw)
+        wanted = np.maximum(np.clip(products, lower, upper) - products, -upper)
+        correction = normal.solve(wanted / impulses)
+        corrected_dl, corrected_dw = dl + correction, dw + step_of_change(correction)
+        corrected = min(_step_to_boundary(impulses, corrected_dl),
+                        _step_to_boundary(slack, corrected_dw))
+        if corrected < step + ACCEPTED_GAIN * STEP_GAIN:
+            break
+        dl, dw, step = corrected_dl, corrected_dw, corrected
+    return dl, dw, step
 
 
 class NormalMatrix:
@@ -376,8 +444,9 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
         dw = scaled.op @ dl + prox * dl + infeasibility
-        alpha = min(1.0, 0.99 * min(_step_to_boundary(impulses, dl),
-                                    _step_to_boundary(slack, dw)))
+        dl, dw, step = _centrality_corrected(impulses, slack, dl, dw, sigma * mu, normal,
+                                             lambda change: scaled.op @ change + prox * change)
+        alpha = min(1.0, 0.99 * step)
         impulses = np.maximum(impulses + alpha * dl, 1e-300)
         slack = np.maximum(slack + alpha * dw, 1e-300)
         if not (np.all(np.isfinite(impulses)) and np.all(np.isfinite(slack))):

@@ -30,25 +30,25 @@ and adds published safeguards:
    exchange's x: contacts fixed or freed per solve, the objective never
    rising, so it cannot cycle where block pivoting does (nearly singular H,
    as on grids at small rho).
-3. A safe path when that is slow: policy iteration gets ``pi_budget`` linear
-   solves (enough on boxes, cradles, K3/K4 and grids). Then a
-   Mehrotra interior point (``qpbench.solvers.lcp_interior``, Jacobi-scaled,
+3. A safe path when that is slow: policy iteration gets ``pi_budget`` linear solves
+   (enough on boxes, cradles, K3/K4 and grids). Then a Mehrotra interior point with
+   Gondzio's centrality correctors (``qpbench.solvers.lcp_interior``, Jacobi-scaled,
    ``ipm_iters`` at most) runs, and every iterate whose residual is below
-   ``finish_below`` (then ten times lower than the last try) is handed back to
-   the prox policy iteration for ``finish_budget`` solves from its policy
-   ``{w < D l}``: near the solution that finds the exact active set in one or
-   two solves (an active-set polish), so the answer is not an interior point's
-   approximation. On sparse problems (more than ``dense_limit`` contacts, each policy
-   solve a sparse factorization) without a warm start, or from one that is far (one
-   solve of its policy leaves more than ``NEAR_START_INFEASIBLE`` contacts infeasible,
-   as a settling pile's previous impulses do), the order is reversed: the
-   interior point first, on the proximal LCP ``Q + 1e-10 D`` (which, unlike a dense
-   pile's own, has a strictly feasible point), its Newton systems solved over the degrees
-   of freedom through ``L = M^-1/2 G`` when fewer of them move than there are contacts
-   (``lcp_interior.FactoredNormalMatrix``), its iterates handed on from a residual of
-   ``UPDATED_FINISH_BELOW`` where the policy blocks are updated rather than factored
-   (``pi_robust_blocks``; prox weight ``UPDATED_FINISH_RHO``), ended at its floor or a
-   stall, then policy iteration from its best iterate (see :func:`pi_robust`).
+   ``finish_below`` (then ten times lower than the last try) is handed back to the prox
+   policy iteration for ``finish_budget`` solves from its policy ``{w < D l}``: near the
+   solution that finds the exact active set in one or two solves (an active-set polish),
+   so the answer is not an interior point's approximation. On sparse problems (more than
+   ``dense_limit`` contacts, each policy solve a sparse factorization) without a warm
+   start, or from one that is far (one solve of its policy leaves more than
+   ``NEAR_START_INFEASIBLE`` contacts infeasible, as a settling pile's previous impulses
+   do), the order is reversed: the interior point first, on the proximal LCP
+   ``Q + 1e-10 D`` (which, unlike a dense pile's own, has a strictly feasible point), its Newton
+   systems solved over the degrees of freedom through ``L = M^-1/2 G`` when fewer of
+   them move than there are contacts (``lcp_interior.FactoredNormalMatrix``), its
+   iterates handed on from a residual of ``UPDATED_FINISH_BELOW`` where the policy
+   blocks are updated rather than factored (``pi_robust_blocks``; prox weight
+   ``UPDATED_FINISH_RHO``), ended at its floor or a stall, then policy iteration from
+   its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64

@@ -100,7 +100,8 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
     1. Proximal policy iteration from ``start`` with the policy ``{(Q l + b)_i <= D_i l_i}``,
        within ``pi_budget`` solves; a converged answer is polished (:func:`.prox._polish`).
     2. Otherwise Mehrotra's predictor-corrector on the Jacobi-scaled LCP (S = D^-1/2), as
-       ``qpbench.solvers.lcp_interior.interior_point``: each iteration factors
+       ``qpbench.solvers.lcp_interior.interior_point`` without its centrality correctors
+       (the hard cases that come here are small and dense): each iteration factors
        ``S Q S + diag(max(w / l, 1e-14))`` by the envelope factor of the whole matrix, solves
        the predictor and the corrector with it, and steps 0.99 of the way to the boundary.
     3. Every iterate whose residual is at most ``finish_below`` (then ten times lower than the
@@ -132,7 +133,8 @@ def _solve_ordered(lcp: OrderedLcp, start: np.ndarray, start_residual: float,
                                          policy)
         return polished if moved else first, True, PATH_POLICY_ITERATION, solves + used, 0, \
             counters[0], first_res
-    # Mehrotra predictor-corrector on the Jacobi-scaled LCP (as lcp_interior.interior_point)
+    # Mehrotra predictor-corrector on the Jacobi-scaled LCP (lcp_interior.interior_point's,
+    # without its centrality correctors)
     root = 1.0 / np.sqrt(safe_diag)
     everything = np.arange(n)
     normal = np.empty(normal_first[n])
