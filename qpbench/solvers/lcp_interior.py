@@ -62,11 +62,11 @@ def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarra
 
     Gondzio, "Multiple centrality corrections in a primal-dual method for linear
     programming", Comput. Optim. Appl. 6, 1996. Let alpha be the longest step to the boundary
-    along (dl, dw). Each corrector looks at the point a step ``alpha + STEP_GAIN`` (at most 1)
+    along (dl, dw). Each corrector looks at the point a step ``a = min(1, alpha + STEP_GAIN)``
     along the direction, where some products ``v_i = (l_i + a dl_i)(w_i + a dw_i)`` are far from
-    the target ``sigma mu`` (too small ones stop the step), and asks for the change
-    ``t - v``, v projected into ``[CENTRAL_LOW, CENTRAL_HIGH] * target`` (and no product cut
-    by more than ``CENTRAL_HIGH * target``): ``(Q + W L^-1) c = (t - v) / l`` with the
+    the target ``sigma mu`` (too small ones stop the step), and asks for the change ``t - v``,
+    t being v projected into ``[CENTRAL_LOW, CENTRAL_HIGH] * target`` (and no product cut by
+    more than ``CENTRAL_HIGH * target``): ``(Q + W L^-1) c = (t - v) / l`` with the
     iteration's factor, ``dw`` changed by ``Q c`` (the linearized feasibility is kept).
     The corrected direction is kept while its step to the boundary grows by at least
     ``ACCEPTED_GAIN * STEP_GAIN``; at most ``CENTRALITY_CORRECTORS`` of them, none once the
@@ -338,7 +338,8 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     """Mehrotra's predictor-corrector on the Jacobi-scaled LCP, judged on the original.
 
     It iterates on the Jacobi-scaled LCP ``scaled`` (``l = root * l~``, ``w = w~ / root``;
-    ``normal`` factors its matrices), judging by the original ``lcp``. ``try_finish(l, w)`` is
+    ``normal`` factors its matrices; each step lengthened by :func:`_centrality_corrected`),
+    judging by the original ``lcp``. ``try_finish(l, w)`` is
     called on an iterate whose residual is below ``finish_below`` (then below a tenth of the last
     failed try's) and returns a converged l or None. ``end_on_stall``: once five iterations in a row
     have cut by 10% neither the best residual nor, while it is above ``tol`` (scaled), the
