@@ -115,6 +115,7 @@ def trajectory(counts: list[int], bodies: int, steps: int) -> None:
         print(f"\nstep 0, velocities with {first} and {count} correctors: at most {gap:.1e} "
               f"apart (largest impulse change {np.max(np.abs(change)):.1e})")
 
+
 def main() -> None:
     quick = quick_flag()
     arguments = words()
