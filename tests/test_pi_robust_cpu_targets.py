@@ -8,8 +8,15 @@ with a cache of its own), and every answer on problems of the hard families must
 process's, byte for byte. The targets: an AMD CPU with 512-bit vectors, an Intel one, and an
 AVX2-only CPU of each vendor's older kind, all different from most hosts.
 
-Run as a script (``python tests/test_pi_robust_cpu_targets.py``) it prints the digests of its
-answers, one line per problem, which is what the test compares.
+pi-robust's Python path (large sparse problems: the interior point, then policy iteration) sums
+its inner products in a fixed order too (``qpbench.solvers.lcp.dot``, CHOLMOD's simplicial
+factor): its answers must not change with the BLAS kernels OpenBLAS picks for the CPU
+(``OPENBLAS_CORETYPE``) nor with the vector instructions NumPy dispatches to
+(``NPY_DISABLE_CPU_FEATURES``).
+
+Run as a script (``python tests/test_pi_robust_cpu_targets.py [sparse]``) it prints the digests
+of its answers (of the sparse problems with ``sparse``), one line per problem, which is what the
+tests compare.
 """
 
 from __future__ import annotations
@@ -45,17 +52,37 @@ def problems() -> list[ImpactProblem]:
     return chosen
 
 
-def digests() -> list[str]:
-    """``name digest`` per problem: the SHA-1 of pi-robust's answer at 1e-8, as bytes."""
+def sparse_problems() -> list[ImpactProblem]:
+    """Problems that pi-robust's compiled kernel hands to its Python path: grids of 26 and 30
+    balls a side and the first impacts of dense piles of 1,000 circles and 400 boxes."""
+    from qpbench.inner_solvers import choose_by_name
+    from qpbench.simulation.scaling import PILES
+    from qpbench.simulation.stepper import Simulator
+
+    chosen = [generate("grid", 26, seed=1)[0], generate("grid", 30, seed=2)[0]]
+    for kind, bodies in (("circles", 1000), ("boxes", 400)):
+        simulator = Simulator(PILES[kind](bodies), choose_by_name("pi-robust"))
+        found = simulator.find_contacts(simulator.positions, simulator.positions)
+        chosen.append(simulator.impact_problem(found, simulator.dof_velocity()))
+    return chosen
+
+
+def digests(sparse: bool = False) -> list[str]:
+    """``name digest path`` per problem: the SHA-1 of pi-robust's answer at 1e-8, as bytes,
+    and whether the kernel or the Python path answered; of :func:`sparse_problems` with
+    ``sparse``."""
     spec = get("pi-robust/lcp")
     assert spec.prepare is not None
     spec.prepare()
     lines = []
-    for problem in problems():
+    for problem in sparse_problems() if sparse else problems():
         output = call_solver(spec, problem, 1e-8)
         assert output.impulses is not None, output.status
         answer = np.ascontiguousarray(output.impulses, dtype=np.float64)
-        lines.append(f"{problem.name} {hashlib.sha1(answer.tobytes()).hexdigest()}")
+        compiled = output.info.get("compiled") is True
+        lines.append(f"{problem.name or problem.family} "
+                     f"{hashlib.sha1(answer.tobytes()).hexdigest()} "
+                     f"{'kernel' if compiled else 'python'}")
     return lines
 
 
@@ -86,5 +113,20 @@ def test_pi_robust_answers_do_not_depend_on_the_cpu_compiled_for(tmp_path: Path)
         assert not differing, f"compiled for {target} (host {host}):\n" + "\n".join(differing)
 
 
+@pytest.mark.slow
+def test_the_python_path_answers_do_not_depend_on_blas_kernels_or_simd() -> None:
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    here = digests(sparse=True)
+    assert all(line.endswith(" python") for line in here), here
+    dispatched = " ".join(name for name in __cpu_dispatch__ if __cpu_features__.get(name))
+    for changed in ({"OPENBLAS_CORETYPE": "Prescott"},
+                    {"OPENBLAS_CORETYPE": "Sandybridge", "NPY_DISABLE_CPU_FEATURES": dispatched}):
+        run = subprocess.run([sys.executable, __file__, "sparse"], env={**os.environ, **changed},
+                             capture_output=True, text=True, timeout=900)
+        assert run.returncode == 0, run.stderr[-2000:]
+        assert run.stdout.splitlines() == here, changed
+
+
 if __name__ == "__main__":
-    print("\n".join(digests()))
+    print("\n".join(digests(sparse=sys.argv[1:] == ["sparse"])))

@@ -31,7 +31,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
-from qpbench.solvers.lcp import Lcp
+from qpbench.solvers.lcp import Lcp, dot
 from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
 # what a try_finish of interior_point returns for an iterate it chose not to try
@@ -408,7 +408,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     for iteration in range(1, max_iters + 1):
         plain_w = scaled.op @ impulses + scaled.b
         infeasibility = plain_w + prox * impulses - slack
-        mu = float(impulses @ slack) / n
+        mu = dot(impulses, slack) / n
         original_l, original_w = impulses * root, plain_w / root
         res = lcp.residual_of(original_l, original_w)
         if res < best_res:
@@ -439,7 +439,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
         dl = normal.solve(-slack - infeasibility)
         dw = scaled.op @ dl + prox * dl + infeasibility
         alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
-        mu_affine = float((impulses + alpha * dl) @ (slack + alpha * dw)) / n
+        mu_affine = dot(impulses + alpha * dl, slack + alpha * dw) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses

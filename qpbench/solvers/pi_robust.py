@@ -90,7 +90,7 @@ from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.solvers import lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, dot, output
 from qpbench.solvers.lcp_interior import (
     NOT_TRIED,
     FactoredNormalMatrix,
@@ -230,7 +230,7 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
     def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
         """(f(x), H x + q)."""
         gradient = lcp.op @ x + shift * x + q
-        return float(x @ (0.5 * (gradient - q) + q)), gradient
+        return dot(x, 0.5 * (gradient - q) + q), gradient
 
     free = feasible > 0.0
     value_now, _ = objective(feasible)
@@ -348,8 +348,8 @@ def _drifted(centre: np.ndarray, drift: np.ndarray, previous_drift: np.ndarray,
     ``max(z_F + t d_F, 0)``, t the step to the first free contact that reaches zero (set to
     exactly 0) or ``g / (1 - g)`` when smaller; None when it does not move (as
     ``pi_robust_kernel.prox._extrapolate_drift``)."""
-    along = float(drift[policy] @ previous_drift[policy])
-    before = float(previous_drift[policy] @ previous_drift[policy])
+    along = dot(drift[policy], previous_drift[policy])
+    before = dot(previous_drift[policy], previous_drift[policy])
     if not along >= DRIFT_RATIO * before or before == 0.0:
         return None
     falling = policy & (drift < 0.0) & (centre > 0.0)
