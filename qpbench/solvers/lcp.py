@@ -24,7 +24,6 @@ FORMULATION = "lcp"
 VERSION = __version__
 
 
-
 def dot(x: np.ndarray, y: np.ndarray) -> float:
     """``x^T y``, summed in an order that does not depend on the CPU.
 
@@ -44,6 +43,7 @@ def dot(x: np.ndarray, y: np.ndarray) -> float:
         Their inner product.
     """
     return float(np.add.reduce(x * y))
+
 
 @dataclass
 class Lcp:
