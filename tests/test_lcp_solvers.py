@@ -602,7 +602,7 @@ def test_a_stalled_interior_point_hands_on_its_best_iterate_and_ends() -> None:
     assert handed[-1] == lcp.residual(impulses) > 1e-8
 
 
-def test_the_proximal_interior_point_converges_where_the_plain_one_stalls() -> None:
+def test_the_proximal_interior_point_comes_down_to_1e_8_where_the_plain_one_stalls() -> None:
     """The same 400-box pile has no strictly feasible point (no velocity separates every
     contact); the proximal LCP ``(Q~ + 1e-10 I) l~ + b~`` has one, and its iterates come down
     to about qpbench's 1e-8 on the pile's own LCP with no finishing policy iteration, where
