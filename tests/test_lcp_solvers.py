@@ -480,8 +480,8 @@ def test_centrality_correctors_keep_the_newton_equations_and_only_lengthen_the_s
     still cuts the infeasibility by 1 - alpha), and a corrected direction is kept only when
     its step to the boundary is longer; with none, nothing changes."""
     from qpbench.solvers import lcp_interior
-    from qpbench.solvers.lcp import Lcp
-    from qpbench.solvers.lcp_interior import _centrality_corrected, _step_to_boundary
+    from qpbench.solvers.lcp import Lcp, dot
+    from qpbench.solvers.lcp_interior import _centrality_corrected, _longest_step
     from qpbench.solvers.pi_robust import _normal_matrix
 
     monkeypatch.setattr(lcp_interior, "CENTRALITY_CORRECTORS", correctors)
@@ -490,27 +490,23 @@ def test_centrality_correctors_keep_the_newton_equations_and_only_lengthen_the_s
     scaled, prox = normal.lcp, 1e-10
     rng = np.random.default_rng(0)
     impulses, slack = 10.0 ** rng.uniform(-1, 0, (2, scaled.n))
-
-    def step_of(dl: np.ndarray, dw: np.ndarray) -> float:
-        return min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
-
     infeasibility = scaled.op @ impulses + prox * impulses + scaled.b - slack
     normal.factorize(slack / impulses + prox)
     dl = normal.solve(-slack - infeasibility)
     dw = scaled.op @ dl + prox * dl + infeasibility
-    mu = float(impulses @ slack) / scaled.n
-    affine = step_of(dl, dw)
-    target = (float((impulses + affine * dl) @ (slack + affine * dw)) / scaled.n) ** 3 / mu ** 2
+    mu = dot(impulses, slack) / scaled.n
+    affine = _longest_step(impulses, slack, dl, dw)
+    target = (dot(impulses + affine * dl, slack + affine * dw) / scaled.n) ** 3 / mu ** 2
     dl = normal.solve(target / impulses - slack - infeasibility - dl * dw / impulses)
     dw = scaled.op @ dl + prox * dl + infeasibility
-    step = step_of(dl, dw)
+    step = _longest_step(impulses, slack, dl, dw)
 
     new_dl, new_dw, new_step = _centrality_corrected(
         impulses, slack, dl, dw, target, normal, lambda c: scaled.op @ c + prox * c)
 
     kept = new_dw - scaled.op @ new_dl - prox * new_dl
     assert np.max(np.abs(kept - infeasibility)) <= 1e-9 * np.max(np.abs(infeasibility))
-    assert new_step == step_of(new_dl, new_dw)
+    assert new_step == _longest_step(impulses, slack, new_dl, new_dw)
     if correctors == 0:
         assert new_step == step and np.array_equal(new_dl, dl)
     else:  # Mehrotra's step here is about half the way; the first corrector adds 0.1 or more

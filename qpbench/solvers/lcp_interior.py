@@ -53,6 +53,12 @@ def _step_to_boundary(value: np.ndarray, change: np.ndarray) -> float:
     return float(min(1.0, np.min(-value[shrinking] / change[shrinking])))
 
 
+def _longest_step(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarray, dw: np.ndarray
+                  ) -> float:
+    """The largest alpha <= 1 with l + alpha dl >= 0 and w + alpha dw >= 0."""
+    return min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+
+
 def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarray,
                           dw: np.ndarray, target: float,
                           normal: NormalMatrix | FactoredNormalMatrix,
@@ -92,7 +98,7 @@ def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarra
     step : float
         Its longest step to the boundary, at most 1.
     """
-    step = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+    step = _longest_step(impulses, slack, dl, dw)
     lower, upper = CENTRAL_LOW * target, CENTRAL_HIGH * target
     for _ in range(CENTRALITY_CORRECTORS):
         if step >= 1.0:
@@ -102,8 +108,7 @@ def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarra
         wanted = np.maximum(np.clip(products, lower, upper) - products, -upper)
         correction = normal.solve(wanted / impulses)
         corrected_dl, corrected_dw = dl + correction, dw + step_of_change(correction)
-        corrected = min(_step_to_boundary(impulses, corrected_dl),
-                        _step_to_boundary(slack, corrected_dw))
+        corrected = _longest_step(impulses, slack, corrected_dl, corrected_dw)
         if corrected < step + ACCEPTED_GAIN * STEP_GAIN:
             break
         dl, dw, step = corrected_dl, corrected_dw, corrected
@@ -438,7 +443,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
         dw = scaled.op @ dl + prox * dl + infeasibility
-        alpha = min(_step_to_boundary(impulses, dl), _step_to_boundary(slack, dw))
+        alpha = _longest_step(impulses, slack, dl, dw)
         mu_affine = dot(impulses + alpha * dl, slack + alpha * dw) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
