@@ -14,6 +14,8 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import ModuleType
+from typing import TypeVar
 
 from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
@@ -31,6 +33,7 @@ from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
 
 ROOT = Path(__file__).resolve().parents[3]
+T = TypeVar("T")
 ACCURACY = 1e-8
 
 
@@ -125,6 +128,17 @@ def dump_kernel_calls() -> list[tuple]:
         pose(problem, "lcp")
         calls.append(kernel_arguments(problem))
     return calls
+
+
+def with_constant(module: ModuleType, name: str, value: object, action: Callable[[], T]) -> T:
+    """``action()`` with ``module.name`` set to ``value`` (a module constant read at each
+    call, as ``lcp_interior.CENTRALITY_CORRECTORS``), restored after it."""
+    saved = getattr(module, name)
+    setattr(module, name, value)
+    try:
+        return action()
+    finally:
+        setattr(module, name, saved)
 
 
 def with_row(key: str, value: object, action: Callable[[], dict[str, float]]

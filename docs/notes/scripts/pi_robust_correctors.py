@@ -22,8 +22,18 @@ piles and the 30-ball grid, 2 steps, 1 round.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
-from pi_robust_common import ACCURACY, captured_impacts, option, quick_flag, words
+from pi_robust_common import (
+    ACCURACY,
+    T,
+    captured_impacts,
+    option,
+    quick_flag,
+    with_constant,
+    words,
+)
 
 from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
@@ -34,14 +44,9 @@ from qpbench.solvers.registry import get
 from qpbench.solvers.run import call_solver
 
 
-def with_correctors(count: int, action):
+def with_correctors(count: int, action: Callable[[], T]) -> T:
     """``action()`` with ``lcp_interior.CENTRALITY_CORRECTORS = count``."""
-    saved = lcp_interior.CENTRALITY_CORRECTORS
-    lcp_interior.CENTRALITY_CORRECTORS = count
-    try:
-        return action()
-    finally:
-        lcp_interior.CENTRALITY_CORRECTORS = saved
+    return with_constant(lcp_interior, "CENTRALITY_CORRECTORS", count, action)
 
 
 def problem_groups(circles: list[int], steps: int, grids: list[int], seeds: range

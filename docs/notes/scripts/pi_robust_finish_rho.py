@@ -15,7 +15,14 @@ above 1e-8) and ``time_s``, and the sums. ``--quick``: the 1,000-body piles, 2 s
 from __future__ import annotations
 
 import numpy as np
-from pi_robust_common import ACCURACY, captured_impacts, option, quick_flag, words
+from pi_robust_common import (
+    ACCURACY,
+    captured_impacts,
+    option,
+    quick_flag,
+    with_constant,
+    words,
+)
 
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import residual
@@ -29,12 +36,8 @@ def pile_impacts(kind: str, bodies: int, steps: int, finish_rho: float
                  ) -> list[ImpactProblem]:
     """The impact problems of the first ``steps`` steps of a pile, as the simulator captures
     them, pi-robust its inner solver with ``UPDATED_FINISH_RHO = finish_rho``."""
-    saved = pi_robust.UPDATED_FINISH_RHO
-    pi_robust.UPDATED_FINISH_RHO = finish_rho
-    try:
-        return captured_impacts(PILES[kind](bodies), steps)
-    finally:
-        pi_robust.UPDATED_FINISH_RHO = saved
+    return with_constant(pi_robust, "UPDATED_FINISH_RHO", finish_rho,
+                         lambda: captured_impacts(PILES[kind](bodies), steps))
 
 
 def main() -> None:
@@ -47,7 +50,6 @@ def main() -> None:
     values = [float(word) for word in arguments] or [pi_robust.UPDATED_FINISH_RHO]
     spec = get("pi-robust")
     spec.prepare()
-    saved = pi_robust.UPDATED_FINISH_RHO
     header = " | ".join(f"{value:g}: solves, ms" for value in values)
     for kind in PILES:
         for bodies in sizes:
@@ -59,11 +61,9 @@ def main() -> None:
             for step, problem in enumerate(problems):
                 cells = []
                 for column, value in enumerate(values):
-                    pi_robust.UPDATED_FINISH_RHO = value
-                    try:
-                        output = call_solver(spec, problem, ACCURACY)
-                    finally:
-                        pi_robust.UPDATED_FINISH_RHO = saved
+                    output = with_constant(pi_robust, "UPDATED_FINISH_RHO", value,
+                                           lambda problem=problem:
+                                           call_solver(spec, problem, ACCURACY))
                     totals[column] += output.time_s
                     failed = residual(problem, output.impulses) > ACCURACY
                     cells.append(f"{output.iterations or 0}, {1e3 * output.time_s:.0f}"
