@@ -479,8 +479,9 @@ def test_centrality_correctors_keep_the_newton_equations_and_only_lengthen_the_s
     the iteration's own Newton matrix: ``dw - (Q~ + prox I) dl`` stays what it was (the step
     still cuts the infeasibility by 1 - alpha), and a corrected direction is kept only when
     its step to the boundary is longer; with none, nothing changes."""
+    from qpbench.problem.metrics import dot
     from qpbench.solvers import lcp_interior
-    from qpbench.solvers.lcp import Lcp, dot
+    from qpbench.solvers.lcp import Lcp
     from qpbench.solvers.lcp_interior import _centrality_corrected, _longest_step
     from qpbench.solvers.pi_robust import _normal_matrix
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from other_cpu import printed_elsewhere
 
 from qpbench.problem import metrics
 from qpbench.problem.generate import generate
@@ -110,3 +111,28 @@ def test_complementarity_of_a_problem_at_rest_is_finite_where_the_scale_squared_
     assert metrics.scale(problem) == metrics.TINY and metrics.TINY ** 2 == 0.0
     assert metrics.complementarity(problem, np.zeros(problem.n_contacts)) == 0.0
     assert metrics.complementarity(problem, np.ones(problem.n_contacts)) == np.inf
+
+
+def judged_figures() -> list[str]:
+    """Every metric of :func:`metrics.evaluate`, in hexadecimal, on a 30x30 grid, a packing of
+    1,000 boxes and a 10x10 grid, each judged at impulses drawn from a fixed seed."""
+    lines = []
+    for family, size, seed in (("grid", 30, 2), ("box", 1000, 1), ("grid", 10, 1)):
+        problem = generate(family, size, seed=seed)[0]
+        impulses = np.random.default_rng(seed).random(problem.n_contacts)
+        figures = metrics.evaluate(problem, impulses, 1e-8)
+        lines.append(f"{family} {size} " + " ".join(
+            f"{name}={float(value).hex()}" for name, value in sorted(figures.items())))
+    return lines
+
+
+def test_the_judged_figures_do_not_depend_on_blas_kernels_or_simd() -> None:
+    """Judged on another CPU, an answer gets the same figures to the last bit: the same
+    figures come out of a process whose OpenBLAS takes the kernels of an old CPU (whose dot
+    sums in another order than this CPU's) and whose NumPy dispatches no vector
+    instructions."""
+    assert printed_elsewhere(__file__) == judged_figures()
+
+
+if __name__ == "__main__":
+    print("\n".join(judged_figures()))

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from other_cpu import printed_elsewhere
 
 from qpbench import inner_solvers
 from qpbench.cli import main
@@ -18,7 +19,7 @@ from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene, parse_scene
 from qpbench.scenes.model import ImpactOperator
 from qpbench.scenes.solver_names import FALLBACK
-from qpbench.simulation import stepper
+from qpbench.simulation import checks, stepper
 from qpbench.simulation.broad_phase import candidate_pairs, swept_boxes
 from qpbench.simulation.operators import ChosenSolve, SolvedImpulses, unit_scale
 from qpbench.simulation.stepper import Simulator, StepEvent
@@ -374,3 +375,28 @@ def test_without_the_cache_flag_no_warm_start_reaches_the_solver() -> None:
     Simulator(parse_scene(text, "resting.xml"),
               lambda operator: ChosenSolve(SOLVER, recording)).run(max_steps=5)
     assert recording.warm_starts and all(w is None for w in recording.warm_starts.values())
+
+
+def checked_figures() -> list[str]:
+    """The energy, momentum and momentum drift of 1,000 bodies drawn from a fixed seed (a
+    tenth of them kinematic), in hexadecimal."""
+    rng = np.random.default_rng(3)
+    bodies = 1000
+    masses, inertia = rng.uniform(0.1, 10.0, bodies), rng.uniform(0.01, 1.0, bodies)
+    free = rng.random(bodies) > 0.1
+    positions, v_start, v_end = (rng.normal(0.0, 5.0, (bodies, 2)) for _ in range(3))
+    omega, gravity = rng.normal(0.0, 3.0, bodies), np.array([0.3, -9.81])
+    energy = checks.energy(masses, inertia, free, positions, v_start, omega, gravity)
+    momentum = checks.momentum(masses, free, v_end)
+    drift = checks.momentum_drift(masses, free, v_start, v_end, gravity, 0.25)
+    return [float(value).hex() for value in (energy, *momentum, drift)]
+
+
+def test_the_simulation_checks_do_not_depend_on_blas_kernels_or_simd() -> None:
+    """A simulation reports the same energy and momentum on every CPU: the figures of a
+    process that rounds as an old CPU does (tests/other_cpu.py) equal this one's."""
+    assert printed_elsewhere(__file__) == checked_figures()
+
+
+if __name__ == "__main__":
+    print("\n".join(checked_figures()))

@@ -48,6 +48,27 @@ def scale(problem: ImpactProblem) -> float:
     return vector_scale(problem.b)
 
 
+def dot(x: np.ndarray, y: np.ndarray) -> float:
+    """``x^T y``, summed in an order that does not depend on the CPU.
+
+    NumPy's ``x @ y`` calls BLAS, whose dot kernel (and so the order of its sums) the CPU
+    chooses at run time; here the elementwise products, each rounded once on any CPU, are
+    summed by NumPy's pairwise summation (Higham, "The accuracy of floating point
+    summation", SIAM J. Sci. Comput. 14(4), 1993), whose order is fixed.
+
+    Parameters
+    ----------
+    x, y : np.ndarray
+        Vectors of one length.
+
+    Returns
+    -------
+    float
+        Their inner product.
+    """
+    return float(np.add.reduce(x * y))
+
+
 def is_finite(impulses: np.ndarray | None, problem: ImpactProblem) -> bool:
     """True when l exists, has n entries and all are finite.
 
@@ -126,7 +147,7 @@ def complementarity(problem: ImpactProblem, impulses: np.ndarray) -> float:
         The scaled complementarity gap.
     """
     unit = scale(problem)
-    return abs(float((problem.diag_Q * impulses) @ problem.w(impulses))) / unit / unit
+    return abs(dot(problem.diag_Q * impulses, problem.w(impulses))) / unit / unit
 
 
 def infeasibility(problem: ImpactProblem, impulses: np.ndarray) -> float:
@@ -211,7 +232,7 @@ def energy_change_identity(problem: ImpactProblem, impulses: np.ndarray) -> floa
     """
     Q_l = problem.Q @ impulses
     u_minus = problem.b / (1.0 + problem.restitution) - problem.n_rel
-    return float(impulses @ u_minus + 0.5 * impulses @ Q_l)
+    return dot(impulses, u_minus) + 0.5 * dot(impulses, Q_l)
 
 
 def energy_identity_gap(problem: ImpactProblem, impulses: np.ndarray) -> float:

@@ -6,13 +6,17 @@ Over free (non-kinematic) bodies with masses m, moments of inertia I and gravity
 * ``momentum = sum m v``; with gravity it should equal ``P0 + (sum m) g t``;
 * ``momentum_drift = |P(t) - P0 - (sum m) g t| / max(sum m |v0|, sum m |v(t)|, tiny)``,
   zero up to rounding when only balls meet (impulses between balls conserve momentum).
+
+Every sum runs in an order that does not depend on the CPU (NumPy's pairwise summation of
+elementwise products, :func:`qpbench.problem.metrics.dot`, never a BLAS product), so that a
+simulation reports the same figures on every machine.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from qpbench.problem.metrics import TINY
+from qpbench.problem.metrics import TINY, dot
 
 
 def energy(masses: np.ndarray, inertia: np.ndarray, free: np.ndarray, positions: np.ndarray,
@@ -42,7 +46,8 @@ def energy(masses: np.ndarray, inertia: np.ndarray, free: np.ndarray, positions:
     if omega is not None:
         total += 0.5 * float(np.sum(inertia[free] * omega[free] ** 2))
     if gravity is not None:
-        total -= float(np.sum(m * (positions[free] @ gravity)))
+        height = positions[free, 0] * gravity[0] + positions[free, 1] * gravity[1]
+        total -= dot(m, height)
     return total
 
 
@@ -63,7 +68,8 @@ def momentum(masses: np.ndarray, free: np.ndarray, velocities: np.ndarray) -> np
     np.ndarray
         (2,) momentum.
     """
-    return masses[free] @ velocities[free]
+    moving = velocities[free]
+    return np.array([dot(masses[free], moving[:, 0]), dot(masses[free], moving[:, 1])])
 
 
 def momentum_drift(masses: np.ndarray, free: np.ndarray, v_start: np.ndarray, v_end: np.ndarray,
@@ -92,6 +98,6 @@ def momentum_drift(masses: np.ndarray, free: np.ndarray, v_start: np.ndarray, v_
     if gravity is not None:
         expected = expected + float(np.sum(masses[free])) * gravity * elapsed
     difference = momentum(masses, free, v_end) - expected
-    scale = max(float(masses[free] @ np.hypot(*v_start[free].T)),
-                float(masses[free] @ np.hypot(*v_end[free].T)), TINY)
+    scale = max(dot(masses[free], np.hypot(*v_start[free].T)),
+                dot(masses[free], np.hypot(*v_end[free].T)), TINY)
     return float(np.hypot(*difference)) / scale

@@ -24,27 +24,6 @@ FORMULATION = "lcp"
 VERSION = __version__
 
 
-def dot(x: np.ndarray, y: np.ndarray) -> float:
-    """``x^T y``, summed in an order that does not depend on the CPU.
-
-    NumPy's ``x @ y`` calls BLAS, whose dot kernel (and so the order of its sums) the CPU
-    chooses at run time; here the elementwise products, each rounded once on any CPU, are
-    summed by NumPy's pairwise summation (Higham, "The accuracy of floating point
-    summation", SIAM J. Sci. Comput. 14(4), 1993), whose order is fixed.
-
-    Parameters
-    ----------
-    x, y : np.ndarray
-        Vectors of one length.
-
-    Returns
-    -------
-    float
-        Their inner product.
-    """
-    return float(np.add.reduce(x * y))
-
-
 @dataclass
 class Lcp:
     """Q (CSR), b, D = diag(Q) and the residual's scale of one problem; ``op`` is Q for

@@ -31,7 +31,8 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
-from qpbench.solvers.lcp import Lcp, dot
+from qpbench.problem.metrics import dot
+from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
 # what a try_finish of interior_point returns for an iterate it chose not to try

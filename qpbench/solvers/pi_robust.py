@@ -88,9 +88,10 @@ import numpy as np
 from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.metrics import dot
 from qpbench.solvers import lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
-from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, dot, output
+from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
     NOT_TRIED,
     FactoredNormalMatrix,
