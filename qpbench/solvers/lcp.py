@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from qpbench import __version__
 from qpbench.problem import metrics
 from qpbench.problem.impact import ImpactProblem
+from qpbench.solvers import fixed_order_dense
 from qpbench.solvers.base import SolverOutput
 
 BACKEND = "qpbench"
@@ -27,7 +28,8 @@ VERSION = __version__
 @dataclass
 class Lcp:
     """Q (CSR), b, D = diag(Q) and the residual's scale of one problem; ``op`` is Q for
-    products: a dense array on small problems (no sparse overhead), else Q itself."""
+    products: a dense array on small problems (no sparse overhead), else Q itself. Products
+    with Q go through :meth:`times`, which sums a dense one in a fixed order."""
 
     Q: sp.csr_matrix
     b: np.ndarray
@@ -77,6 +79,24 @@ class Lcp:
         """D with zero entries (contacts that move nothing) replaced by 1, for divisions."""
         return np.where(self.diag > 0.0, self.diag, 1.0)
 
+    def times(self, x: np.ndarray) -> np.ndarray:
+        """Q x: by ``op``'s sparse product, or, with ``op`` dense, summed in an order that does
+        not depend on the CPU (``fixed_order_dense.symmetric_product``, not the BLAS).
+
+        Parameters
+        ----------
+        x : np.ndarray
+            A vector of n entries.
+
+        Returns
+        -------
+        np.ndarray
+            Q x, n entries.
+        """
+        if self.dense:
+            return fixed_order_dense.symmetric_product(self.op, x)
+        return self.op @ x
+
     def w(self, impulses: np.ndarray) -> np.ndarray:
         """w = Q l + b.
 
@@ -90,7 +110,7 @@ class Lcp:
         np.ndarray
             w, shape (n,).
         """
-        return self.op @ impulses + self.b
+        return self.times(impulses) + self.b
 
     def residual_of(self, impulses: np.ndarray, w: np.ndarray) -> float:
         """||min(D l, w)||_inf / scale for a w already computed.

@@ -27,11 +27,11 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 
 from qpbench.problem import metrics
 from qpbench.problem.metrics import dot
+from qpbench.solvers import fixed_order_dense
 from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.sparse_cholesky import PatternFactor, gram_factor
 
@@ -117,7 +117,8 @@ def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarra
 
 
 class NormalMatrix:
-    """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky, or sparse: one
+    """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky in a fixed order,
+    ``fixed_order_dense``, or sparse: one
     :class:`~qpbench.solvers.sparse_cholesky.PatternFactor` for every iteration's matrix) and
     solves with it; keeps the scaled LCP and its scaling ``root``."""
 
@@ -147,7 +148,7 @@ class NormalMatrix:
         if self.dense:
             matrix = self.Q_dense.copy()
             matrix[np.diag_indices_from(matrix)] += diagonal
-            self.factor = la.cho_factor(matrix, lower=True, check_finite=False)
+            self.factor = fixed_order_dense.cholesky(matrix)
         else:
             if self.pattern is None:
                 self.pattern = PatternFactor(self.Q_csc)
@@ -167,7 +168,7 @@ class NormalMatrix:
             The solution, shape (n,).
         """
         if self.dense:
-            return la.cho_solve(self.factor, rhs, check_finite=False)
+            return fixed_order_dense.cholesky_solve(self.factor, rhs)
         return self.factor.solve(rhs)
 
 
@@ -412,7 +413,7 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     best, best_w, best_res = impulses * root, slack / root, np.inf
     progress, least_infeasible, stalled = np.inf, np.inf, 0
     for iteration in range(1, max_iters + 1):
-        plain_w = scaled.op @ impulses + scaled.b
+        plain_w = scaled.times(impulses) + scaled.b
         infeasibility = plain_w + prox * impulses - slack
         mu = dot(impulses, slack) / n
         original_l, original_w = impulses * root, plain_w / root
@@ -443,16 +444,16 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
         normal.factorize(np.maximum(slack / impulses, floor) + prox)
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
-        dw = scaled.op @ dl + prox * dl + infeasibility
+        dw = scaled.times(dl) + prox * dl + infeasibility
         alpha = _longest_step(impulses, slack, dl, dw)
         mu_affine = dot(impulses + alpha * dl, slack + alpha * dw) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
-        dw = scaled.op @ dl + prox * dl + infeasibility
+        dw = scaled.times(dl) + prox * dl + infeasibility
         dl, dw, step = _centrality_corrected(impulses, slack, dl, dw, sigma * mu, normal,
-                                             lambda change: scaled.op @ change + prox * change)
+                                             lambda change: scaled.times(change) + prox * change)
         alpha = min(1.0, 0.99 * step)
         impulses = np.maximum(impulses + alpha * dl, 1e-300)
         slack = np.maximum(slack + alpha * dw, 1e-300)

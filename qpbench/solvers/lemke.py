@@ -9,11 +9,13 @@ method ends at a solution in finitely many pivots.
 Tableau of ``w - Q z - e z0 = b`` (covering vector e = 1) on the Jacobi-scaled LCP
 (``D^-1/2 Q D^-1/2``, unit diagonal), pivots below 1e-9 treated as zero, kept dense: meant for
 small problems and as a reference method; above ``max_contacts`` it declines and
-says so. Its answer is polished: on the final set F of basic z, ``Q_FF z_F = -b_F``
-is solved again by least squares and kept when qpbench's residual improves. An ending on a
-secondary ray is reported as ``ray termination`` (the LCP has no solution) only when the ray's
-direction checks out as a proof of it (:func:`no_solution_certified`), else as
-``ray termination without a certificate``.
+says so. Its answer is polished: on the final set F of basic z, ``Q_FF z_F = -b_F`` is
+solved again by Gaussian elimination with two rounds of iterative refinement, and kept when
+qpbench's residual improves. The tableau's updates are elementwise, and the polish's products
+and eliminations run in a fixed order (``fixed_order_dense``), so the answer does not depend
+on the CPU's BLAS. An ending on a secondary ray is reported as ``ray termination`` (the LCP
+has no solution) only when the ray's direction checks out as a proof of it
+(:func:`no_solution_certified`), else as ``ray termination without a certificate``.
 
 The same pivoting (:func:`complementary_pivoting`, any dense A) solves a frictional problem's
 exact 2D law as one LCP, Stewart-Trinkle's ``z = (l_N, b+, b-, s) >= 0`` with
@@ -31,7 +33,8 @@ import numpy as np
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import accuracy
+from qpbench.problem.metrics import dot
+from qpbench.solvers import accuracy, fixed_order_dense
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
@@ -186,8 +189,8 @@ def no_solution_certified(Q: np.ndarray, b: np.ndarray, direction: np.ndarray) -
     y = np.maximum(direction, 0.0)
     q_scale = float(np.abs(Q).max(initial=0.0)) * size
     b_scale = float(np.abs(b).max(initial=0.0)) * size
-    return bool(np.abs(Q @ y).max() <= CERTIFICATE_TOL * q_scale
-                and float(b @ y) < -CERTIFICATE_TOL * b_scale)
+    return bool(np.abs(fixed_order_dense.symmetric_product(Q, y)).max()
+                <= CERTIFICATE_TOL * q_scale and dot(b, y) < -CERTIFICATE_TOL * b_scale)
 
 
 def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str, int]:
@@ -236,16 +239,21 @@ def lemke(lcp: Lcp, tol: float, max_pivots: int) -> tuple[np.ndarray, bool, str,
 
 def _polish(lcp: Lcp, impulses: np.ndarray, basic: np.ndarray, scaled_Q: np.ndarray,
             root: np.ndarray) -> np.ndarray:
-    """Re-solves the basic block ``Q~_FF l~_F = -b~_F`` of the scaled LCP by least squares with
-    two rounds of iterative refinement from Lemke's l; keeps the answer with the smaller
-    residual."""
+    """Re-solves the basic block ``Q~_FF l~_F = -b~_F`` of the scaled LCP (nonsingular at a
+    basis of Lemke's) by Gaussian elimination, two rounds of iterative refinement from Lemke's
+    l, in a fixed order (``fixed_order_dense``); keeps the answer with the smaller residual (a
+    block singular to working precision stops the refinement)."""
     if basic.size == 0:
         return impulses
     block = scaled_Q[np.ix_(basic, basic)]
     rhs = -lcp.b[basic] * root[basic]
     solution = impulses[basic] / root[basic]
     for _ in range(2):
-        solution = solution + np.linalg.lstsq(block, rhs - block @ solution, rcond=None)[0]
+        residual = rhs - fixed_order_dense.symmetric_product(block, solution)
+        try:
+            solution = solution + fixed_order_dense.lu_solve(block, residual)
+        except np.linalg.LinAlgError:
+            break
     polished = np.zeros(lcp.n)
     polished[basic] = np.maximum(solution, 0.0) * root[basic]
     return polished if lcp.residual(polished) < lcp.residual(impulses) else impulses
@@ -353,5 +361,6 @@ def solve(problem: ImpactProblem | FrictionalProblem, eps: float,
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
                     version=VERSION, warm_start=False, kinds=("impact", "frictional"),
+                    prepare=fixed_order_dense.warm_up,
                     description="Lemke's method, lexicographic, dense tableau; for a "
                                 "frictional problem on its Stewart-Trinkle LCP"))

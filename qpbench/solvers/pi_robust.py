@@ -51,8 +51,9 @@ and adds published safeguards:
    its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
-Factorizations: dense LAPACK (``dense_limit`` contacts at most; blocks of up to 64
-by LU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a sparse
+Factorizations: dense (``dense_limit`` contacts at most; ``fixed_order_dense``: Cholesky,
+blocks of up to 64 by Gaussian elimination, products too summed in an order that does not
+depend on the CPU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a sparse
 block over the degrees of freedom its contacts move when there are fewer of them than
 contacts (``lcp_interior.WoodburyFactor``, refined once; ``pi_robust_blocks``); the last
 factors of policy blocks are kept, so prox steps on a settled policy cost triangular solves
@@ -89,7 +90,7 @@ from qpbench.problem import metrics
 from qpbench.problem.friction import FrictionalProblem
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.metrics import dot
-from qpbench.solvers import lemke, relaxation
+from qpbench.solvers import fixed_order_dense, lemke, relaxation
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.lcp_interior import (
@@ -170,7 +171,7 @@ def _inner_lcp(lcp: Lcp, blocks: BlockSolver, policy: np.ndarray, rho: float, q:
     while solves < budget:
         x = _policy_solve(blocks, policy, rho, q)
         solves += 1
-        y = lcp.op @ x + shift * x + q
+        y = lcp.times(x) + shift * x + q
         infeasible = (policy & (x < -tol_l)) | (~policy & (y < -tol_w))
         count = int(np.count_nonzero(infeasible))
         if count == 0:
@@ -230,7 +231,7 @@ def _primal_active_set(lcp: Lcp, blocks: BlockSolver, rho: float, q: np.ndarray,
 
     def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
         """(f(x), H x + q)."""
-        gradient = lcp.op @ x + shift * x + q
+        gradient = lcp.times(x) + shift * x + q
         return dot(x, 0.5 * (gradient - q) + q), gradient
 
     free = feasible > 0.0
@@ -745,8 +746,10 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 
 def prepare() -> None:
-    """Loads the compiled kernel from numba's cache (compiling it once), outside any clock."""
+    """Loads the compiled kernel and the Python path's fixed-order dense functions from numba's
+    cache (compiling them once), outside any clock."""
     kernel_calls.warm_up()
+    fixed_order_dense.warm_up()
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,

@@ -1,23 +1,25 @@
 """The policy blocks of pi-robust's Python path: their factors, kept and updated.
 
 Each policy solve of ``qpbench.solvers.pi_robust`` solves ``(Q_FF + rho D_F) x_F = r`` for
-the free contacts F of a policy. :class:`BlockSolver` factors those blocks, densely (LAPACK)
-on dense LCPs, and on sparse ones over the degrees of freedom in Woodbury form when fewer of
-them move than F has contacts (``lcp_interior.WoodburyFactor``), else over the contacts
-(``sparse_cholesky.symmetric_factor``). It keeps the last factors by (policy, rho), so prox
-steps on a settled policy cost triangular solves only, and it makes a Woodbury block whose
-policy differs in a few contacts from the last one's by a low-rank update of that block's
-factor (``sparse_cholesky.updated_gram_factor``).
+the free contacts F of a policy. :class:`BlockSolver` factors those blocks, densely on dense
+LCPs (``fixed_order_dense``: Cholesky, or on a few contacts Gaussian elimination, in an order
+that does not depend on the CPU), and on sparse ones over the degrees of freedom in Woodbury
+form when fewer of them move than F has contacts (``lcp_interior.WoodburyFactor``), else over
+the contacts (``sparse_cholesky.symmetric_factor``). It keeps the last factors by (policy,
+rho), so prox steps on a settled policy cost triangular solves only, and it makes a Woodbury
+block whose policy differs in a few contacts from the last one's by a low-rank update of that
+block's factor (``sparse_cholesky.updated_gram_factor``).
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-import scipy.linalg as la
 import scipy.sparse as sp
 
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import sparse_cholesky
+from qpbench.solvers import fixed_order_dense, sparse_cholesky
 from qpbench.solvers.lcp import Lcp
 from qpbench.solvers.lcp_interior import WoodburyFactor, moving_rows
 from qpbench.solvers.sparse_cholesky import symmetric_factor, updated_gram_factor
@@ -28,6 +30,13 @@ BLOCK_REFINEMENTS = 1
 # a policy block over the degrees of freedom whose policy differs from the last one's in at
 # most this many contacts (at the same rho) is factored by updating that block's factor
 UPDATE_CONTACTS = 64
+
+
+class SmallBlock(NamedTuple):
+    """A dense policy block of at most ``BlockSolver.small`` contacts, kept as it is and solved
+    by Gaussian elimination at each use (cheaper there than a factor kept)."""
+
+    block: np.ndarray
 
 
 class BlockSolver:
@@ -104,10 +113,10 @@ class BlockSolver:
         self.cache[key] = factor  # the most recently used last
         while len(self.cache) > self.keep:
             self.cache.pop(next(iter(self.cache)))
-        if isinstance(factor, np.ndarray):
-            return np.linalg.solve(factor, rhs)
+        if isinstance(factor, SmallBlock):
+            return fixed_order_dense.lu_solve(factor.block, rhs)
         if self.dense:
-            return la.cho_solve(factor, rhs, check_finite=False)
+            return fixed_order_dense.cholesky_solve(factor, rhs)
         return factor.solve(rhs)
 
     def _factor(self, policy: np.ndarray, index: np.ndarray, rho: float) -> object:
@@ -116,8 +125,8 @@ class BlockSolver:
             block = self.Q_dense[np.ix_(index, index)]
             block[np.diag_indices_from(block)] += shift
             if index.size <= self.small:
-                return block
-            return la.cho_factor(block, lower=True, check_finite=False)
+                return SmallBlock(block)
+            return fixed_order_dense.cholesky(block)
         if self._over_dofs(index):
             self.factorizations_over_dofs += 1
             return self._woodbury(policy, index, rho, shift)

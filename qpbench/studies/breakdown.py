@@ -44,7 +44,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
@@ -57,7 +56,7 @@ from qpbench.problem.generate import generate
 from qpbench.problem.impact import ImpactProblem
 from qpbench.scenes import load_scene
 from qpbench.simulation.stepper import Simulator
-from qpbench.solvers import lcp_interior, pi_robust, pi_robust_blocks
+from qpbench.solvers import fixed_order_dense, lcp_interior, pi_robust, pi_robust_blocks
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.pi_robust_blocks import BlockSolver
 from qpbench.solvers.pi_robust_kernel import call as kernel_call
@@ -80,7 +79,7 @@ GRID_SIZES = (20, 30)
 # freedom, made anew or updated), the interior point's matrices (_timed counts a
 # factorization inside another once)
 FACTOR_CALLS = ((BlockSolver, "_factor"), (pi_robust_blocks, "updated_gram_factor"),
-                (scipy.linalg, "cho_factor"), (PatternFactor, "factorize"),
+                (fixed_order_dense, "cholesky"), (PatternFactor, "factorize"),
                 (lcp_interior, "gram_factor"), (pi_robust_blocks, "symmetric_factor"))
 
 
@@ -345,18 +344,18 @@ def markdown(rows: list[dict[str, Any]], repeats: int) -> str:
         f"pi-robust at accuracy {ACCURACY:g}, {repeats} rounds that each time every part once "
         "in turn (so that a burst of load on the host falls on all parts alike), each part's "
         "fastest round kept; single-threaded BLAS. total = `time_s`; harness = `call_solver` "
-        "around a solver that returns zeros; trivial = pi-robust on one contact; kernel = the"
-        " compiled call `pi_robust_into` alone; Python path = the fallback when it runs; "
-        "of it, factorizations = the Python path's matrix factorizations (LAPACK, CHOLMOD or "
-        "SuperLU; the rest of that path is its products, step lengths and bookkeeping in "
-        "Python); outside = total - kernel - Python path; back to back = the same compiled call "
-        "repeated with nothing in between, and cold = kernel - back to back: what the kernel "
-        "loses when other work (the blind copy, the posing) has run since its last call, so "
-        "that its caches and branch predictors no longer hold this very solve (`time_s` "
-        "includes such a loss for every solver); product = one `Q l` in compiled code; floor "
-        "= one Cholesky in LAPACK (dense or banded in RCM order, the faster) of the final "
-        "active block (l > 0) plus that product, both timed inside one compiled call, without"
-        " Python call overhead.\n",
+        "around a solver that returns zeros; trivial = pi-robust on one contact; kernel = the "
+        "compiled call `pi_robust_into` alone; Python path = the fallback when it runs; of it, "
+        "factorizations = the Python path's matrix factorizations (dense in a fixed order, "
+        "CHOLMOD or SuperLU; the rest of that path is its products, step lengths and "
+        "bookkeeping in Python); outside = total - kernel - Python path; back to back = the "
+        "same compiled call repeated with nothing in between, and cold = kernel - back to back:"
+        " what the kernel loses when other work (the blind copy, the posing) has run since its "
+        "last call, so that its caches and branch predictors no longer hold this very solve "
+        "(`time_s` includes such a loss for every solver); product = one `Q l` in compiled "
+        "code; floor = one Cholesky in LAPACK (dense or banded in RCM order, the faster) of the"
+        " final active block (l > 0) plus that product, both timed inside one compiled call, "
+        "without Python call overhead.\n",
         "| problem | contacts | active | path | solves | factorizations | interior its | "
         "total [ms] | harness [ms] | trivial [ms] | kernel [ms] | back to back [ms] | "
         "cold [ms] | Python path [ms] | of it, factorizations [ms] | outside [ms] | "
