@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from other_cpu import printed_elsewhere
 
-from qpbench.problem import metrics
+from qpbench.problem import friction_generate, friction_metrics, metrics
 from qpbench.problem.generate import generate
 from qpbench.problem.reference import attach_reference, enumeration
 
@@ -115,7 +115,8 @@ def test_complementarity_of_a_problem_at_rest_is_finite_where_the_scale_squared_
 
 def judged_figures() -> list[str]:
     """Every metric of :func:`metrics.evaluate`, in hexadecimal, on a 30x30 grid, a packing of
-    1,000 boxes and a 10x10 grid, each judged at impulses drawn from a fixed seed."""
+    1,000 boxes and a 10x10 grid, and of the frictional ``friction_metrics.evaluate`` with
+    FCLIB's merit on two frictional problems, each judged at impulses drawn from a fixed seed."""
     lines = []
     for family, size, seed in (("grid", 30, 2), ("box", 1000, 1), ("grid", 10, 1)):
         problem = generate(family, size, seed=seed)[0]
@@ -123,6 +124,14 @@ def judged_figures() -> list[str]:
         figures = metrics.evaluate(problem, impulses, 1e-8)
         lines.append(f"{family} {size} " + " ".join(
             f"{name}={float(value).hex()}" for name, value in sorted(figures.items())))
+    for family, size in (("rough-box", 150), ("incline", 50)):
+        frictional = friction_generate.generate(family, size, seed=3)[0]
+        impulses = np.random.default_rng(size).random(2 * frictional.n_contacts)
+        figures = friction_metrics.evaluate(frictional, impulses, 1e-8)
+        figures["fclib_merit"] = friction_metrics.fclib_merit(frictional, impulses)
+        lines.append(f"{family} {size} " + " ".join(
+            f"{name}={float(value).hex()}" for name, value in sorted(figures.items())
+            if isinstance(value, float)))
     return lines
 
 

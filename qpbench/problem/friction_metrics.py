@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from qpbench.problem.friction import MODELS, FrictionalProblem
-from qpbench.problem.metrics import TINY
+from qpbench.problem.metrics import TINY, dot
 
 
 def project_on_cone(normal: np.ndarray, tangential: np.ndarray, mu: np.ndarray
@@ -315,4 +315,5 @@ def fclib_merit(problem: FrictionalProblem, impulses: np.ndarray) -> float:
     projected_normal, projected_tangential = project_on_cone(
         normal - u_normal, tangential - u_tangential, problem.mu)
     F = np.concatenate([normal - projected_normal, tangential - projected_tangential])
-    return float(np.linalg.norm(F)) / (1.0 + float(np.linalg.norm(problem.q)))
+    # 2-norms from fixed-order inner products (np.linalg.norm of a vector is a BLAS dot)
+    return float(np.sqrt(dot(F, F))) / (1.0 + float(np.sqrt(dot(problem.q, problem.q))))

@@ -139,6 +139,27 @@ def symmetric_product(matrix: np.ndarray, x: np.ndarray) -> np.ndarray:
     return _symmetric_product(_compiled_operand(matrix), _compiled_operand(x))
 
 
+def product(matrix: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A x`` for any dense A (not symmetric: a frictional LCP's), in a fixed order.
+
+    The symmetric product of a contiguous copy of ``A^T``: ``sum_j x_j A[:, j]``.
+
+    Parameters
+    ----------
+    matrix : np.ndarray
+        A, shape (m, n).
+    x : np.ndarray
+        A vector of n entries.
+
+    Returns
+    -------
+    np.ndarray
+        A x, m entries.
+    """
+    return _symmetric_product(np.ascontiguousarray(np.transpose(matrix), dtype=np.float64),
+                              _compiled_operand(x))
+
+
 def cholesky(matrix: np.ndarray) -> np.ndarray:
     """The Cholesky factor U of a symmetric positive definite A (``A = U^T U``), for
     :func:`cholesky_solve`.
@@ -213,5 +234,6 @@ def warm_up() -> None:
     outside any clock (a solver's ``prepare``)."""
     matrix, vector = np.array([[2.0, 1.0], [1.0, 2.0]]), np.array([1.0, -1.0])
     symmetric_product(matrix, vector)
+    product(matrix, vector)
     cholesky_solve(cholesky(matrix), vector)
     lu_solve(matrix, vector)

@@ -261,8 +261,9 @@ def _polish(lcp: Lcp, impulses: np.ndarray, basic: np.ndarray, scaled_Q: np.ndar
 
 def _polish_frictional(problem: FrictionalProblem, A: np.ndarray, c: np.ndarray,
                        z: np.ndarray, basic: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """As :func:`_polish`, on the scaled Stewart-Trinkle LCP: ``A~_FF z~_F = -c~_F`` on the
-    final basic set F, kept when qpbench's Coulomb residual improves; returns r."""
+    """As :func:`_polish`, on the scaled Stewart-Trinkle LCP (not symmetric):
+    ``A~_FF z~_F = -c~_F`` on the final basic set F, kept when qpbench's Coulomb residual
+    improves; returns r."""
     impulses = problem.from_stewart_trinkle(z * root)
     if basic.size == 0:
         return impulses
@@ -270,7 +271,11 @@ def _polish_frictional(problem: FrictionalProblem, A: np.ndarray, c: np.ndarray,
     rhs = -c[basic]
     solution = z[basic]
     for _ in range(2):
-        solution = solution + np.linalg.lstsq(block, rhs - block @ solution, rcond=None)[0]
+        residual = rhs - fixed_order_dense.product(block, solution)
+        try:
+            solution = solution + fixed_order_dense.lu_solve(block, residual)
+        except np.linalg.LinAlgError:
+            break
     polished = np.zeros_like(z)
     polished[basic] = np.maximum(solution, 0.0)
     candidate = problem.from_stewart_trinkle(polished * root)

@@ -49,7 +49,7 @@ import scipy.sparse as sp
 from qpbench import __version__
 from qpbench.problem import friction_metrics
 from qpbench.problem.friction import FrictionalProblem
-from qpbench.solvers import accuracy, colouring
+from qpbench.solvers import accuracy, colouring, fixed_order_dense
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lemke import complementary_pivoting
 from qpbench.solvers.registry import register
@@ -301,8 +301,8 @@ def block_lcp(W_block: np.ndarray, q_block: np.ndarray, mu: np.ndarray
     NN, NT = W_block[:k, :k], W_block[:k, k:]
     TN, TT = W_block[k:, :k], W_block[k:, k:]
     identity, zero, friction = np.eye(k), np.zeros((k, k)), np.diag(mu)
-    A = np.block([[NN - NT @ friction, NT, zero],
-                  [TN - TT @ friction, TT, identity],
+    A = np.block([[NN - NT * mu[None, :], NT, zero],
+                  [TN - TT * mu[None, :], TT, identity],
                   [2.0 * friction, -identity, zero]])
     return A, np.concatenate([q_block, np.zeros(k)])
 
@@ -340,7 +340,8 @@ def pivoting_finish(problem: FrictionalProblem, impulses: np.ndarray, tol: float
     rows = np.concatenate([block, block + n])
     W_rows = sp.csr_matrix(problem.W)[rows]
     W_block = W_rows[:, rows].toarray()
-    q_block = W_rows @ impulses + problem.q[rows] - W_block @ impulses[rows]
+    q_block = (W_rows @ impulses + problem.q[rows]
+               - fixed_order_dense.symmetric_product(W_block, impulses[rows]))
     A, c = block_lcp(W_block, q_block, problem.mu[block])
     diagonal = np.concatenate([np.diag(W_block), np.diag(W_block)[:block.size]])
     root = np.sqrt(np.where(diagonal > 0.0, diagonal, 1.0))
@@ -473,9 +474,15 @@ def solve(problem: FrictionalProblem, eps: float, warm_start: np.ndarray | None 
                                        "increasing order"})
 
 
+def prepare() -> None:
+    """Compiles the colouring and the pivoting finish's fixed-order products, or loads them
+    from numba's cache, outside any clock."""
+    colouring.warm_up()
+    fixed_order_dense.warm_up()
+
+
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
                     version=VERSION, warm_start=True, own_stopping_rule=True,
-                    prepare=colouring.warm_up,
-                    kinds=("frictional",),
+                    prepare=prepare, kinds=("frictional",),
                     description="nonsmooth Gauss-Seidel over contacts, exact 2x2 local solves "
                                 "(take-off, stick, slide), colour-ordered sweeps"))

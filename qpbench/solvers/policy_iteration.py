@@ -8,7 +8,9 @@ is Newton's method on ``min(D l, Q l + b) = 0``:
 * policy ``P = {i : (Q l + b)_i < D_i l_i}`` (from l = 0: the approaching contacts);
 * value: solve ``(P Q P + I - P) l = -P b``, i.e. ``Q_PP l_P = -b_P`` and ``l_i = 0``
   outside P, by conjugate gradients from zero as the research did (so l is a
-  function of the policy alone and a repeated policy is a proven cycle);
+  function of the policy alone and a repeated policy is a proven cycle), their inner
+  products summed in a fixed order (``metrics.dot``), so that the path does not depend on
+  the CPU's BLAS;
 * stop when ``residual(l) <= tol`` or after ``max_iters`` policies.
 
 ``pi`` reports failure when a policy repeats (it would cycle forever) or at
@@ -20,9 +22,10 @@ singular Q of overlapping balls: they say so instead of returning a wrong answer
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse.linalg as spla
+import scipy.sparse as sp
 
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.metrics import dot
 from qpbench.solvers import accuracy
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
@@ -47,6 +50,53 @@ def policy_of(lcp: Lcp, impulses: np.ndarray, w: np.ndarray) -> np.ndarray:
         The mask of P, shape (n,), bool.
     """
     return w < lcp.diag * impulses
+
+
+def conjugate_gradients(matrix: sp.csr_matrix, rhs: np.ndarray, rtol: float, max_iters: int
+                        ) -> np.ndarray:
+    """x with ``A x = rhs`` for a symmetric positive semi-definite A, by conjugate gradients.
+
+    Hestenes and Stiefel, J. Res. Nat. Bur. Standards 49(6), 1952: from x = 0, each step moves
+    along a direction A-conjugate to the ones before by the step that minimizes
+    ``x^T A x / 2 - rhs^T x`` along it. Stops when ``||rhs - A x||_2 < rtol ||rhs||_2``, after
+    ``max_iters`` steps, or when a direction has no positive curvature (A singular along it),
+    and returns the last x (SciPy's ``cg`` criterion, with that breakdown guarded). The inner
+    products are :func:`qpbench.problem.metrics.dot`'s.
+
+    Parameters
+    ----------
+    matrix : sp.csr_matrix
+        A, shape (k, k).
+    rhs : np.ndarray
+        The right side, k entries.
+    rtol : float
+        The residual's norm to reach, relative to rhs's.
+    max_iters : int
+        The most steps.
+
+    Returns
+    -------
+    np.ndarray
+        x, k entries.
+    """
+    x = np.zeros(rhs.size)
+    residual = rhs.copy()
+    target = rtol * np.sqrt(dot(rhs, rhs))
+    direction = residual.copy()
+    squared = dot(residual, residual)
+    for _ in range(max_iters):
+        if np.sqrt(squared) < target:
+            break
+        image = matrix @ direction
+        curvature = dot(direction, image)
+        if not curvature > 0.0:
+            break
+        step = squared / curvature
+        x += step * direction
+        residual -= step * image
+        squared, previous = dot(residual, residual), squared
+        direction = residual + (squared / previous) * direction
+    return x
 
 
 def policy_value(lcp: Lcp, policy: np.ndarray, cg_rtol: float, cg_max_iters: int) -> np.ndarray:
@@ -74,8 +124,7 @@ def policy_value(lcp: Lcp, policy: np.ndarray, cg_rtol: float, cg_max_iters: int
         return impulses
     block = lcp.Q[index][:, index]
     rhs = -lcp.b[index]
-    solution, _info = spla.cg(block, rhs, rtol=cg_rtol, atol=0.0, maxiter=cg_max_iters)
-    impulses[index] = solution
+    impulses[index] = conjugate_gradients(block, rhs, cg_rtol, cg_max_iters)
     return impulses
 
 
