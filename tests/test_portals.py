@@ -3,6 +3,8 @@ contacts across the boundary, momentum, and the shear a Lees-Edwards box imposes
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -101,3 +103,16 @@ def test_portals_with_box_geometry_are_refused_in_one_line() -> None:
     message = str(raised.value)
     assert message.startswith("boxes.xml: <planar_portal>") and "box geometry" in message
     assert "\n" not in message
+
+
+def test_balls_whose_centres_meet_through_a_portal_make_no_contact_and_no_warning() -> None:
+    """A ball at x = 1.9 and one at x = -2.1 (past the plane x = -2) share a centre through the
+    portal, which maps x to x + 4: no normal exists there, so the pair is inert and left out,
+    as ball_ball leaves out two balls with one centre, without a division by zero."""
+    balls = ('<ball x="1.9" y="0.0" vx="0" vy="0" m="1" r="0.1" fixed="0"/>'
+             '<ball x="-2.1" y="0.0" vx="0" vy="0" m="1" r="0.1" fixed="0"/>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _, result = run(box(balls, '<planar_portal planeA="0" planeB="1"/>'), 3)
+    assert result.failure is None and result.impacts == 0
+    assert np.all(np.isfinite(result.x_final))

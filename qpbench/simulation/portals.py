@@ -188,7 +188,9 @@ def teleported_contacts(portals: list[Portal], dxs: list[float], x0: np.ndarray,
     -------
     tuple of (Contacts, np.ndarray)
         One BODY_BODY contact per pair of bodies meeting across a portal (normal and arms of the
-        copies at x0), and the (n, 2) kick of each.
+        copies at x0), and the (n, 2) kick of each. A pair whose centres coincide through the
+        portal has no normal and is left out (an inert constraint, as ``contacts.ball_ball``
+        leaves out two balls with one centre).
     """
     n_bodies = x1.shape[0]
     # copies: (body, portal, plane), in SCISim's order (portal by portal, body by body)
@@ -233,7 +235,10 @@ def teleported_contacts(portals: list[Portal], dxs: list[float], x0: np.ndarray,
     for (a, b), (slot_a, slot_b) in sorted(chosen.items()):
         xa, xb = centre(x0, slot_a), centre(x0, slot_b)
         d = xa - xb
-        normal = d / math.hypot(d[0], d[1])
+        length = math.hypot(d[0], d[1])
+        if not length > 0.0:
+            continue  # one centre through the portal: no normal, an inert pair (ball_ball's rule)
+        normal = d / length
         share = radii[a] / (radii[a] + radii[b])
         arms.append(np.concatenate([share * (xb - xa), (share - 1.0) * (xb - xa)]))
         k = np.zeros(2)
