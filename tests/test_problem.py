@@ -81,7 +81,8 @@ def rewrite_header(path: Path, change: Callable[[dict], None]) -> None:
     rewrite(path, change_header)
 
 
-@pytest.mark.parametrize("version", [files.FORMAT_VERSION + 1, "2.0", None])
+@pytest.mark.parametrize("version", [files.FORMAT_VERSION + 1, "2.0", None, "x" * 1000,
+                                     ["x"] * 1000])
 def test_a_file_of_another_format_version_is_one_line_naming_the_field(
         tmp_path: Path, version: object) -> None:
     path = files.save(head_on_pair(), tmp_path / "pair")
@@ -91,6 +92,7 @@ def test_a_file_of_another_format_version_is_one_line_naming_the_field(
     message = str(raised.value)
     assert message.startswith(f"{path} attribute 'format': format version ")
     assert "reads versions 1 and 2" in message and "\n" not in message
+    assert len(message) < len(str(path)) + 200  # a long value is quoted cut short
 
 
 def test_a_file_without_a_name_is_one_line_naming_the_field(tmp_path: Path) -> None:

@@ -428,7 +428,8 @@ def _check_header(header: Any, path: Path) -> None:
         raise InputError(str(path), "corrupt problem file (the header is not a JSON object)")
     version = header.get("format")
     if version not in READABLE_VERSIONS or isinstance(version, bool):
-        found = "missing" if version is None else f"is {version!r}"
+        found = "missing" if version is None else \
+            f"is {shown(version) if isinstance(version, str) else shown(repr(version))}"
         readable = " and ".join(str(v) for v in READABLE_VERSIONS)
         raise InputError(str(path), f"format version {found}; this qpbench reads versions "
                          f"{readable}", attribute="format")
