@@ -118,9 +118,9 @@ def _centrality_corrected(impulses: np.ndarray, slack: np.ndarray, dl: np.ndarra
 
 class NormalMatrix:
     """Factors ``Q~ + diag(d)`` of the scaled LCP (dense Cholesky in a fixed order,
-    ``fixed_order_dense``, or sparse: one
-    :class:`~qpbench.solvers.sparse_cholesky.PatternFactor` for every iteration's matrix) and
-    solves with it; keeps the scaled LCP and its scaling ``root``."""
+    ``fixed_order_dense``, or sparse: one :class:`~qpbench.solvers.sparse_cholesky.PatternFactor`
+    for every iteration's matrix) and solves with it; keeps the scaled LCP and its scaling
+    ``root``."""
 
     over = "contacts"
 
