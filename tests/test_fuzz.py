@@ -97,6 +97,34 @@ def test_200_problem_cases_give_only_qpbench_own_outcomes(tmp_path: Path) -> Non
     assert report["kinds"]["problem"]["outcomes"].get("input-error", 0) > 100
 
 
+def test_a_problem_mutation_is_made_whatever_the_mutations_before_it_did(
+        tmp_path: Path) -> None:
+    """Case 3786 of seed 0 first turns G's column pointers into objects and then sets one of
+    them out of range: the second mutation takes the array it finds as it is (its numbers, or
+    zeros), so the case is made (that case once failed to be made again for the failures'
+    folder, which ended a ``make bench-large`` run's fuzz report with an internal error);
+    and so are the 1,000 cases of another seed."""
+    corpus = fuzz.Corpus(scenes=[], problems=fuzz.problem_corpus(tmp_path))
+    made = fuzz.make_case("problem", 3786, fuzz.Settings(scenes=0, problems=1, seed=0), corpus)
+    assert made.operations == ["G_indptr as object", "G_indptr (-1, 3)"]
+    settings = fuzz.Settings(scenes=0, problems=1000, seed=5)
+    for case in range(1000):
+        assert fuzz.make_case("problem", case, settings, corpus).operations
+
+
+def test_a_failing_case_whose_input_cannot_be_made_again_is_recorded_not_fatal(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(*_: object) -> None:
+        raise ValueError("a mutation's own fault")
+
+    monkeypatch.setattr(fuzz, "make_case", broken)
+    failures = [{"kind": "problem", "case": 7, "outcome": "crash"}]
+    fuzz._save_failures(failures, fuzz.Settings(scenes=0, problems=8), fuzz.Corpus([], []),
+                        tmp_path / "cases")
+    assert failures[0]["input"] == "not made: ValueError: a mutation's own fault"
+    assert list((tmp_path / "cases").iterdir()) == []
+
+
 @pytest.mark.shared
 @pytest.mark.skipif(not (SHARED / "scisim").is_dir(), reason="needs ../shared (SCISim scenes)")
 def test_200_scene_cases_of_the_shared_scisim_scenes_all_pass(tmp_path: Path) -> None:

@@ -628,11 +628,17 @@ def coverage(results: list[dict[str, Any]]) -> dict[str, Any]:
 def _save_failures(failures: list[dict[str, Any]], settings: Settings, corpus: Corpus,
                    folder: Path) -> None:
     """Writes each failing case's input to ``folder`` and names it, with the command that
-    reproduces it, in its failure record."""
+    reproduces it, in its failure record; a case whose input cannot be made (a fault of the
+    mutations, which its own run met first) says so in its record instead, and the report is
+    still written."""
     folder.mkdir(parents=True, exist_ok=True)
     for failure in failures:
         kind, case = failure["kind"], failure["case"]
-        mutated = make_case(kind, case, settings, corpus)
+        try:
+            mutated = make_case(kind, case, settings, corpus)
+        except Exception as error:  # noqa: BLE001 (the harness's own fault, kept in the report)
+            failure["input"] = f"not made: {type(error).__name__}: {error}"[:STDERR_KEPT]
+            continue
         path = folder / case_file(kind, case)
         path.write_bytes(mutated.data)
         failure["base"] = mutated.base

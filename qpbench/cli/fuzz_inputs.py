@@ -450,6 +450,15 @@ def _retyped(rng: random.Random, value: np.ndarray) -> np.ndarray:
             return np.zeros(value.shape, dtype=dtype)
 
 
+def _as_integers(value: np.ndarray) -> np.ndarray:
+    """``value`` flattened as int64, zeros where it holds no numbers (an earlier mutation of
+    the same case may have made it objects, strings, records or dates)."""
+    if value.dtype.kind not in "biuf":
+        return np.zeros(value.size, dtype=np.int64)
+    with np.errstate(all="ignore"):
+        return value.ravel().astype(np.int64)
+
+
 def _reshaped(rng: random.Random, value: np.ndarray) -> np.ndarray:
     flat = value.ravel()
     choice = rng.choice(("column", "row", "shorter", "longer", "empty", "scalar", "cube"))
@@ -586,7 +595,7 @@ def mutate_problem(corpus: list[tuple[str, bytes]], rng: random.Random,
             if part == "shape":
                 arrays[f"{label}_shape"] = np.array(values, dtype=np.int64)
             elif f"{label}_{part}" in arrays and arrays[f"{label}_{part}"].size:
-                changed = arrays[f"{label}_{part}"].astype(np.int64)
+                changed = _as_integers(arrays[f"{label}_{part}"])
                 changed[rng.randrange(changed.size)] = values[0]
                 arrays[f"{label}_{part}"] = changed
             out.operations.append(f"{label}_{part} {values}")
