@@ -30,6 +30,35 @@ def shown(text: str) -> str:
     return f"{text[:MAX_QUOTED]!r}... ({len(text)} characters)"
 
 
+# an error's line is cut to this many characters (a damaged file's own bytes can reach it
+# through a library's message)
+MAX_LINE = 800
+
+
+def one_line(text: str) -> str:
+    """``text`` as one line of at most about MAX_LINE printable characters.
+
+    Characters that are not printable (line breaks, other control characters) are written as
+    their escapes, ``\\n`` and the like, and a longer text is cut with its length said: the
+    text of an error may quote a damaged file's bytes (a member name, a library's message).
+
+    Parameters
+    ----------
+    text : str
+        The message.
+
+    Returns
+    -------
+    str
+        The message on one line.
+    """
+    if not text.isprintable():
+        text = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
+    if len(text) <= MAX_LINE:
+        return text
+    return f"{text[:MAX_LINE]}... ({len(text)} characters)"
+
+
 class QpbenchError(Exception):
     """A user-facing error: bad input, unknown solver, unsupported feature.
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from qpbench.cli import build_parser
+from qpbench.errors import MAX_LINE, one_line
 
 DUMPS = Path(__file__).resolve().parents[1] / "problems" / "dumps"
 
@@ -130,3 +131,13 @@ def test_a_measurement_command_defaults_to_what_its_measurement_defaults_to(
     defaults = inspect.signature(getattr(module, measurement)).parameters
     for option in options:
         assert getattr(arguments, option) == defaults[option].default, option
+
+
+def test_an_error_line_escapes_line_breaks_and_is_cut_short() -> None:
+    """An error may quote a damaged file's bytes (a zip member's name, a library's message):
+    printed, it stays one printable line of bounded length."""
+    assert one_line("bad.npz attribute 'm_i\nv': \x00 here") == \
+        "bad.npz attribute 'm_i\\nv': \\x00 here"
+    long = one_line("x" * 5000)
+    assert long.endswith("... (5000 characters)") and len(long) < MAX_LINE + 30
+    assert one_line("plain") == "plain"

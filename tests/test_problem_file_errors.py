@@ -62,6 +62,14 @@ def _huge_declared_shape(path: Path, good: bytes) -> None:
         stream.write(b"\0" * 64)
 
 
+def _line_break_in_a_member_name(path: Path, good: bytes) -> None:
+    """The central directory names m_inv's member 'm_i<line break>v.npy', its local header
+    'm_inv.npy': the name and zipfile's message quote the line break."""
+    damaged = bytearray(good)
+    damaged[good.rfind(b"m_inv.npy") + 3] = ord("\n")
+    path.write_bytes(bytes(damaged))
+
+
 CASES = [
     (_renamed_npy, "a single NumPy array (.npy), not a problem file"),
     (_random_bytes, "not a problem file: not a .npz (zip) archive"),
@@ -71,6 +79,7 @@ CASES = [
     (_damaged_data, "not a readable .npy array"),
     (_huge_declared_shape, "attribute 'header_json': declares a 1099511627776 array of "
                            "float64 (8796093022208 bytes) but holds at most 64"),
+    (_line_break_in_a_member_name, "not a readable .npy array"),
 ]
 
 
@@ -86,6 +95,7 @@ def test_a_bad_archive_is_one_line_naming_the_file(
     error = capsys.readouterr().err
     assert error.startswith(f"qpbench solve: {path}") and error.count("\n") == 1
     assert message in error and "pickle" not in error
+    assert error.rstrip("\n").isprintable() and len(error) <= len(str(path)) + 900
 
 
 def test_an_empty_file_and_a_folder_are_named_as_such(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from typing import NoReturn
 
 from qpbench import SINGLE_THREAD_ENV, __version__
 from qpbench.atomic import WRITE_ERRNOS, checked_target, os_error_reason
-from qpbench.errors import QpbenchError
+from qpbench.errors import QpbenchError, one_line
 from qpbench.interrupts import EXIT_INTERRUPTED
 
 # Solvers are timed single-threaded (fair, and stable on shared cores) unless the user says
@@ -214,8 +214,8 @@ def _internal_error(command: str, error: Exception) -> int:
         return EXIT_INTERRUPTED
     if os.environ.get("QPBENCH_DEBUG"):
         raise error
-    print(f"qpbench {command}: internal error: {type(error).__name__}: {error} "
-          "(set QPBENCH_DEBUG=1 for a traceback)", file=sys.stderr)
+    print(f"qpbench {command}: internal error: {type(error).__name__}: "
+          f"{one_line(str(error))} (set QPBENCH_DEBUG=1 for a traceback)", file=sys.stderr)
     return EXIT_INTERNAL_ERROR
 
 
@@ -244,7 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_outputs(args)
         return int(args.handler(args) or 0)
     except QpbenchError as error:
-        print(f"qpbench {args.command}: {error}", file=sys.stderr)
+        print(f"qpbench {args.command}: {one_line(str(error))}", file=sys.stderr)
         return EXIT_INPUT_ERROR
     except BrokenPipeError:  # the reader went away (``| head``): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -256,7 +256,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         line = os_error_line(error)
         if line is None:
             return _internal_error(args.command, error)
-        print(f"qpbench {args.command}: {line}", file=sys.stderr)
+        print(f"qpbench {args.command}: {one_line(line)}", file=sys.stderr)
         return EXIT_INPUT_ERROR
     except Exception as error:  # an internal fault: still one line unless debugging
         return _internal_error(args.command, error)
