@@ -53,8 +53,8 @@ and adds published safeguards:
 
 Factorizations: dense (``dense_limit`` contacts at most; ``fixed_order_dense``: Cholesky,
 blocks of up to 64 by Gaussian elimination, products too summed in an order that does not
-depend on the CPU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a sparse
-block over the degrees of freedom its contacts move when there are fewer of them than
+depend on the CPU) or sparse (``qpbench.solvers.sparse_cholesky``: CHOLMOD, else SuperLU), a
+sparse block over the degrees of freedom its contacts move when there are fewer of them than
 contacts (``lcp_interior.WoodburyFactor``, refined once; ``pi_robust_blocks``); the last
 factors of policy blocks are kept, so prox steps on a settled policy cost triangular solves
 only, and a block a few contacts from the last one is made by a low-rank update of its
