@@ -123,11 +123,15 @@ def test_answers_do_not_depend_on_blas_kernels_or_simd(sparse: bool) -> None:
     under an old CPU's OpenBLAS kernels, with or without NumPy's vector dispatch."""
     here = digests(sparse=sparse)
     python = [line for line in here if line.endswith(" python")]
-    assert python == here if sparse else python, here
+    if sparse:
+        assert python == here, here
+    else:  # mass-ratio-10-s2, whose floor lies above 1e-8, takes the Python path
+        assert python, here
     for core_type, baseline_numpy in (("Prescott", False), ("Sandybridge", True)):
         there = printed_elsewhere(__file__, *(["sparse"] if sparse else []), core_type=core_type,
                                   baseline_numpy=baseline_numpy, timeout=900)
         assert there == here, (core_type, baseline_numpy)
+
 
 if __name__ == "__main__":
     print("\n".join(digests(sparse=sys.argv[1:] == ["sparse"])))
