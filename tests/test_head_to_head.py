@@ -566,6 +566,47 @@ def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.
     assert sum(one["solver"] == "osqp/dual" for one in everything["rows"]) == 3
 
 
+def test_a_solve_past_the_cap_is_not_run_again_in_a_later_pass(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """osqp takes 12 s (past the cap of 10 s) on one dump and is the only external pair to
+    solve it, so no pace takes it out of the set: in the second pass it runs on the other
+    dumps but not on that one again, whose first row stands for the second pass too."""
+    folder = tmp_path / "problems"
+    folder.mkdir()
+    for name in ("grid5_itr_0", "grid5_itr_1", "ok_itr_0"):
+        files.save(import_dump(ROOT / f"problems/dumps/{name}.out"), folder / f"{name}.npz")
+    bench = pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])
+                         + bench_rows("osqp", "osqp", "dump", [2e-4]))
+    calls: list[tuple[str, str, int]] = []
+
+    def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0,  # noqa: ANN001, ANN202
+              cap_s=math.inf):
+        rows = []
+        for spec, problem in pairs:
+            calls.append((spec.key, problem.name, pass_number))
+            slow = spec.key == "osqp/dual" and problem.name == "grid5_itr_1"
+            seconds = 12.0 if slow else 1e-4
+            rows.append({"problem": problem.name, "set": head_to_head.set_of(problem),
+                         "solver": spec.key, "pass": pass_number,
+                         "own": spec.key == "pi-robust/lcp", "contacts": problem.n_contacts,
+                         "status": "solved", "success": slow or spec.key != "daqp/dual",
+                         "residual": 0.0, "iterations": 1, "outer_iterations": None,
+                         "time_s": seconds, "time_cold_cache_s": math.nan if slow else seconds,
+                         "over_cap": seconds > cap_s})
+        return rows
+
+    monkeypatch.setattr(head_to_head, "measure_batch", timed)
+    result = head_to_head.head_to_head(folder, bench, repeats=1, passes=2, batch_problems=1,
+                                       solve_cap_s=10.0)
+    assert ("osqp/dual", "grid5_itr_1", 0) in calls
+    assert ("osqp/dual", "grid5_itr_1", 1) not in calls
+    assert ("osqp/dual", "ok_itr_0", 1) in calls  # no pace: still running on the set
+    slow_rows = [one for one in result["rows"]
+                 if (one["solver"], one["problem"]) == ("osqp/dual", "grid5_itr_1")]
+    assert [one["pass"] for one in slow_rows] == [0, 1]
+    assert all(one["time_s"] == 12.0 and one["over_cap"] for one in slow_rows)
+
+
 def test_a_pair_that_left_a_size_bucket_is_not_measured_on_the_larger_ones() -> None:
     """daqp is 40x osqp's time on the 4x4 to 9x9 grids: it leaves that set and every larger
     grid bucket, where it was never measured; the box packings are another family."""

@@ -519,7 +519,7 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
         "fastest; named below)"
         + (f"; so is one with a solve whose untimed warm-up took more than {solve_cap_s:g} s "
            "(the main table's time limit) once such a pair within the cap exists; such a "
-           "solve is not timed again, its warm-up's time stands"
+           "solve is not timed again, nor run in a later pass: its warm-up's time stands"
            if math.isfinite(solve_cap_s) else "") + ". "
         "speedup = SGM of the fastest external pair / SGM of pi-robust's best "
         f"pair (target >= {TARGET_SPEEDUP:g}"
@@ -757,7 +757,9 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     external pairs leave a set after a batch as :class:`Running` says, with
     ``limit = out_of_running`` (infinite: every pair runs on every problem) and
     ``cap_s = solve_cap_s``, the same cap under which a solve whose warm-up took longer is
-    timed no further.
+    timed no further: in the later passes its pair is not run on that problem again, and its
+    row stands for each pass (a pair without a pace keeps running on the set's other
+    problems).
 
     Parameters
     ----------
@@ -804,6 +806,8 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
     rows: list[dict[str, Any]] = []
     running = Running(out_of_running, cap_s=solve_cap_s)
     batches = problem_batches(problems, batch_problems)
+    # (pair, problem) -> the row of its solve over the cap, which later passes repeat
+    over_cap: dict[tuple[str, str], dict[str, Any]] = {}
     with accuracy_table.overridden("staggered", max_outer=STAGGERED_MAX_OUTER):
         for pass_number in range(passes):
             done = 0
@@ -817,8 +821,16 @@ def head_to_head(folder: str | Path, bench: pd.DataFrame, repeats: int = HEAD_TO
                     else specs["impact"] + own_set_specs.get(str(set_of(problem)), []))
                     if spec.solve is not None
                     and running.running(set_of(problem, spec.formulation), spec.key)]
-                measured = measure_batch(pairs, repeats, pass_number=pass_number,
-                                         cold_repeats=cold_repeats, cap_s=solve_cap_s)
+                repeated = [over_cap[(spec.key, problem.name)] for spec, problem in pairs
+                            if (spec.key, problem.name) in over_cap]
+                timed = [(spec, problem) for spec, problem in pairs
+                         if (spec.key, problem.name) not in over_cap]
+                measured = measure_batch(timed, repeats, pass_number=pass_number,
+                                         cold_repeats=cold_repeats,
+                                         cap_s=solve_cap_s) if timed else []
+                over_cap.update(((one["solver"], one["problem"]), one) for one in measured
+                                if one.get("over_cap"))
+                measured += [{**one, "pass": pass_number} for one in repeated]
                 rows += measured
                 for set_name in {one["set"] for one in measured}:
                     running.update(rows, set_name)
