@@ -531,16 +531,22 @@ def test_a_solve_past_the_cap_on_a_problem_without_a_solution_takes_its_pair_out
     assert running.running("box packings 1k-4k", "quadprog/primal")
 
 
-def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,
-                                                            tmp_path: Path) -> None:
-    """The measuring loop asks the field before every solve: the slow pair's rows stop after
-    the problem where it left, in this pass and the next, while its rivals run on."""
+def three_dumps_and_a_table(tmp_path: Path) -> tuple[Path, pd.DataFrame]:
+    """A folder of three of the fork's dumps, and a main table in which daqp and osqp solved
+    the dump family (daqp twice as fast)."""
     folder = tmp_path / "problems"
     folder.mkdir()
     for name in ("grid5_itr_0", "grid5_itr_1", "ok_itr_0"):
         files.save(import_dump(ROOT / f"problems/dumps/{name}.out"), folder / f"{name}.npz")
-    bench = pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])
-                         + bench_rows("osqp", "osqp", "dump", [2e-4]))
+    return folder, pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])
+                                + bench_rows("osqp", "osqp", "dump", [2e-4]))
+
+
+def test_a_pair_that_left_a_set_runs_there_in_no_later_pass(monkeypatch: pytest.MonkeyPatch,
+                                                            tmp_path: Path) -> None:
+    """The measuring loop asks the field before every solve: the slow pair's rows stop after
+    the problem where it left, in this pass and the next, while its rivals run on."""
+    folder, bench = three_dumps_and_a_table(tmp_path)
     seconds = {"pi-robust/lcp": 1e-5, "daqp/dual": 1e-4, "osqp/dual": 1e-2}
 
     def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0,  # noqa: ANN001, ANN202
@@ -571,12 +577,7 @@ def test_a_solve_past_the_cap_is_not_run_again_in_a_later_pass(
     """osqp takes 12 s (past the cap of 10 s) on one dump and is the only external pair to
     solve it, so no pace takes it out of the set: in the second pass it runs on the other
     dumps but not on that one again, whose first row stands for the second pass too."""
-    folder = tmp_path / "problems"
-    folder.mkdir()
-    for name in ("grid5_itr_0", "grid5_itr_1", "ok_itr_0"):
-        files.save(import_dump(ROOT / f"problems/dumps/{name}.out"), folder / f"{name}.npz")
-    bench = pd.DataFrame(bench_rows("daqp", "daqp", "dump", [1e-4])
-                         + bench_rows("osqp", "osqp", "dump", [2e-4]))
+    folder, bench = three_dumps_and_a_table(tmp_path)
     calls: list[tuple[str, str, int]] = []
 
     def timed(pairs, repeats, accuracy=1e-8, pass_number=0, cold_repeats=0,  # noqa: ANN001, ANN202
