@@ -68,8 +68,8 @@ def momentum(masses: np.ndarray, free: np.ndarray, velocities: np.ndarray) -> np
     np.ndarray
         (2,) momentum.
     """
-    moving = velocities[free]
-    return np.array([dot(masses[free], moving[:, 0]), dot(masses[free], moving[:, 1])])
+    weights, moving = masses[free], velocities[free]
+    return np.array([dot(weights, moving[:, 0]), dot(weights, moving[:, 1])])
 
 
 def momentum_drift(masses: np.ndarray, free: np.ndarray, v_start: np.ndarray, v_end: np.ndarray,

@@ -412,6 +412,11 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
     floor = 1e-14
     best, best_w, best_res = impulses * root, slack / root, np.inf
     progress, least_infeasible, stalled = np.inf, np.inf, 0
+
+    def slack_change(change: np.ndarray) -> np.ndarray:
+        """The change of w along a change of l: ``(Q~ + prox I) change``."""
+        return scaled.times(change) + prox * change
+
     for iteration in range(1, max_iters + 1):
         plain_w = scaled.times(impulses) + scaled.b
         infeasibility = plain_w + prox * impulses - slack
@@ -444,16 +449,16 @@ def interior_point(lcp: Lcp, scaled: Lcp, root: np.ndarray,
         normal.factorize(np.maximum(slack / impulses, floor) + prox)
         # predictor (affine scaling)
         dl = normal.solve(-slack - infeasibility)
-        dw = scaled.times(dl) + prox * dl + infeasibility
+        dw = slack_change(dl) + infeasibility
         alpha = _longest_step(impulses, slack, dl, dw)
         mu_affine = dot(impulses + alpha * dl, slack + alpha * dw) / n
         sigma = (mu_affine / mu) ** 3 if mu > 0 else 0.0
         # corrector
         rhs = sigma * mu / impulses - slack - infeasibility - dl * dw / impulses
         dl = normal.solve(rhs)
-        dw = scaled.times(dl) + prox * dl + infeasibility
+        dw = slack_change(dl) + infeasibility
         dl, dw, step = _centrality_corrected(impulses, slack, dl, dw, sigma * mu, normal,
-                                             lambda change: scaled.times(change) + prox * change)
+                                             slack_change)
         alpha = min(1.0, 0.99 * step)
         impulses = np.maximum(impulses + alpha * dl, 1e-300)
         slack = np.maximum(slack + alpha * dw, 1e-300)
