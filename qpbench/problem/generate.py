@@ -22,6 +22,7 @@ from qpbench.errors import QpbenchError
 from qpbench.memory import require
 from qpbench.problem.impact import ImpactProblem
 from qpbench.problem.jacobian import contact_jacobian
+from qpbench.problem.metrics import dot
 
 
 @dataclass
@@ -358,10 +359,9 @@ def near_duplicate(size: int, rng: np.random.Generator | None) -> tuple[Layout, 
     extra = []
     for a, b in ball_pairs(layout):
         delta = layout.positions[a] - layout.positions[b]
-        # |delta| from elementwise products and one addition, which round alike on every CPU
-        # (np.linalg.norm of a vector is a BLAS dot product, whose kernels, with or without
-        # fused multiply-adds, depend on the CPU); the same numbers as that dot product here
-        length = np.sqrt(np.sum(delta * delta))
+        # |delta| by the fixed-order inner product (np.linalg.norm of a vector is a BLAS dot
+        # product, whose kernels, with or without fused multiply-adds, depend on the CPU)
+        length = np.sqrt(dot(delta, delta))
         normal = _rotate((delta / length)[None, :], rng.uniform(0.5e-9, 2e-9))[0]
         extra.append((int(a), int(b), normal))
     return layout, extra
