@@ -14,7 +14,7 @@ from qpbench.bench.worker import CellSolver
 from qpbench.problem import files
 from qpbench.problem.reference import attach_reference
 from qpbench.solvers.registry import resolve
-from qpbench.solvers.run import solve_and_judge
+from qpbench.solvers.run import call_solver, solve_and_judge
 
 VERDICT = ("status", "success", "residual", "v_error", "energy_gain", "complementarity",
            "infeasibility", "energy_identity_gap")
@@ -25,7 +25,7 @@ def test_solvers():
     import bench_solvers
 
     with bench_solvers.registered():
-        yield {spec.name: spec for spec in resolve(["test-exact", "test-vandal"])}
+        yield {spec.name: spec for spec in resolve(["test-exact/lcp", "test-vandal/lcp"])}
 
 
 def dumped_problem():
@@ -48,6 +48,19 @@ def test_a_vandal_gets_the_honest_verdict_and_saw_no_answer(test_solvers) -> Non
     for now, then in zip((problem.v_minus, problem.m_inv, problem.b), before[1:], strict=True):
         np.testing.assert_array_equal(now, then)
     assert problem.reference is not None and "policy_sol" in problem.data
+
+
+def test_every_call_gets_a_posed_copy_of_its_own_and_the_posing_is_timed_once(
+        test_solvers) -> None:
+    """The formulation is posed once per problem; each call gets a fresh copy of that posed
+    problem, so what a vandal wrote into its copy never reaches a later call."""
+    problem = dumped_problem()
+    outputs = [call_solver(test_solvers["test-vandal"], problem, 1e-8) for _ in range(3)]
+    for output in outputs:  # the exact answer, computed before the vandal wrote its NaNs
+        np.testing.assert_allclose(output.impulses, outputs[0].impulses, rtol=0, atol=0)
+        assert np.all(np.isfinite(output.impulses))
+    assert len({output.formulation_time_s for output in outputs}) == 1
+    assert outputs[0].formulation_time_s > 0
 
 
 def test_a_vandal_in_a_bench_worker_gets_the_honest_row_on_every_repeat(
