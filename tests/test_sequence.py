@@ -251,7 +251,47 @@ def test_a_pair_past_the_scene_budget_stops_and_is_left_out(
     assert list(report["stopped"]) == ["test-slow/lcp"]
     assert {row["solver"] for row in report["rows"]} == {"pi-robust/lcp"}
     assert len(report["rows"]) == 6
-    assert "Stopped after 0.03 s" in report["markdown"] and "test-slow/lcp" in report["markdown"]
+    assert report["stopped"]["test-slow/lcp"].endswith("steps, past 0.03 s of solves")
+    assert "after 0.03 s of solves there" in report["markdown"]
+    assert "test-slow/lcp" in report["markdown"]
+
+
+class Delayed(Recorder):
+    """A Recorder that sleeps ``delay_s`` before each answer: correct, and slow."""
+
+    def __init__(self, name: str, delay_s: float) -> None:
+        super().__init__(name)
+        self.delay_s = delay_s
+
+    def solve(self, problem: ImpactProblem, accuracy: float,
+              warm_start: np.ndarray | None = None) -> SolverOutput:
+        import time
+
+        time.sleep(self.delay_s)
+        return super().solve(problem, accuracy, warm_start)
+
+
+def test_a_pair_far_behind_the_fastest_warm_startable_one_leaves_after_its_step(
+        captured: list[ImpactProblem]) -> None:
+    """An external pair whose solves so far take more than ``out_of_running`` times those of
+    the fastest warm-startable external pair that solved every step stops once the scene's
+    first PACE_STEPS steps are solved, named with the ratio; the fastest pair and pi-robust
+    never stop."""
+    fast, slow = Recorder("test-fast"), Delayed("test-slower", 0.01)
+    stopped: dict[str, str] = {}
+    specs = [get("pi-robust"), fast.spec(), slow.spec()]
+    steps = sequence.PACE_STEPS + 2
+    rows = sequence.replay_side_by_side(specs, captured[:steps], 1e-8, "box", repeats=1,
+                                        out_of_running=3.0, stopped=stopped)
+    solved = {key: [row["index"] for row in rows if row["solver"] == key]
+              for key in ("pi-robust/lcp", "test-fast/lcp", "test-slower/lcp")}
+    assert solved == {"pi-robust/lcp": list(range(steps)), "test-fast/lcp": list(range(steps)),
+                      "test-slower/lcp": list(range(sequence.PACE_STEPS))}
+    assert list(stopped) == ["test-slower/lcp"]
+    assert stopped["test-slower/lcp"].startswith(f"box: {sequence.PACE_STEPS} of {steps} steps, ")
+    assert stopped["test-slower/lcp"].endswith("x the time of `test-fast/lcp` there")
+    everyone = sequence.replay_side_by_side(specs, captured[:steps], 1e-8, "box", repeats=1)
+    assert len(everyone) == 3 * steps  # no ratio given: nobody leaves
 
 
 def test_sequence_command_replays_a_capture_folder(tmp_path: Path) -> None:

@@ -37,6 +37,10 @@ HEAD_TO_HEAD_SOLVE_CAP_S = 10.0
 SEQUENCE_STEPS = 30  # impact steps replayed per scene
 SEQUENCE_PASSES = 3  # replays of every scene, one after another (as head-to-head's passes)
 SEQUENCE_ACCURACY = 1e-8
+# sequence: an external pair whose solves on a scene so far, summed, take more than this many
+# times those of the fastest warm-startable external pair stops there (as the head-to-head's
+# HEAD_TO_HEAD_OUT_OF_RUNNING)
+SEQUENCE_OUT_OF_RUNNING = 30.0
 
 SPEED_SIZES = (1000, 4000)  # balls of the box packings
 

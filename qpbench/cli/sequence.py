@@ -1,6 +1,6 @@
 """``qpbench sequence SCENE... [--solvers A,B] [--steps 30] [--accuracy 1e-8] [--repeats 5]
-[--passes 3] -o results/sequence.json``: every solver replays captured scene sequences, cold and
-warm-started from its own previous answer on the persisting contacts
+[--passes 3] [--out-of-running 30] -o results/sequence.json``: every solver replays captured
+scene sequences, cold and warm-started from its own previous answer on the persisting contacts
 (``qpbench.studies.sequence``). Runs with single-threaded BLAS, in a child process unless this
 one already has it."""
 
@@ -10,7 +10,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from qpbench.bench.defaults import REPEATS, SEQUENCE_ACCURACY, SEQUENCE_PASSES, SEQUENCE_STEPS
+from qpbench.bench.defaults import (
+    REPEATS,
+    SEQUENCE_ACCURACY,
+    SEQUENCE_OUT_OF_RUNNING,
+    SEQUENCE_PASSES,
+    SEQUENCE_STEPS,
+)
 from qpbench.bench.results import ResultStore
 from qpbench.bench.settings import check_accuracy
 from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
@@ -51,6 +57,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--passes", type=int, default=SEQUENCE_PASSES,
                         help="replays of every scene, one after another; each step's fastest "
                              f"is kept, and each pass alone gives a speedup ({SEQUENCE_PASSES})")
+    parser.add_argument("--out-of-running", type=float, default=SEQUENCE_OUT_OF_RUNNING,
+                        help="an external pair whose solves on a scene so far take more than "
+                             "this many times those of the fastest warm-startable external "
+                             "pair stops there and is left out; inf: none stops so "
+                             f"({SEQUENCE_OUT_OF_RUNNING:g})")
     parser.add_argument("-o", "--output", required=True, help="the JSON file to write")
     add_memory_option(parser)
     parser.set_defaults(handler=run)
@@ -83,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     """
     if args.steps < 1 or args.repeats < 1 or args.passes < 1:
         raise QpbenchError("--steps, --repeats and --passes must be at least 1")
+    if not args.out_of_running >= 1:  # NaN too
+        raise QpbenchError("--out-of-running must be at least 1 (inf: no pair leaves)")
     check_accuracy(args.accuracy)
     output = writable_output(args.output)
     for scene in args.scenes:
@@ -90,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(scene, "no such scene file or capture folder")
     child = single_threaded_rerun(
         ["sequence", *args.scenes, "--steps", str(args.steps), "--accuracy", repr(args.accuracy),
-         "--repeats", str(args.repeats), "--passes", str(args.passes), "-o", str(args.output),
+         "--repeats", str(args.repeats), "--passes", str(args.passes),
+         "--out-of-running", repr(args.out_of_running), "-o", str(args.output),
          *(["--solvers", args.solvers] if args.solvers else []),
          *(["--results", args.results] if args.results else []), *memory_arguments(args)])
     if child is not None:
@@ -121,4 +135,5 @@ def _replayed(args: argparse.Namespace) -> dict:
         specs = sequence.default_solvers(cold)
     return sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs, args.steps,
                              args.accuracy, progress=lambda text: print(text, file=sys.stderr),
-                             repeats=args.repeats, passes=args.passes)
+                             repeats=args.repeats, passes=args.passes,
+                             out_of_running=args.out_of_running)

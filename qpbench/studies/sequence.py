@@ -35,9 +35,13 @@ at least ``TARGET_SPEEDUP``.
 
 Summaries charge a failed solve with the largest time of any solve of the measurement (the
 report's rule: failing quickly never looks fast) and use the report's shifted geometric mean
-(``qpbench.bench.stats``). A pair whose solves on one scene add up to more than
-``SCENE_BUDGET_S`` stops there and is left out of every summary (named in the report), so
-that all pairs compared solved the same steps.
+(``qpbench.bench.stats``). A pair stops on a scene, and is left out of every summary (named in
+the report, with where and why), so that all pairs compared solved the same steps, when its
+solves there add up to more than ``SCENE_BUDGET_S``, or (an external pair) to more than
+``out_of_running`` times those of the fastest warm-startable external pair that solved every
+step so far: it cannot be the fastest, and replaying it in every pass took most of the
+sequence's time (IPOPT, directly and through cvxpy, at 50-60 times DAQP's time a step), as
+the head-to-head's pairs leave a set (``qpbench.studies.head_to_head.Running``).
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ import pandas as pd
 from qpbench.bench.defaults import (
     REPEATS,
     SEQUENCE_ACCURACY,
+    SEQUENCE_OUT_OF_RUNNING,
     SEQUENCE_PASSES,
     SEQUENCE_STEPS,
     TARGET_SPEEDUP,
@@ -93,6 +98,10 @@ STEP_BUDGET = 40
 # beyond the fastest pairs (well under a second), it keeps solvers that take seconds per
 # solve on degenerate piles (cvxpy with IPOPT) from taking the benchmark's time
 SCENE_BUDGET_S = 30.0
+# steps of a scene every pair solves before one leaves for being far behind the fastest: one
+# step's ratio says little (on the first, 20 contacts, a dense method 38x DAQP's time; over
+# the scene, 7x)
+PACE_STEPS = 5
 
 
 # --- the sequence ---------------------------------------------------------------------------
@@ -246,7 +255,8 @@ def replay(spec: SolverSpec, problems: Sequence[ImpactProblem],
 def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactProblem],
                         accuracy: float = SEQUENCE_ACCURACY, scene: str = "",
                         budget_s: float = math.inf, repeats: int = REPEATS,
-                        progress: Callable[[str], None] | None = None
+                        progress: Callable[[str], None] | None = None,
+                        out_of_running: float = math.inf, stopped: dict[str, str] | None = None
                         ) -> list[dict[str, Any]]:
     """:func:`replay` of every pair of ``specs`` at once, step by step.
 
@@ -254,7 +264,8 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
     machine's speed during a scene falls on all pairs alike rather than on the pairs replayed at
     that moment, and the step's cold and sequence solves of every pair are timed together under
     the timing protocol (:func:`replayed_step`). Each pair keeps its own previous answer and its
-    own budget (a pair past ``budget_s`` stops there).
+    own budget; after each step the pairs of :func:`leavers` stop (past ``budget_s``, or, from
+    the ``PACE_STEPS``-th step on, far behind the fastest warm-startable external pair).
 
     Parameters
     ----------
@@ -272,6 +283,12 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
         Timed calls per solve; REPEATS by default.
     progress : callable or None, optional
         Told a line before each step; None (default) for none.
+    out_of_running : float, optional
+        The ratio to the fastest warm-startable external pair's time past which an external
+        pair stops; inf (default): never.
+    stopped : dict of str to str or None, optional
+        Filled with the pairs that stopped: where (scene, steps solved of all) and why; None
+        (default): not told.
 
     Returns
     -------
@@ -281,16 +298,68 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
     rows = []
     previous: dict[str, tuple[ImpactProblem, np.ndarray | None]] = {}
     spent = dict.fromkeys((spec.key for spec in specs), 0.0)
+    clean = dict.fromkeys((spec.key for spec in specs), True)
+    running = list(specs)
     for index, problem in enumerate(problems):
+        if not running:
+            break
         if progress is not None:
             progress(f"{scene}: step {index + 1} of {len(problems)}")
-        running = [spec for spec in specs if spent[spec.key] <= budget_s]
         for spec, (row, answer, seconds) in zip(running, replayed_step(
                 running, problem, index, previous, accuracy, scene, repeats), strict=True):
             rows.append(row)
             spent[spec.key] += seconds
+            clean[spec.key] &= bool(row["cold_success"] and row["sequence_success"])
             previous[spec.key] = (problem, answer)
+        leaving = leavers(running, spent, clean, budget_s,
+                          out_of_running if index + 1 >= PACE_STEPS else math.inf)
+        for spec in running:
+            if spec.key in leaving and stopped is not None:
+                stopped[spec.key] = (f"{scene}: {index + 1} of {len(problems)} steps, "
+                                     f"{leaving[spec.key]}")
+        running = [spec for spec in running if spec.key not in leaving]
     return rows
+
+
+def leavers(running: Sequence[SolverSpec], spent: dict[str, float], clean: dict[str, bool],
+            budget_s: float, out_of_running: float) -> dict[str, str]:
+    """The pairs that stop on a scene after a step, each with why.
+
+    A pair stops past ``budget_s`` seconds of solves on the scene; an external pair also when
+    its seconds there exceed ``out_of_running`` times those of the fastest warm-startable
+    external pair that solved every step so far in both modes (the pace; so the fastest such
+    pair never leaves, nor does a pair written here).
+
+    Parameters
+    ----------
+    running : sequence of SolverSpec
+        The pairs that solved the step.
+    spent : dict of str to float
+        Per pair key, the ``time_s`` of its cold and sequence solves on the scene, summed.
+    clean : dict of str to bool
+        Per pair key, whether every solve of it on the scene succeeded.
+    budget_s : float
+        Seconds of solves per scene past which a pair stops.
+    out_of_running : float
+        The ratio to the pace past which an external pair stops; inf: never.
+
+    Returns
+    -------
+    dict of str to str
+        Per pair key that stops, the reason.
+    """
+    paces = [spec.key for spec in running
+             if spec.backend != OWN_BACKEND and spec.warm_start and clean[spec.key]]
+    fastest = min(paces, key=lambda key: spent[key], default=None)
+    leaving = {}
+    for spec in running:
+        seconds = spent[spec.key]
+        if seconds > budget_s:
+            leaving[spec.key] = f"past {budget_s:g} s of solves"
+        elif (fastest is not None and spec.backend != OWN_BACKEND and spent[fastest] > 0
+              and seconds > out_of_running * spent[fastest]):
+            leaving[spec.key] = f"{seconds / spent[fastest]:.0f}x the time of `{fastest}` there"
+    return leaving
 
 
 def replayed_step(specs: Sequence[SolverSpec], problem: ImpactProblem, index: int,
@@ -570,7 +639,8 @@ def _own_backend(solver: str, own_backend: str) -> bool:
 def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
              scenes: Sequence[dict[str, Any]], accuracy: float,
              per_scene: Sequence[dict[str, Any]] = (), stopped: dict[str, str] | None = None,
-             budget_s: float = SCENE_BUDGET_S, repeats: int = REPEATS, passes: int = 1) -> str:
+             budget_s: float = SCENE_BUDGET_S, repeats: int = REPEATS, passes: int = 1,
+             out_of_running: float = math.inf) -> str:
     """The sequence study as a Markdown section: protocol, scenes, table, verdicts.
 
     Parameters
@@ -586,13 +656,16 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
     per_scene : sequence of dict, optional
         The comparisons scene by scene (:func:`by_scene`); none by default.
     stopped : dict of str to str or None, optional
-        The pairs stopped by the budget, and where; None (default) for none.
+        The pairs that stopped, where and why; None (default) for none.
     budget_s : float, optional
         The budget per scene; SCENE_BUDGET_S by default.
     repeats : int, optional
         Timed calls per solve; REPEATS by default.
     passes : int, optional
         Replays of every scene; 1 by default.
+    out_of_running : float, optional
+        The ratio to the fastest warm-startable external pair past which an external pair
+        stops; inf (default): none.
 
     Returns
     -------
@@ -634,9 +707,13 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
             f"{entry['cold_sgm_s'] / entry['sequence_sgm_s']:.2f}x |")
     lines.append("")
     if stopped:
-        lines.append(f"Stopped after {budget_s:g} s of solves on one scene, and left out of "
-                     "the summaries: " + "; ".join(f"`{key}` ({where})"
-                                                   for key, where in stopped.items()) + ".\n")
+        behind = (f", or whose solves there took more than {out_of_running:g} times those of "
+                  "the fastest warm-startable external pair that solved every step so far (it "
+                  "cannot be the fastest)" if math.isfinite(out_of_running) else "")
+        lines.append(f"Stopped on a scene after {budget_s:g} s of solves there{behind}, "
+                     "replayed no further and left out of the summaries: "
+                     + "; ".join(f"`{key}` ({where})" for key, where in stopped.items())
+                     + ".\n")
     for mode in ("cold", "sequence"):
         figures = compared.get(mode)
         if figures:
@@ -750,14 +827,16 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SE
              accuracy: float = SEQUENCE_ACCURACY,
              progress: Callable[[str], None] | None = None,
              budget_s: float = SCENE_BUDGET_S,
-             repeats: int = REPEATS, passes: int = SEQUENCE_PASSES) -> dict[str, Any]:
+             repeats: int = REPEATS, passes: int = SEQUENCE_PASSES,
+             out_of_running: float = SEQUENCE_OUT_OF_RUNNING) -> dict[str, Any]:
     """The JSON object of ``qpbench sequence``: rows, per-solver summary, comparison, Markdown.
 
     Per-step rows (each pass's, numbered in ``pass``), per-solver summary, the comparison with
     the target and a ``markdown`` section. A scene argument that is a folder is read as an
-    existing capture; every scene is captured once and replayed ``passes`` times. A pair whose
-    solves on one scene take more than ``budget_s`` in any pass stops there (``stopped``:
-    where) and is left out of every summary.
+    existing capture; every scene is captured once and replayed ``passes`` times. A pair that
+    stops on a scene in any pass (:func:`leavers`: past ``budget_s`` of solves there, or
+    ``out_of_running`` times the fastest warm-startable external pair's time) is replayed no
+    further and left out of every summary (``stopped``: where and why).
 
     Parameters
     ----------
@@ -777,6 +856,8 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SE
         Timed calls per solve; REPEATS by default.
     passes : int, optional
         Replays of every scene; SEQUENCE_PASSES by default.
+    out_of_running : float, optional
+        The ratio past which an external pair stops; SEQUENCE_OUT_OF_RUNNING by default.
 
     Returns
     -------
@@ -815,11 +896,7 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SE
         for scene, problems in captured:
             running = [spec for spec in specs if spec.key not in stopped]
             replayed = replay_side_by_side(running, problems, accuracy, scene, budget_s,
-                                           repeats, told)
-            for spec in running:
-                steps_done = sum(row["solver"] == spec.key for row in replayed)
-                if steps_done < len(problems):
-                    stopped[spec.key] = f"{scene}: {steps_done} of {len(problems)} steps"
+                                           repeats, told, out_of_running, stopped)
             rows.extend({**row, "pass": pass_number} for row in replayed)
     rows = [row for row in rows if row["solver"] not in stopped]  # like with like
     summary, compared = over_passes(rows)
@@ -827,6 +904,7 @@ def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SE
     return {"title": "Sequence mode", "accuracy": accuracy, "steps": steps,
             "scenes": described, "summary": summary, "comparison": compared,
             "by_scene": per_scene, "target_met": compared["target_met"], "rows": rows,
-            "stopped": stopped, "budget_s": budget_s, "repeats": repeats, "passes": passes,
+            "stopped": stopped, "budget_s": budget_s, "out_of_running": out_of_running,
+            "repeats": repeats, "passes": passes,
             "markdown": markdown(summary, compared, described, accuracy, per_scene, stopped,
-                                 budget_s, repeats, passes)}
+                                 budget_s, repeats, passes, out_of_running)}
