@@ -75,3 +75,33 @@ def test_read_only_and_strided_operands_give_the_same_answers() -> None:
     assert np.array_equal(fixed_order_dense.symmetric_product(frozen, x),
                           fixed_order_dense.symmetric_product(matrix, x.copy()))
     assert np.array_equal(fixed_order_dense.cholesky(frozen), fixed_order_dense.cholesky(matrix))
+
+
+@pytest.mark.parametrize(("size", "rank"), [(1, 1), (6, 6), (6, 2), (40, 25), (120, 119)])
+def test_the_least_norm_solve_is_numpys_least_squares_solution(size: int, rank: int) -> None:
+    """On a positive semi-definite matrix of any rank: the least-squares solution of least
+    norm, as ``np.linalg.lstsq`` (SVD) gives it; at full rank, the solution."""
+    rng = np.random.default_rng(size + rank)
+    factor = rng.normal(size=(rank, size)) * np.logspace(0.0, 2.0, rank)[:, None]
+    matrix = factor.T @ factor
+    rhs = rng.normal(size=size)
+    x = fixed_order_dense.min_norm_solve(matrix, rhs)
+    expected = np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+    assert np.allclose(x, expected, rtol=1e-8, atol=1e-10 * np.abs(expected).max())
+
+
+def test_the_least_norm_solve_of_a_penalized_singular_system_and_of_zero() -> None:
+    """A singular Q with a few contacts penalized by kappa = 1e9 (the penalty method's
+    systems): the same residual as NumPy's least squares; a zero matrix gives zero."""
+    rng = np.random.default_rng(7)
+    factor = rng.normal(size=(12, 30))
+    Q = factor.T @ factor
+    matrix = Q + np.diag(1e9 * np.diag(Q) * (np.arange(30) % 4 == 0))
+    rhs = rng.normal(size=30)
+    x = fixed_order_dense.min_norm_solve(matrix, rhs)
+    expected = np.linalg.lstsq(matrix, rhs, rcond=None)[0]
+    assert np.isclose(np.linalg.norm(matrix @ x - rhs), np.linalg.norm(matrix @ expected - rhs),
+                      rtol=1e-8)
+    assert np.linalg.norm(x) <= np.linalg.norm(expected) * (1.0 + 1e-6)
+    assert np.array_equal(fixed_order_dense.min_norm_solve(np.zeros((3, 3)), np.ones(3)),
+                          np.zeros(3))

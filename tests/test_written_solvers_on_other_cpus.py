@@ -5,9 +5,7 @@ NumPy dispatches to the CPU's vector instructions. Every solver whose backend is
 (its twins on the frictional formulations included) is run here and in a process that rounds
 as an old CPU does (``tests/other_cpu.py``), and the answers must agree to the last bit.
 
-Left out: ``penalty`` (its dense systems are solved by LAPACK's least squares and its sparse
-ones by SuperLU, both through the BLAS; docs/notes/pi-robust.md, section "The same answers on
-every CPU"). pi-robust's compiled kernel, compiled for other CPUs, is tested in
+pi-robust's compiled kernel, compiled for other CPUs, is tested in
 ``tests/test_pi_robust_cpu_targets.py``.
 
 Run as a script (``python tests/test_written_solvers_on_other_cpus.py``) it prints the digests
@@ -27,8 +25,6 @@ from qpbench.problem.generate import generate
 from qpbench.solvers import registry
 from qpbench.solvers.run import call_solver
 
-# the written solver whose answers still follow the CPU's BLAS (module docstring)
-BLAS_BOUND = ("penalty",)
 IMPACT_FAMILIES = (("grid", 10), ("mass-ratio", 3), ("box", 100), ("k4", None),
                    ("near-duplicate", 4), ("cradle", 10))
 # (family, size, problems): one wedge, where nsgs sweeps to its limit and then pivots
@@ -47,8 +43,7 @@ def digests() -> list[str]:
                             for problem in friction_generate.generate(family, size, seed=3,
                                                                       count=count)])):
         specs = sorted((spec for spec in registry.usable_solvers()
-                        if spec.backend == "qpbench" and kind in spec.kinds
-                        and spec.name not in BLAS_BOUND),
+                        if spec.backend == "qpbench" and kind in spec.kinds),
                        key=lambda spec: (spec.name, spec.formulation))
         for spec in specs:
             if spec.prepare is not None:

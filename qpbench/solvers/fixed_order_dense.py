@@ -12,8 +12,13 @@ independent entries (``y_i += a x_i``), which rounds the same at any vector widt
 algorithms are the textbook ones (Golub and Van Loan, "Matrix Computations", 4th ed., 2013):
 the product of a symmetric matrix as a sum of its rows, Cholesky's factorization ``A = U^T U``
 by rows with outer-product updates of the rows below (algorithm 4.2.2's right-looking form),
-and Gaussian elimination with partial pivoting (algorithm 3.4.1) for a general square matrix.
-:func:`warm_up` compiles them, or loads them from numba's cache, outside any clock.
+Gaussian elimination with partial pivoting (algorithm 3.4.1) for a general square matrix, and
+the minimum-norm least-squares solution of a symmetric positive semi-definite system from
+Cholesky's factorization with diagonal pivoting (algorithm 4.2.4; Higham, "Accuracy and
+Stability of Numerical Algorithms", 2nd ed., 2002, section 10.3, its rank taken as LAPACK's
+``dpstrf`` takes it by default) and a Householder QR factorization of the factor's transpose
+(algorithm 5.2.1). :func:`warm_up` compiles them, or loads them from numba's cache, outside
+any clock.
 """
 
 from __future__ import annotations
@@ -108,6 +113,119 @@ def _lu_solve(matrix: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
                     work[i, j] -= factor * work[k, j]
                 x[i] -= factor * x[k]
     return _back_substitution(work, x), True
+
+
+@numba.njit(cache=True)
+def _pivoted_cholesky(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """(U, order, r): ``U^T U = A[order][:, order]`` to rank r, U's first r rows (upper
+    trapezoidal, zeros below the diagonal), each step's pivot the largest diagonal of what is
+    left (the first of equals), stopping where it is at most ``n eps max(diag A)``."""
+    n = matrix.shape[0]
+    work = matrix.copy()
+    order = np.arange(n)
+    largest = 0.0
+    for i in range(n):
+        largest = max(largest, work[i, i])
+    tolerance = n * np.finfo(np.float64).eps * largest
+    rank = n
+    for k in range(n):
+        chosen = k
+        for i in range(k + 1, n):
+            if work[i, i] > work[chosen, chosen]:
+                chosen = i
+        if not work[chosen, chosen] > tolerance:
+            rank = k
+            break
+        if chosen != k:
+            for j in range(n):
+                work[k, j], work[chosen, j] = work[chosen, j], work[k, j]
+            for i in range(n):
+                work[i, k], work[i, chosen] = work[i, chosen], work[i, k]
+            order[k], order[chosen] = order[chosen], order[k]
+        root = np.sqrt(work[k, k])
+        for j in range(k, n):
+            work[k, j] = work[k, j] / root
+        for i in range(k + 1, n):
+            factor = work[k, i]
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    work[i, j] -= factor * work[k, j]
+    upper = work[:rank].copy()
+    for i in range(rank):
+        for j in range(i):
+            upper[i, j] = 0.0
+    return upper, order, rank
+
+
+@numba.njit(cache=True)
+def _reflect(reflectors: np.ndarray, k: int, x: np.ndarray) -> None:
+    """Applies the Householder reflection ``I - 2 v v^T / v^T v`` of column k of
+    ``reflectors`` (v in rows k and below) to x, in place."""
+    n = x.size
+    norm2 = 0.0
+    dot = 0.0
+    for i in range(k, n):
+        norm2 += reflectors[i, k] * reflectors[i, k]
+        dot += reflectors[i, k] * x[i]
+    if norm2 == 0.0:
+        return
+    scale = 2.0 * dot / norm2
+    for i in range(k, n):
+        x[i] -= scale * reflectors[i, k]
+
+
+@numba.njit(cache=True)
+def _min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``A^+ rhs`` for a symmetric positive semi-definite A (module docstring): with
+    ``A[order][:, order] = U^T U`` to rank r and ``P U^T = Q R`` (P's rows back in A's order),
+    ``A^+ = Q R^-1 R^-T Q^T``; at full rank, ``A^-1 rhs`` from U by two triangular solves."""
+    n = rhs.size
+    upper, order, rank = _pivoted_cholesky(matrix)
+    if rank == n:  # A is positive definite: A^-1 rhs from U alone
+        permuted = np.empty(n)
+        for j in range(n):
+            permuted[j] = rhs[order[j]]
+        permuted = _cholesky_solve(upper, permuted)
+        solution = np.empty(n)
+        for j in range(n):
+            solution[order[j]] = permuted[j]
+        return solution
+    tall = np.zeros((n, rank))  # (U P^T)^T, A's order, then its reflectors below R
+    for i in range(rank):
+        for j in range(n):
+            tall[order[j], i] = upper[i, j]
+    diagonal = np.zeros(rank)
+    for k in range(rank):
+        norm2 = 0.0
+        for i in range(k, n):
+            norm2 += tall[i, k] * tall[i, k]
+        alpha = -np.sqrt(norm2) if tall[k, k] >= 0.0 else np.sqrt(norm2)
+        tall[k, k] -= alpha
+        diagonal[k] = alpha
+        for j in range(k + 1, rank):
+            column = tall[:, j].copy()
+            _reflect(tall, k, column)
+            for i in range(k, n):
+                tall[i, j] = column[i]
+    x = rhs.copy()
+    for k in range(rank):
+        _reflect(tall, k, x)
+    y = np.zeros(rank)  # R^-1 (Q^T rhs): back substitution; R's diagonal in ``diagonal``
+    for k in range(rank - 1, -1, -1):
+        total = x[k]
+        for j in range(k + 1, rank):
+            total -= tall[k, j] * y[j]
+        y[k] = total / diagonal[k]
+    for k in range(rank):  # R^-T y, forward
+        total = y[k]
+        for j in range(k):
+            total -= tall[j, k] * y[j]
+        y[k] = total / diagonal[k]
+    solution = np.zeros(n)
+    solution[:rank] = y
+    for k in range(rank - 1, -1, -1):
+        _reflect(tall, k, solution)
+    return solution
 
 
 def _compiled_operand(values: np.ndarray) -> np.ndarray:
@@ -229,6 +347,30 @@ def lu_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return x
 
 
+def min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The minimum-norm least-squares solution ``A^+ rhs`` of a symmetric positive
+    semi-definite A, as ``np.linalg.lstsq`` gives it, in a fixed order.
+
+    Cholesky's factorization with diagonal pivoting, ``A[o][:, o] = U^T U``, stops at the
+    numerical rank r (the next pivot at most ``n eps max(diag A)``, LAPACK's ``dpstrf``
+    default), so that ``A = F^T F`` with F, r x n, of full row rank; a Householder QR of
+    ``F^T = Q R`` gives ``A^+ = Q R^-1 R^-T Q^T``.
+
+    Parameters
+    ----------
+    matrix : np.ndarray
+        A, shape (n, n), symmetric positive semi-definite.
+    rhs : np.ndarray
+        The right side, n entries.
+
+    Returns
+    -------
+    np.ndarray
+        x, n entries: the least-squares solution of least norm (zero when A is).
+    """
+    return _min_norm_solve(_compiled_operand(matrix), _compiled_operand(rhs))
+
+
 def warm_up() -> None:
     """Compiles the functions above, or loads them from numba's cache; once per process,
     outside any clock (a solver's ``prepare``)."""
@@ -237,3 +379,4 @@ def warm_up() -> None:
     product(matrix, vector)
     cholesky_solve(cholesky(matrix), vector)
     lu_solve(matrix, vector)
+    min_norm_solve(matrix, vector)

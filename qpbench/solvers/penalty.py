@@ -6,21 +6,24 @@ method for linear complementarity problems", Oper. Res. Lett. 36(2), 2008 (power
 Repeat: ``P = diag(l_i < 0)``, solve ``(Q + kappa P) l = -b``, until qpbench's
 ``residual(l) <= tol``; failure when P repeats without converging or at
 ``max_iters``. The linear solve is a minimum-norm least-squares solve (dense) up to
-``dense_limit`` contacts and a sparse LU above, which fails, and says so, when the
-system is singular (the first one, ``Q l = -b``, is whenever Q is).
+``dense_limit`` contacts and a sparse Cholesky factorization above, which fails, and says so,
+when the system is not numerically positive definite (the first one, ``Q l = -b``, whenever Q
+is singular). Both take their sums in an order the CPU does not choose
+(``qpbench.solvers.fixed_order_dense``, and ``qpbench.solvers.sparse_cholesky``'s simplicial
+factor), so the answer is the same on every machine.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from qpbench.problem.impact import ImpactProblem
-from qpbench.solvers import accuracy
+from qpbench.solvers import accuracy, fixed_order_dense
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.lcp import BACKEND, FORMULATION, VERSION, Lcp, output
 from qpbench.solvers.registry import register
+from qpbench.solvers.sparse_cholesky import symmetric_factor
 
 NAME = "penalty"
 
@@ -43,12 +46,12 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
     max_iters : int
         The most linear solves.
     dense_limit : int
-        The most contacts for the dense least-squares solve; above it, sparse LU.
+        The most contacts for the dense least-squares solve; above it, sparse Cholesky.
 
     Returns
     -------
     l : np.ndarray or None
-        The last solution, shape (n,); None when the sparse system was singular.
+        The last solution, shape (n,); None when the sparse system was not positive definite.
     converged : bool
         Whether its residual is at most ``tol``.
     status : str
@@ -68,12 +71,11 @@ def penalty(lcp: Lcp, tol: float, kappa: float, max_iters: int, dense_limit: int
         seen.add(np.packbits(penalized).tobytes())
         shift = kappa * lcp.safe_diag * penalized
         if dense is not None:
-            system = dense + np.diag(shift)
-            impulses = np.linalg.lstsq(system, -lcp.b, rcond=None)[0]
+            impulses = fixed_order_dense.min_norm_solve(dense + np.diag(shift), -lcp.b)
         else:
             try:
-                impulses = spla.splu(sp.csc_matrix(lcp.Q + sp.diags(shift))).solve(-lcp.b)
-            except RuntimeError as error:
+                impulses = symmetric_factor(lcp.Q + sp.diags(shift)).solve(-lcp.b)
+            except np.linalg.LinAlgError as error:
                 return None, False, f"singular penalty system: {error}", iteration
         if not np.all(np.isfinite(impulses)):
             return impulses, False, "diverged: non-finite impulses", iteration
@@ -112,5 +114,5 @@ def solve(problem: ImpactProblem, eps: float, warm_start: np.ndarray | None = No
 
 
 register(SolverSpec(name=NAME, formulation=FORMULATION, backend=BACKEND, solve=solve,
-                    version=VERSION, warm_start=False,
+                    version=VERSION, warm_start=False, prepare=fixed_order_dense.warm_up,
                     description="penalty method (Q + kappa P) l = -b, kappa ~ 1e9"))
