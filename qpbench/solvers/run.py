@@ -104,9 +104,9 @@ def posed_blind_copy(problem: ImpactProblem | FrictionalProblem, formulation: st
     The first request per (problem, formulation) makes a blind copy, poses it (timed: the
     ``formulation_time_s`` of every call) and keeps it on ``problem.posed`` as a template that
     no solver ever sees; each request returns a deep copy of it, so every call still gets
-    arrays of its own, written just before the call, as a posing writes them. Copying is what
-    a repeat costs instead of building the formulation again (scipy.sparse's constructors take
-    most of a millisecond even on a few contacts).
+    arrays of its own, written just before the call, as a posing writes them. A repeat so
+    costs a copy instead of scipy.sparse's constructions of the formulation, which are many
+    times dearer on small problems.
 
     Parameters
     ----------

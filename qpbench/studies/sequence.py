@@ -39,9 +39,9 @@ report's rule: failing quickly never looks fast) and use the report's shifted ge
 the report, with where and why), so that all pairs compared solved the same steps, when its
 solves there add up to more than ``SCENE_BUDGET_S``, or (an external pair) to more than
 ``out_of_running`` times those of the fastest warm-startable external pair that solved every
-step so far: it cannot be the fastest, and replaying it in every pass took most of the
-sequence's time (IPOPT, directly and through cvxpy, at 50-60 times DAQP's time a step), as
-the head-to-head's pairs leave a set (``qpbench.studies.head_to_head.Running``).
+step so far, once ``PACE_STEPS`` steps are done: it cannot be the fastest, and replaying it
+in every pass would take most of the sequence's time, so it leaves as the head-to-head's
+pairs leave a set (``qpbench.studies.head_to_head.Running``).
 """
 
 from __future__ import annotations
@@ -99,8 +99,7 @@ STEP_BUDGET = 40
 # solve on degenerate piles (cvxpy with IPOPT) from taking the benchmark's time
 SCENE_BUDGET_S = 30.0
 # steps of a scene every pair solves before one leaves for being far behind the fastest: one
-# step's ratio says little (on the first, 20 contacts, a dense method 38x DAQP's time; over
-# the scene, 7x)
+# step's ratio says little (a dense method's lag grows and shrinks with a step's contacts)
 PACE_STEPS = 5
 
 
