@@ -26,7 +26,7 @@ from qpbench.simulation.scaling import circle_pile
 from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverOutput, SolverSpec
 from qpbench.solvers.registry import get
-from qpbench.studies import breakdown, sequence
+from qpbench.studies import breakdown, sequence, sequence_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "problems/scenes/ura/10_balls_in_box.xml"
@@ -469,7 +469,7 @@ def test_the_cold_pairs_beside_are_the_main_tables_fastest_without_warm_starts()
                          + rows("osqp", "dual", "osqp", "scene:K4", 1e-5)
                          + rows("quadprog", "dual", "quadprog", "k3", 1e-6)
                          + rows("pi-robust", "lcp", "qpbench", "scene:K4", 1e-6))
-    assert sequence.fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]
+    assert sequence_pairs.fastest_cold(frame, count=5) == ["quadprog/primal", "quadprog/dual"]
 
 
 def test_breakdown_times_every_part_once_in_each_round(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -23,7 +23,7 @@ from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
 from qpbench.solvers.registry import get
-from qpbench.studies import sequence
+from qpbench.studies import sequence, sequence_pairs
 
 JSON_FIELDS = "Every JSON field, its unit and when it is null: docs/json-output.md"
 
@@ -131,8 +131,8 @@ def _replayed(args: argparse.Namespace) -> dict:
             bench = ResultStore(args.results).read()
             if bench.empty:
                 raise InputError(args.results, "no results to choose the cold pairs from")
-            cold = sequence.fastest_cold(bench, accuracy=args.accuracy)
-        specs = sequence.default_solvers(cold)
+            cold = sequence_pairs.fastest_cold(bench, accuracy=args.accuracy)
+        specs = sequence_pairs.default_solvers(cold)
     return sequence.sequence(args.scenes or list(sequence.DEFAULT_SCENES), specs, args.steps,
                              args.accuracy, progress=lambda text: print(text, file=sys.stderr),
                              repeats=args.repeats, passes=args.passes,

@@ -54,7 +54,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from qpbench.bench.defaults import (
     REPEATS,
@@ -65,7 +64,7 @@ from qpbench.bench.defaults import (
     TARGET_SPEEDUP,
 )
 from qpbench.bench.repeats import REPEAT_BUDGET_S, Timing, fastest_output, time_interleaved
-from qpbench.bench.stats import OWN_BACKEND, SHIFT_FACTOR, shifted_geometric_mean, solver_keys
+from qpbench.bench.stats import OWN_BACKEND, SHIFT_FACTOR, shifted_geometric_mean
 from qpbench.errors import InputError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.problem import files
@@ -74,10 +73,9 @@ from qpbench.scenes import load_scene
 from qpbench.simulation.operators import InnerSolveFailed
 from qpbench.simulation.stepper import Simulator
 from qpbench.solvers.base import SolverSpec
-from qpbench.solvers.registry import all_solvers, usable_solvers
+from qpbench.solvers.registry import all_solvers
 from qpbench.solvers.run import BELOW_FLOOR, judge
 from qpbench.studies.head_to_head import both_solve_phrase, pass_range, target_sentence
-from qpbench.studies.head_to_head_pairs import ranked
 
 OWN = "pi-robust/lcp"
 # the shared SCISim scenes with many consecutive impacts (box packings; the butterfly's
@@ -90,7 +88,6 @@ DEFAULT_SCENES = (
     "problems/scenes/scisim/butterfly.xml",
     "problems/scenes/piles/circle_pile_30.xml",
 )
-COLD_PAIRS = 4  # the fastest pairs without warm starts of the main table, shown beside
 KEYS = "contact_keys"
 # time steps simulated per requested impact step at most (scenes with quiet stretches)
 STEP_BUDGET = 40
@@ -765,61 +762,6 @@ def _per_scene_lines(per_scene: Sequence[dict[str, Any]],
     lines.append(f"\n{target_sentence(TARGET_SPEEDUP, holds, fails, 'scene')} Where no contact "
                  "persists, a sequence solve is a cold solve.")
     return lines
-
-
-def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
-                 accuracy: float = SEQUENCE_ACCURACY) -> list[str]:
-    """The ``count`` fastest external impact pairs that take no warm start.
-
-    Ranked on the captured scenes (families ``scene:*``) of the main table at ``accuracy`` (SGM
-    of charged times).
-
-    Parameters
-    ----------
-    bench : pd.DataFrame
-        The main benchmark's rows.
-    count : int, optional
-        How many pairs; COLD_PAIRS by default.
-    accuracy : float, optional
-        The level ranked at; SEQUENCE_ACCURACY by default.
-
-    Returns
-    -------
-    list of str
-        The pair keys, fastest first.
-    """
-    cold_only = {spec.key for spec in usable_solvers()
-                 if not spec.warm_start and spec.backend != OWN_BACKEND}
-    level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
-                  & bench["family"].astype(str).str.startswith("scene:")
-                  & (bench["kind"].astype(str) != "frictional")]
-    return ranked(level[solver_keys(level).isin(cold_only)])[:count]
-
-
-def default_solvers(cold: Sequence[str] = ()) -> list[SolverSpec]:
-    """pi-robust, every usable warm-startable external impact pair, and the pairs ``cold``.
-
-    Frictional formulations (``nsgs``, ``ccp``, ``staggered``) are left out.
-
-    Parameters
-    ----------
-    cold : sequence of str, optional
-        Keys of the fastest pairs that take no warm start (:func:`fastest_cold`); none by
-        default.
-
-    Returns
-    -------
-    list of SolverSpec
-        The pairs, in the registry's order.
-    """
-    chosen = []
-    for spec in usable_solvers():
-        if spec.formulation in ("nsgs", "ccp", "staggered") or "staggered" in spec.name:
-            continue
-        if spec.key == OWN or spec.key in cold or (
-                spec.warm_start and spec.backend != OWN_BACKEND):
-            chosen.append(spec)
-    return chosen
 
 
 def sequence(scenes: Sequence[str], specs: Sequence[SolverSpec], steps: int = SEQUENCE_STEPS,
