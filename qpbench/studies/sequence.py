@@ -703,10 +703,11 @@ def markdown(summary: Sequence[dict[str, Any]], compared: dict[str, Any],
             f"{entry['cold_sgm_s'] / entry['sequence_sgm_s']:.2f}x |")
     lines.append("")
     if stopped:
-        behind = (f", or whose solves there took more than {out_of_running:g} times those of "
-                  "the fastest warm-startable external pair that solved every step so far (it "
-                  "cannot be the fastest)" if math.isfinite(out_of_running) else "")
-        lines.append(f"Stopped on a scene after {budget_s:g} s of solves there{behind}, "
+        behind = (f", or once, from the scene's {PACE_STEPS}th step on, their solves there "
+                  f"took more than {out_of_running:g} times those of the fastest warm-startable "
+                  "external pair that solved every step so far: such a pair cannot be the "
+                  "fastest" if math.isfinite(out_of_running) else "")
+        lines.append(f"Pairs stopped on a scene (after {budget_s:g} s of solves there{behind}), "
                      "replayed no further and left out of the summaries: "
                      + "; ".join(f"`{key}` ({where})" for key, where in stopped.items())
                      + ".\n")
