@@ -178,7 +178,7 @@ def _reflect(reflectors: np.ndarray, k: int, x: np.ndarray) -> None:
 def _min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """``A^+ rhs`` for a symmetric positive semi-definite A (module docstring): with
     ``A[order][:, order] = U^T U`` to rank r and ``P U^T = Q R`` (P's rows back in A's order),
-    ``A^+ = Q R^-1 R^-T Q^T``; at full rank, ``A^-1 rhs`` from U by two triangular solves."""
+    ``A^+ = Q R^-T R^-1 Q^T``; at full rank, ``A^-1 rhs`` from U by two triangular solves."""
     n = rhs.size
     upper, order, rank = _pivoted_cholesky(matrix)
     if rank == n:  # A is positive definite: A^-1 rhs from U alone
@@ -194,33 +194,29 @@ def _min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     for i in range(rank):
         for j in range(n):
             tall[order[j], i] = upper[i, j]
-    diagonal = np.zeros(rank)
+    triangle = np.zeros((rank, rank))  # R
     for k in range(rank):
         norm2 = 0.0
         for i in range(k, n):
             norm2 += tall[i, k] * tall[i, k]
         alpha = -np.sqrt(norm2) if tall[k, k] >= 0.0 else np.sqrt(norm2)
         tall[k, k] -= alpha
-        diagonal[k] = alpha
+        triangle[k, k] = alpha
         for j in range(k + 1, rank):
             column = tall[:, j].copy()
             _reflect(tall, k, column)
             for i in range(k, n):
                 tall[i, j] = column[i]
+            triangle[k, j] = tall[k, j]
     x = rhs.copy()
     for k in range(rank):
         _reflect(tall, k, x)
-    y = np.zeros(rank)  # R^-1 (Q^T rhs): back substitution; R's diagonal in ``diagonal``
-    for k in range(rank - 1, -1, -1):
-        total = x[k]
-        for j in range(k + 1, rank):
-            total -= tall[k, j] * y[j]
-        y[k] = total / diagonal[k]
+    y = _back_substitution(triangle, x[:rank].copy())  # R^-1 (Q^T rhs)
     for k in range(rank):  # R^-T y, forward
         total = y[k]
         for j in range(k):
-            total -= tall[j, k] * y[j]
-        y[k] = total / diagonal[k]
+            total -= triangle[j, k] * y[j]
+        y[k] = total / triangle[k, k]
     solution = np.zeros(n)
     solution[:rank] = y
     for k in range(rank - 1, -1, -1):
@@ -354,7 +350,7 @@ def min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     Cholesky's factorization with diagonal pivoting, ``A[o][:, o] = U^T U``, stops at the
     numerical rank r (the next pivot at most ``n eps max(diag A)``, LAPACK's ``dpstrf``
     default), so that ``A = F^T F`` with F, r x n, of full row rank; a Householder QR of
-    ``F^T = Q R`` gives ``A^+ = Q R^-1 R^-T Q^T``.
+    ``F^T = Q R`` gives ``A^+ = Q (R R^T)^-1 Q^T = Q R^-T R^-1 Q^T``.
 
     Parameters
     ----------
