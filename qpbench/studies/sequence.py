@@ -309,10 +309,9 @@ def replay_side_by_side(specs: Sequence[SolverSpec], problems: Sequence[ImpactPr
             previous[spec.key] = (problem, answer)
         leaving = leavers(running, spent, clean, budget_s,
                           out_of_running if index + 1 >= PACE_STEPS else math.inf)
-        for spec in running:
-            if spec.key in leaving and stopped is not None:
-                stopped[spec.key] = (f"{scene}: {index + 1} of {len(problems)} steps, "
-                                     f"{leaving[spec.key]}")
+        if stopped is not None:
+            stopped.update((key, f"{scene}: {index + 1} of {len(problems)} steps, {why}")
+                           for key, why in leaving.items())
         running = [spec for spec in running if spec.key not in leaving]
     return rows
 
