@@ -45,10 +45,10 @@ and adds published safeguards:
    ``Q + 1e-10 D`` (which, unlike a dense pile's own, has a strictly feasible point), its Newton
    systems solved over the degrees of freedom through ``L = M^-1/2 G`` when fewer of
    them move than there are contacts (``lcp_interior.FactoredNormalMatrix``), its
-   iterates handed on from a residual of ``UPDATED_FINISH_BELOW`` where the policy
-   blocks are updated rather than factored (``pi_robust_blocks``; prox weight
-   ``UPDATED_FINISH_RHO``), ended at its floor or a stall, then policy iteration from
-   its best iterate (see :func:`pi_robust`).
+   iterates handed on from a residual of ``finish_below`` where the policy blocks are
+   updated rather than factored (``pi_robust_blocks``; prox weight ``UPDATED_FINISH_RHO``),
+   elsewhere from ``FIRST_FINISH_BELOW``, ended at its floor or a stall, then policy
+   iteration from its best iterate (see :func:`pi_robust`).
 4. Lemke's method (``lemke_limit`` contacts at most) if all else failed.
 
 Factorizations: dense (``dense_limit`` contacts at most; ``fixed_order_dense``: Cholesky,
@@ -124,12 +124,11 @@ INTERIOR_PROX = 1e-10
 # the interior point's own (docs/notes/pi-robust.md)
 FIRST_FINISH_BELOW = 1e-6
 # where the policy blocks are updated rather than factored (BlockSolver.updatable), a finish
-# costs little, so the first interior point hands its iterates on from this residual, with
-# this many solves, at this prox weight (when below the accuracy table's rho): an interior
-# iterate foretells the free contacts of the LCP itself, which a prox step at a small weight
-# nearly is; much smaller, and the blocks' Woodbury form loses the digits it needs
+# costs little, so the first interior point hands its iterates on from the accuracy table's
+# finish_below, with this many solves, at this prox weight (when below the table's rho): an
+# interior iterate foretells the free contacts of the LCP itself, which a prox step at a small
+# weight nearly is; much smaller, and the blocks' Woodbury form loses the digits it needs
 # (docs/notes/pi-robust.md)
-UPDATED_FINISH_BELOW = 1e-4
 UPDATED_FINISH_BUDGET = 30
 UPDATED_FINISH_RHO = 1e-9
 # a sparse problem's warm start is followed by policy iteration only when one solve of its
@@ -438,7 +437,7 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         return result if done else None
 
     def first_finish(candidate: np.ndarray, candidate_w: np.ndarray) -> np.ndarray | None:
-        """The first interior point's finish: from ``UPDATED_FINISH_BELOW`` with
+        """The first interior point's finish: from ``finish_below`` with
         ``UPDATED_FINISH_BUDGET`` solves at the prox weight ``UPDATED_FINISH_RHO`` where the
         policy's blocks are updated rather than factored (each try is cheap), else from
         ``FIRST_FINISH_BELOW`` as any finish."""
@@ -453,16 +452,14 @@ def pi_robust(lcp: Lcp, blocks: BlockSolver, start: np.ndarray,
         """(the interior point's l, None when a factorization failed; converged; its
         iterations; the failure; what its Newton matrix runs over). ``first`` (sparse, cold):
         proximal (``INTERIOR_PROX``), finished from each iterate below
-        ``UPDATED_FINISH_BELOW`` whose policy blocks are updated, else below
+        ``finish_below`` whose policy blocks are updated, else below
         ``FIRST_FINISH_BELOW`` (``first_finish``), then from its floor or a stall; else
         plain, finished from each iterate below ``finish_below``."""
         normal = _normal_matrix(lcp)
         try:
             impulses, converged, iterations, _ = interior_point(
                 lcp, normal.lcp, normal.root, normal, tol, ipm_iters,
-                first_finish if first else finish,
-                min(finish_below, UPDATED_FINISH_BELOW) if first else finish_below,
-                end_on_stall=first,
+                first_finish if first else finish, finish_below, end_on_stall=first,
                 prox=INTERIOR_PROX if first else 0.0, stall_finish=finish)
         except np.linalg.LinAlgError as error:
             return None, False, 0, f"interior point failed: {error}", normal.over
