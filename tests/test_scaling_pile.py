@@ -116,6 +116,41 @@ def test_a_pile_past_its_solve_budget_stops_after_one_step_and_says_so() -> None
     assert "timed steps; the inner solves took" not in pile_markdown(unlimited, None)
 
 
+def test_passes_keep_each_sizes_least_disturbed_run_and_show_every_pass() -> None:
+    """Each pass simulates every size (in reverse order every other pass); a size keeps the
+    pass whose inner solves per body per step took least, the table says so, and the kind's
+    line gives the growth of each pass alone."""
+    told: list[str | None] = []
+    report = pile_scaling(CLARABEL, {"boxes": (20, 40)}, steps=1, passes=3,
+                          progress=lambda count, note: told.append(note))
+    assert report["passes"] == 3
+    assert told == ["boxes pile warm-up, 20 bodies"] + [
+        f"boxes pile, {bodies} bodies, pass {turn} of 3"
+        for turn, order in ((1, (20, 40)), (2, (40, 20)), (3, (20, 40))) for bodies in order]
+    entry = report["kinds"]["boxes"]
+    small, large = entry["rows"]
+    for row in entry["rows"]:
+        assert row["passes"] == 3 and len(row["solve_per_body_step_us_by_pass"]) == 3
+        assert row["solve_per_body_step_us"] == min(row["solve_per_body_step_us_by_pass"])
+    assert entry["solve_ratio_by_pass"] == pytest.approx(
+        [b / a for a, b in zip(small["solve_per_body_step_us_by_pass"],
+                               large["solve_per_body_step_us_by_pass"], strict=True)])
+    text = pile_markdown(report, "clarabel/dual")
+    assert "every pile simulated in 3 passes" in text
+    ratios = entry["solve_ratio_by_pass"]
+    assert f", pass by pass {min(ratios):.2f}-{max(ratios):.2f}x." in text
+    single = pile_scaling(CLARABEL, {"boxes": (20, 40)}, steps=1)
+    assert single["passes"] == 1 and len(single["kinds"]["boxes"]["solve_ratio_by_pass"]) == 1
+    assert "passes" not in pile_markdown(single, None)
+
+
+def test_scaling_refuses_a_pass_count_below_one(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture) -> None:
+    output = tmp_path / "scaling.json"
+    assert main(["scaling", "--sizes", "20,40", "--pile-passes", "0", "-o", str(output)]) == 2
+    assert "--pile-passes" in capsys.readouterr().err and not output.exists()
+
+
 def test_scaling_refuses_a_solve_budget_that_is_not_positive(tmp_path: Path,
                                                              capsys: pytest.CaptureFixture
                                                              ) -> None:

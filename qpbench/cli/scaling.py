@@ -1,8 +1,8 @@
 """``qpbench scaling [--sizes 1000,10000] [--steps N] [--solver NAME] [--pile-sizes 1000,10000]
-[--box-pile-sizes 1000,10000] [--pile-steps N] [--pile-solve-budget S] [--no-piles]
-[--[no-]progress] -o results/scaling.json``: the measurements as JSON, their Markdown on
-stdout, a bar over the measurements and a closing line on stderr. Each pile's inner solves
-are set against one sparse factorization of its final active block
+[--box-pile-sizes 1000,10000] [--pile-steps N] [--pile-passes N] [--pile-solve-budget S]
+[--no-piles] [--[no-]progress] -o results/scaling.json``: the measurements as JSON, their
+Markdown on stdout, a bar over the measurements and a closing line on stderr. Each pile's
+inner solves are set against one sparse factorization of its final active block
 (``qpbench.studies.factorization.active_block_factorization``)."""
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from qpbench.cli.progress import Progress
 from qpbench.errors import QpbenchError
 from qpbench.inner_solvers import choose_by_name
 from qpbench.simulation.scaling import (
+    DEFAULT_PILE_PASSES,
     DEFAULT_PILE_SOLVE_BUDGET_S,
     DEFAULT_PILE_STEPS,
     DEFAULT_SIZES,
@@ -64,6 +65,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="body counts of the dense box pile (default: --sizes)")
     parser.add_argument("--pile-steps", type=int, default=DEFAULT_PILE_STEPS,
                         help=f"timed steps per pile ({DEFAULT_PILE_STEPS})")
+    parser.add_argument("--pile-passes", type=int, default=DEFAULT_PILE_PASSES,
+                        help="passes over every pile, the sizes in turn; each size keeps the "
+                             f"pass whose inner solves took least ({DEFAULT_PILE_PASSES})")
     parser.add_argument("--pile-solve-budget", type=float, default=DEFAULT_PILE_SOLVE_BUDGET_S,
                         help="seconds of inner solves after which a pile stops timing further "
                              f"steps; at least one is timed ({DEFAULT_PILE_SOLVE_BUDGET_S:g})")
@@ -89,22 +93,24 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     QpbenchError
-        When the steps or the seed are out of range, the pile solve budget is not positive, or
+        When the steps, passes or seed are out of range, the pile solve budget is not positive, or
         the solver is unknown.
     """
     check_at_least(args.steps, 1, "--steps")
     check_at_least(args.pile_steps, 1, "--pile-steps")
+    check_at_least(args.pile_passes, 1, "--pile-passes")
     check_at_least(args.seed, 0, "--seed")
     if not args.pile_solve_budget > 0:
         raise QpbenchError("--pile-solve-budget must be a positive number of seconds")
     circles = args.pile_sizes or args.sizes
     boxes = args.box_pile_sizes or args.sizes
     piles = None if args.no_piles else {"circles": circles, "boxes": boxes}
-    with Progress("scaling", progress_wanted(args), measurement_count(args.sizes, piles),
+    with Progress("scaling", progress_wanted(args),
+                  measurement_count(args.sizes, piles, args.pile_passes),
                   "measurements") as progress:
         report = scaling(choose_by_name(args.solver), args.sizes, args.steps, args.seed, piles,
                          args.pile_steps, args.pile_solve_budget, progress.advance,
-                         active_block_factorization)
+                         active_block_factorization, args.pile_passes)
     write_json(args.output, report)
     print(report["markdown"], end="")
     print(f"qpbench scaling: {closing_line(report)} -> {args.output}", file=sys.stderr)

@@ -13,7 +13,11 @@ with its growth from the smallest to the largest size against the same target, a
 inner solves' growth per body per step against ``SOLVE_GROWTH_TARGET`` (<= 2x). Each kind
 is warmed up once by one untimed step of a small pile, and every pile is timed from its
 first step, so a large pile pays for no untimed step; a pile whose inner solves pass a time
-budget stops after fewer steps (at least one), and its row says so.
+budget stops after fewer steps (at least one), and its row says so. With ``passes`` > 1 every
+pile of a kind is simulated once per pass, the sizes in turn (in reverse order every other
+pass, so that a drift of the machine's speed falls on all sizes alike), and each size keeps
+the pass whose inner solves took least: one genuine run of the pile, chosen as the least
+disturbed, with every pass's figure and the growth pass by pass beside it.
 
 The inner solves of a pile are also held against one sparse factorization of the final
 active block: the caller hands in a :data:`FactorBlock` (this package knows no solver), told
@@ -46,6 +50,8 @@ PILE_SPACING = 0.999  # centre distance / (2 r): neighbours overlap by 0.1 % of 
 PILE_SPEED = 0.01  # downward start velocity, so every step presses the pile together
 PILE_GRAVITY = 9.81
 DEFAULT_PILE_STEPS = 5
+# the passes over every pile of a kind by default (``qpbench scaling --pile-passes``)
+DEFAULT_PILE_PASSES = 3
 PILE_WARMUP_BODIES = 100  # every kind's one untimed warm-up step is on a pile this small
 # (or smaller: the smallest pile measured)
 # a pile's timed steps stop early once its inner solves have taken this long (at least one
@@ -115,10 +121,11 @@ def _silent(count: int, note: str | None) -> None:
 
 
 def measurement_count(sizes: tuple[int, ...],
-                      pile_sizes: dict[str, tuple[int, ...]] | None = None) -> int:
+                      pile_sizes: dict[str, tuple[int, ...]] | None = None,
+                      pile_passes: int = 1) -> int:
     """The measurements :func:`scaling` makes.
 
-    One per box-scene size, and per kind of pile one warm-up and one per size.
+    One per box-scene size, and per kind of pile one warm-up and one per size and pass.
 
     Parameters
     ----------
@@ -126,13 +133,16 @@ def measurement_count(sizes: tuple[int, ...],
         The box scenes' ball counts.
     pile_sizes : dict of str to tuple of int, or None, optional
         Per kind of pile, its body counts; None (default) for no piles.
+    pile_passes : int, optional
+        The passes over every pile; 1 by default.
 
     Returns
     -------
     int
         The count, for a progress bar's total.
     """
-    return len(sizes) + sum(1 + len(kind_sizes) for kind_sizes in (pile_sizes or {}).values())
+    return len(sizes) + sum(1 + pile_passes * len(kind_sizes)
+                            for kind_sizes in (pile_sizes or {}).values())
 
 
 def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
@@ -141,7 +151,8 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
             pile_steps: int = DEFAULT_PILE_STEPS,
             pile_solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
             progress: Advance | None = None,
-            factor_block: FactorBlock | None = None) -> dict[str, Any]:
+            factor_block: FactorBlock | None = None,
+            pile_passes: int = 1) -> dict[str, Any]:
     """Every size measured, the ratio of the largest to the smallest cost, and a Markdown table.
 
     With ``pile_sizes`` (kind -> sizes) also the dense piles, under ``"piles"``. ``progress``
@@ -169,6 +180,8 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
     factor_block : FactorBlock or None, optional
         Times one sparse factorization of each pile's final active block; None (default) for
         none.
+    pile_passes : int, optional
+        The passes over every pile (:func:`pile_scaling`); 1 by default.
 
     Returns
     -------
@@ -194,7 +207,7 @@ def scaling(choose_solve: ChooseSolve, sizes: tuple[int, ...] = DEFAULT_SIZES,
     }
     if pile_sizes:
         report["piles"] = pile_scaling(choose_solve, pile_sizes, pile_steps,
-                                       pile_solve_budget_s, told, factor_block)
+                                       pile_solve_budget_s, told, factor_block, pile_passes)
     report["markdown"] = markdown(report)
     return report
 
@@ -411,6 +424,16 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
         with ``factor_block`` also its fields, ``solve_per_step_s`` and
         ``solve_to_factorization`` (:func:`final_block_fields`).
     """
+    row, last = _timed_pile(kind, bodies, steps, choose_solve, solve_budget_s)
+    if factor_block is not None:
+        row.update(final_block_fields(last, row["solve_s"] / max(1, row["steps"]), factor_block))
+    return row
+
+
+def _timed_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
+                solve_budget_s: float) -> tuple[dict[str, Any], StepEvent | None]:
+    """The row of :func:`measure_pile` without the factorization, and the last step done
+    (None when none was)."""
     simulator = Simulator(PILES[kind](bodies), choose_solve)
     timers = {name: _Timed(getattr(simulator, name))
               for name in ("find_contacts", "impact_problem", "_solve")}
@@ -449,9 +472,7 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
         "success": failure is None, "failure": failure,
         **_accuracy_of(simulator),
     }
-    if factor_block is not None:
-        row.update(final_block_fields(last, parts["solve_s"] / max(1, done), factor_block))
-    return row
+    return row, last
 
 
 def final_block_fields(last: StepEvent | None, solve_per_step_s: float,
@@ -498,16 +519,20 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
                  steps: int = DEFAULT_PILE_STEPS,
                  solve_budget_s: float = DEFAULT_PILE_SOLVE_BUDGET_S,
                  progress: Advance | None = None,
-                 factor_block: FactorBlock | None = None) -> dict[str, Any]:
+                 factor_block: FactorBlock | None = None,
+                 passes: int = 1) -> dict[str, Any]:
     """Every pile at every size, and per kind the growth of its costs per body per step.
 
-    Each kind is warmed up once on a small pile; the growth of the simulator's own cost per
-    body per step (largest size against the smallest, target <= 1.5x) and of the inner solves'
-    (target <= SOLVE_GROWTH_TARGET) is given per kind. ``progress`` is told after each warm-up
-    and each pile (:data:`Advance`).
+    Each kind is warmed up once on a small pile, then its piles are simulated ``passes``
+    times, the sizes in turn (in reverse order every other pass), and each size keeps the
+    pass whose inner solves per body per step took least (:func:`_fastest_passes`). The
+    growth of the simulator's own cost per body per step (largest size against the smallest,
+    target <= 1.5x) and of the inner solves' (target <= SOLVE_GROWTH_TARGET) is given per
+    kind, the latter also pass by pass. ``progress`` is told after each warm-up and each pile
+    (:data:`Advance`).
     With ``factor_block``, each pile's inner solves per step are set against one sparse
-    factorization of its final active block (:func:`measure_pile`), and per kind the largest
-    such ratio against FACTORIZATION_TARGET.
+    factorization of the final active block of its kept pass (:func:`final_block_fields`),
+    and per kind the largest such ratio against FACTORIZATION_TARGET.
 
     Parameters
     ----------
@@ -525,13 +550,18 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
     factor_block : FactorBlock or None, optional
         Times one sparse factorization of each pile's final active block; None (default) for
         none.
+    passes : int, optional
+        The passes over every pile of a kind; 1 by default.
 
     Returns
     -------
     dict
-        The steps, budget, warm-up size and target, and under ``kinds`` per kind its sizes,
-        rows (:func:`measure_pile`), ``own_ratio``, ``solve_ratio``, ``meets_target`` and
-        ``meets_solve_growth_target`` (``solve_growth_target`` beside ``target_ratio``); with
+        The steps, budget, passes, warm-up size and target, and under ``kinds`` per kind its
+        sizes, rows (:func:`measure_pile`'s, with ``passes`` and every pass's
+        ``solve_per_body_step_us_by_pass``), ``own_ratio``, ``solve_ratio``,
+        ``solve_ratio_by_pass`` (the largest size's figure over the smallest's, pass by pass),
+        ``meets_target`` and ``meets_solve_growth_target`` (``solve_growth_target`` beside
+        ``target_ratio``); with
         ``factor_block`` also ``factorization_target`` and per kind
         ``max_solve_to_factorization`` (None when a row has no ratio) and
         ``meets_factorization_target``.
@@ -539,6 +569,7 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
     told = progress or _silent
     warmup = min([PILE_WARMUP_BODIES, *(min(kind_sizes) for kind_sizes in sizes.values())])
     report: dict[str, Any] = {"steps": steps, "solve_budget_s": solve_budget_s,
+                              "passes": passes,
                               "warmup_bodies": warmup, "target_ratio": TARGET_RATIO,
                               "solve_growth_target": SOLVE_GROWTH_TARGET, "kinds": {}}
     if factor_block is not None:
@@ -547,17 +578,24 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
         warm_up_pile(kind, warmup, choose_solve)
         told(1, f"{kind} pile warm-up, {warmup} bodies")
         rows = []
-        for bodies in kind_sizes:
-            rows.append(measure_pile(kind, bodies, steps, choose_solve, solve_budget_s,
-                                     factor_block))
-            told(1, f"{kind} pile, {bodies} bodies")
+        for row, last_step in _fastest_passes(kind, kind_sizes, steps, choose_solve,
+                                              solve_budget_s, passes, told):
+            if factor_block is not None:
+                row.update(final_block_fields(last_step, row["solve_s"] / max(1, row["steps"]),
+                                              factor_block))
+            rows.append(row)
         first, last = rows[0], rows[-1]
         own_ratio = last["own_per_body_step_us"] / max(first["own_per_body_step_us"], 1e-300)
         solve_ratio = (last["solve_per_body_step_us"]
                        / max(first["solve_per_body_step_us"], 1e-300))
         report["kinds"][kind] = {
             "sizes": list(kind_sizes), "rows": rows, "own_ratio": own_ratio,
-            "solve_ratio": solve_ratio, "meets_target": bool(own_ratio <= TARGET_RATIO),
+            "solve_ratio": solve_ratio,
+            "solve_ratio_by_pass": [
+                large / max(small, 1e-300) for small, large in
+                zip(first["solve_per_body_step_us_by_pass"],
+                    last["solve_per_body_step_us_by_pass"], strict=True)],
+            "meets_target": bool(own_ratio <= TARGET_RATIO),
             "meets_solve_growth_target": bool(solve_ratio <= SOLVE_GROWTH_TARGET),
         }
         if factor_block is not None:
@@ -568,6 +606,31 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
                 "meets_factorization_target": bool(largest is not None
                                                    and largest <= FACTORIZATION_TARGET)})
     return report
+
+
+def _fastest_passes(kind: str, kind_sizes: tuple[int, ...], steps: int,
+                    choose_solve: ChooseSolve, solve_budget_s: float, passes: int,
+                    told: Advance) -> list[tuple[dict[str, Any], StepEvent | None]]:
+    """Per size of ``kind_sizes`` (in that order), the row and last step of the pass whose
+    inner solves per body per step took least (a pass whose solver failed only when every
+    pass failed), the rows with ``passes`` and every pass's ``solve_per_body_step_us_by_pass``.
+
+    Every pass simulates each size once (:func:`_timed_pile`), in reverse order every other
+    pass; ``told`` hears of each pile."""
+    kept: dict[int, tuple[dict[str, Any], StepEvent | None]] = {}
+    by_pass: dict[int, list[float]] = {bodies: [] for bodies in kind_sizes}
+    for turn in range(passes):
+        for bodies in kind_sizes if turn % 2 == 0 else kind_sizes[::-1]:
+            row, last = _timed_pile(kind, bodies, steps, choose_solve, solve_budget_s)
+            by_pass[bodies].append(row["solve_per_body_step_us"])
+            rank = (not row["success"], row["solve_per_body_step_us"])
+            if bodies not in kept or rank < (not kept[bodies][0]["success"],
+                                             kept[bodies][0]["solve_per_body_step_us"]):
+                kept[bodies] = (row, last)
+            told(1, f"{kind} pile, {bodies} bodies, pass {turn + 1} of {passes}")
+    for bodies in kind_sizes:
+        kept[bodies][0].update(passes=passes, solve_per_body_step_us_by_pass=by_pass[bodies])
+    return [kept[bodies] for bodies in kind_sizes]
 
 
 def _inaccurate_cell(row: dict[str, Any]) -> str:
@@ -609,12 +672,13 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
         "hexagonal packing (`ball2d`), unit boxes in a grid (`rigidbody2d`); inelastic "
         f"`lcp` impacts, up to {report['steps']} timed steps per pile{budget_text}, from "
         "its first step, each kind warmed up once beforehand by one untimed step of a "
-        f"{report.get('warmup_bodies', PILE_WARMUP_BODIES)}-body pile; inner solver "
-        f"`{solver}`. The simulator's own cost (contact detection, assembly of the impact "
-        "problem, integration and the rest of the step) is per body per step; the inner "
-        "solves are beside it with their own growth. Every inner solve is judged by qpbench's "
-        f"residual against the accuracy the simulator asks of it{asked}; an inaccurate one "
-        "(above that accuracy, yet usable) is counted, and the step goes on with its answer."
+        f"{report.get('warmup_bodies', PILE_WARMUP_BODIES)}-body pile;{_passes_text(report)} "
+        f"inner solver `{solver}`. The simulator's own cost (contact detection, assembly of "
+        "the impact problem, integration and the rest of the step) is per body per step; the "
+        "inner solves are beside it with their own growth. Every inner solve is judged by "
+        f"qpbench's residual against the accuracy the simulator asks of it{asked}; an "
+        "inaccurate one (above that accuracy, yet usable) is counted, and the step goes on with "
+        "its answer."
         + _factorization_text(report),
         "",
         "| pile | bodies | steps | contacts per body | contacts (us) | assembly (us) "
@@ -642,7 +706,7 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
             f"- {kind}: own cost per body per step, {large} vs {small} bodies: "
             f"**{entry['own_ratio']:.2f}x** ({verdict} the target <= "
             f"{report['target_ratio']}x); inner solves **{entry['solve_ratio']:.2f}x**"
-            + _solve_growth_verdict(entry, report) + "."
+            + _solve_growth_verdict(entry, report) + _growth_by_pass(entry) + "."
             + _factorization_verdict(entry, report))
     for kind, entry in report["kinds"].items():
         for row in entry["rows"]:
@@ -653,6 +717,24 @@ def pile_markdown(report: dict[str, Any], solver: str | None) -> str:
                     f"{row['solve_s']:.0f} s, past the {budget:g} s budget of a pile "
                     "(`--pile-solve-budget`); the simulator's own cost is per step done.")
     return "\n".join(lines) + "\n"
+
+
+def _passes_text(report: dict[str, Any]) -> str:
+    """How the piles were passed over, when more than once (empty for one pass)."""
+    passes = report.get("passes", 1)
+    if passes <= 1:
+        return ""
+    return (f" every pile simulated in {passes} passes, the sizes in turn (in reverse order "
+            "every other pass), each size keeping the pass whose inner solves took least;")
+
+
+def _growth_by_pass(entry: dict[str, Any]) -> str:
+    """``, pass by pass 2.10-2.60x``: the range of the inner solves' growth in each pass
+    alone (empty for one pass)."""
+    ratios = entry.get("solve_ratio_by_pass") or []
+    if len(ratios) < 2:
+        return ""
+    return f", pass by pass {min(ratios):.2f}-{max(ratios):.2f}x"
 
 
 def _solve_growth_verdict(entry: dict[str, Any], report: dict[str, Any]) -> str:
