@@ -12,6 +12,7 @@ import pytest
 from qpbench.cli import main
 from qpbench.inner_solvers import choose_by_name
 from qpbench.problem.impact import ImpactProblem
+from qpbench.simulation import scaling as scaling_module
 from qpbench.simulation.scaling import (
     FACTORIZATION_TARGET,
     PARTS,
@@ -142,6 +143,23 @@ def test_passes_keep_each_sizes_least_disturbed_run_and_show_every_pass() -> Non
     single = pile_scaling(CLARABEL, {"boxes": (20, 40)}, steps=1)
     assert single["passes"] == 1 and len(single["kinds"]["boxes"]["solve_ratio_by_pass"]) == 1
     assert "passes" not in pile_markdown(single, None)
+
+
+def test_a_pass_whose_solver_failed_is_kept_over_faster_ones(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Passes pick the least disturbed run, but never hide a failure: a size with a failed pass
+    keeps it, however fast the others were."""
+    runs = iter([(True, 5.0), (False, 9.0), (True, 4.0)])
+
+    def timed(*_: object) -> tuple[dict[str, Any], None]:
+        success, seconds = next(runs)
+        return {"success": success, "solve_per_body_step_us": seconds}, None
+
+    monkeypatch.setattr(scaling_module, "_timed_pile", timed)
+    [(row, _)] = scaling_module._fastest_passes("boxes", (20,), 1, CLARABEL, 1.0, 3,
+                                                lambda count, note: None)
+    assert not row["success"] and row["solve_per_body_step_us"] == 9.0
+    assert row["solve_per_body_step_us_by_pass"] == [5.0, 9.0, 4.0] and row["passes"] == 3
 
 
 def test_scaling_refuses_a_pass_count_below_one(tmp_path: Path,

@@ -17,7 +17,8 @@ budget stops after fewer steps (at least one), and its row says so. With ``passe
 pile of a kind is simulated once per pass, the sizes in turn (in reverse order every other
 pass, so that a drift of the machine's speed falls on all sizes alike), and each size keeps
 the pass whose inner solves took least: one genuine run of the pile, chosen as the least
-disturbed, with every pass's figure and the growth pass by pass beside it.
+disturbed (a failed one when any failed), with every pass's figure and the growth pass by
+pass beside it.
 
 The inner solves of a pile are also held against one sparse factorization of the final
 active block: the caller hands in a :data:`FactorBlock` (this package knows no solver), told
@@ -525,7 +526,8 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
 
     Each kind is warmed up once on a small pile, then its piles are simulated ``passes``
     times, the sizes in turn (in reverse order every other pass), and each size keeps the
-    pass whose inner solves per body per step took least (:func:`_fastest_passes`). The
+    pass whose inner solves per body per step took least, a failed one when any failed
+    (:func:`_fastest_passes`). The
     growth of the simulator's own cost per body per step (largest size against the smallest,
     target <= 1.5x) and of the inner solves' (target <= SOLVE_GROWTH_TARGET) is given per
     kind, the latter also pass by pass. ``progress`` is told after each warm-up and each pile
@@ -561,8 +563,7 @@ def pile_scaling(choose_solve: ChooseSolve, sizes: dict[str, tuple[int, ...]],
         ``solve_per_body_step_us_by_pass``), ``own_ratio``, ``solve_ratio``,
         ``solve_ratio_by_pass`` (the largest size's figure over the smallest's, pass by pass),
         ``meets_target`` and ``meets_solve_growth_target`` (``solve_growth_target`` beside
-        ``target_ratio``); with
-        ``factor_block`` also ``factorization_target`` and per kind
+        ``target_ratio``); with ``factor_block`` also ``factorization_target`` and per kind
         ``max_solve_to_factorization`` (None when a row has no ratio) and
         ``meets_factorization_target``.
     """
@@ -612,8 +613,9 @@ def _fastest_passes(kind: str, kind_sizes: tuple[int, ...], steps: int,
                     choose_solve: ChooseSolve, solve_budget_s: float, passes: int,
                     told: Advance) -> list[tuple[dict[str, Any], StepEvent | None]]:
     """Per size of ``kind_sizes`` (in that order), the row and last step of the pass whose
-    inner solves per body per step took least (a pass whose solver failed only when every
-    pass failed), the rows with ``passes`` and every pass's ``solve_per_body_step_us_by_pass``.
+    inner solves per body per step took least (of the passes whose solver failed, when any did:
+    a failure is never hidden), the rows with ``passes`` and every pass's
+    ``solve_per_body_step_us_by_pass``.
 
     Every pass simulates each size once (:func:`_timed_pile`), in reverse order every other
     pass; ``told`` hears of each pile."""
@@ -623,8 +625,8 @@ def _fastest_passes(kind: str, kind_sizes: tuple[int, ...], steps: int,
         for bodies in kind_sizes if turn % 2 == 0 else kind_sizes[::-1]:
             row, last = _timed_pile(kind, bodies, steps, choose_solve, solve_budget_s)
             by_pass[bodies].append(row["solve_per_body_step_us"])
-            rank = (not row["success"], row["solve_per_body_step_us"])
-            if bodies not in kept or rank < (not kept[bodies][0]["success"],
+            rank = (row["success"], row["solve_per_body_step_us"])
+            if bodies not in kept or rank < (kept[bodies][0]["success"],
                                              kept[bodies][0]["solve_per_body_step_us"]):
                 kept[bodies] = (row, last)
             told(1, f"{kind} pile, {bodies} bodies, pass {turn + 1} of {passes}")
