@@ -155,7 +155,7 @@ def test_a_pass_whose_solver_failed_is_kept_over_faster_ones(
         success, seconds = next(runs)
         return {"success": success, "solve_per_body_step_us": seconds}, None
 
-    monkeypatch.setattr(scaling_module, "_timed_pile", timed)
+    monkeypatch.setattr(scaling_module, "measure_pile", timed)
     [(row, _)] = scaling_module._fastest_passes("boxes", (20,), 1, CLARABEL, 1.0, 3,
                                                 lambda count, note: None)
     assert not row["success"] and row["solve_per_body_step_us"] == 9.0

@@ -390,17 +390,15 @@ def warm_up_pile(kind: str, bodies: int, choose_solve: ChooseSolve) -> None:
 
 
 def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
-                 solve_budget_s: float = math.inf,
-                 factor_block: FactorBlock | None = None) -> dict[str, Any]:
+                 solve_budget_s: float = math.inf) -> tuple[dict[str, Any], StepEvent | None]:
     """One pile, warmed up beforehand (``warm_up_pile``), its time split into parts.
 
     Up to ``steps`` timed steps from its first, split into the simulator's own parts (contact
     detection, assembly of the impact problem, the rest of the step: integration and
     bookkeeping) and the inner solves (the whole call into the impact operator, the solver's
     own formulation included). The steps stop early, after at least one, once the inner solves
-    have taken ``solve_budget_s``; the row says so. With ``factor_block``, after the timed
-    steps, one sparse factorization of the final active block of the last step done is timed
-    (:data:`FactorBlock`) and the inner-solve time per step set against it.
+    have taken ``solve_budget_s``; the row says so. The last step done is returned beside the
+    row, for one factorization of its final active block (:func:`final_block_fields`).
 
     Parameters
     ----------
@@ -414,27 +412,15 @@ def measure_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
         The inner solve of the pile's operator.
     solve_budget_s : float, optional
         Seconds of inner solves after which no further step is timed; no budget by default.
-    factor_block : FactorBlock or None, optional
-        Times one sparse factorization of the final active block; None (default) for none.
 
     Returns
     -------
-    dict
-        The row: steps done and asked, seconds per part, costs per body per step in
-        microseconds, contacts per body, success or the failure, and the solves' accuracy;
-        with ``factor_block`` also its fields, ``solve_per_step_s`` and
-        ``solve_to_factorization`` (:func:`final_block_fields`).
+    row : dict
+        Steps done and asked, seconds per part, costs per body per step in microseconds,
+        contacts per body, success or the failure, and the solves' accuracy.
+    last : StepEvent or None
+        The last step done; None when none was.
     """
-    row, last = _timed_pile(kind, bodies, steps, choose_solve, solve_budget_s)
-    if factor_block is not None:
-        row.update(final_block_fields(last, row["solve_s"] / max(1, row["steps"]), factor_block))
-    return row
-
-
-def _timed_pile(kind: str, bodies: int, steps: int, choose_solve: ChooseSolve,
-                solve_budget_s: float) -> tuple[dict[str, Any], StepEvent | None]:
-    """The row of :func:`measure_pile` without the factorization, and the last step done
-    (None when none was)."""
     simulator = Simulator(PILES[kind](bodies), choose_solve)
     timers = {name: _Timed(getattr(simulator, name))
               for name in ("find_contacts", "impact_problem", "_solve")}
@@ -617,13 +603,13 @@ def _fastest_passes(kind: str, kind_sizes: tuple[int, ...], steps: int,
     a failure is never hidden), the rows with ``passes`` and every pass's
     ``solve_per_body_step_us_by_pass``.
 
-    Every pass simulates each size once (:func:`_timed_pile`), in reverse order every other
+    Every pass simulates each size once (:func:`measure_pile`), in reverse order every other
     pass; ``told`` hears of each pile."""
     kept: dict[int, tuple[dict[str, Any], StepEvent | None]] = {}
     by_pass: dict[int, list[float]] = {bodies: [] for bodies in kind_sizes}
     for turn in range(passes):
         for bodies in kind_sizes if turn % 2 == 0 else kind_sizes[::-1]:
-            row, last = _timed_pile(kind, bodies, steps, choose_solve, solve_budget_s)
+            row, last = measure_pile(kind, bodies, steps, choose_solve, solve_budget_s)
             by_pass[bodies].append(row["solve_per_body_step_us"])
             rank = (row["success"], row["solve_per_body_step_us"])
             if bodies not in kept or rank < (kept[bodies][0]["success"],
