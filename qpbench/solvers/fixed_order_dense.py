@@ -75,8 +75,8 @@ def _back_substitution(upper: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _cholesky_solve(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """x with ``U^T U x = rhs``: ``U^T y = rhs`` forward by the rows of U, then ``U x = y``."""
+def _forward_substitution(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """y with ``U^T y = rhs`` (U upper triangular), forward by the rows of U."""
     n = rhs.size
     y = rhs.copy()
     for k in range(n):
@@ -85,7 +85,13 @@ def _cholesky_solve(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         if weight != 0.0:
             for i in range(k + 1, n):
                 y[i] -= weight * upper[k, i]
-    return _back_substitution(upper, y)
+    return y
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """x with ``U^T U x = rhs``: ``U^T y = rhs`` forward, then ``U x = y``."""
+    return _back_substitution(upper, _forward_substitution(upper, rhs))
 
 
 @numba.njit(cache=True)
@@ -211,12 +217,8 @@ def _min_norm_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     x = rhs.copy()
     for k in range(rank):
         _reflect(tall, k, x)
-    y = _back_substitution(triangle, x[:rank].copy())  # R^-1 (Q^T rhs)
-    for k in range(rank):  # R^-T y, forward
-        total = y[k]
-        for j in range(k):
-            total -= triangle[j, k] * y[j]
-        y[k] = total / triangle[k, k]
+    # R^-T R^-1 (Q^T rhs)
+    y = _forward_substitution(triangle, _back_substitution(triangle, x[:rank].copy()))
     solution = np.zeros(n)
     solution[:rank] = y
     for k in range(rank - 1, -1, -1):
