@@ -60,6 +60,9 @@ class BlockSolver:
         # last Woodbury block made over them: its policy, rho and factor
         self.moving: sp.csc_matrix | None = None
         self.last_woodbury: tuple[np.ndarray, float, WoodburyFactor] | None = None
+        # L's stored entries as ones (made at the first question of :meth:`_over_dofs`): its
+        # product with a policy's indicator is non-zero on the rows those contacts move
+        self.pattern: sp.csc_matrix | None = None
 
     def counts(self) -> dict[str, int]:
         """The factorizations so far, and how many of them ran over the degrees of freedom.
@@ -150,9 +153,17 @@ class BlockSolver:
 
     def _over_dofs(self, index: np.ndarray) -> bool:
         """Whether the block of the contacts ``index`` goes over the degrees of freedom: the LCP
-        is sparse with Q's factor L, and fewer degrees of freedom move than it has contacts."""
-        return (not self.dense and self.L is not None
-                and moving_rows(self.L[:, index]).shape[0] < index.size)
+        is sparse with Q's factor L, and fewer degrees of freedom move than it has contacts (the
+        rows of ``L[:, index]`` with a stored entry, counted as one product with L's pattern
+        rather than by slicing L)."""
+        if self.dense or self.L is None:
+            return False
+        if self.pattern is None:
+            self.pattern = sp.csc_matrix(self.L, copy=True)
+            self.pattern.data[:] = 1.0
+        chosen = np.zeros(self.pattern.shape[1])
+        chosen[index] = 1.0
+        return int(np.count_nonzero(self.pattern @ chosen)) < index.size
 
     def _woodbury(self, policy: np.ndarray, index: np.ndarray, rho: float, shift: np.ndarray
                   ) -> WoodburyFactor:
