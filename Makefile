@@ -97,7 +97,8 @@ bench: setup
 # The larger sweep, in its own folders; first a fuzz run of FUZZ_CASES mutated scenes and as
 # many mutated problem files through the command line (build/results-large/fuzz.json, whose
 # counts the report prints). The target fails after the benchmark when a fuzz case failed.
-# Its head-to-head adds problems/head_to_head_large.toml's piles of 10,000 bodies.
+# Its head-to-head adds problems/head_to_head_large.toml's piles of 10,000 bodies and
+# Siconos' reduced granular flows.
 FUZZ_CASES ?= 10000
 bench-large: setup
 	@mkdir -p build/results-large; status=0; \

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -18,6 +19,7 @@ from qpbench.cli import main
 from qpbench.problem import files
 from qpbench.problem.dumps import import_dump
 from qpbench.problem.generate import generate
+from qpbench.problem.reduced import ReducedFrictionalProblem
 from qpbench.scenes.builders import scene_xml
 from qpbench.simulation.scaling import box_pile, circle_pile
 from qpbench.solvers.registry import get
@@ -43,6 +45,21 @@ def test_the_candidates_are_the_fastest_external_pairs_of_the_main_table() -> No
     chosen = head_to_head_pairs.fastest_external(frame, candidates=2, accuracy=1e-8)
     assert chosen["impact"] == ["fast/dual", "slow/dual"]
     assert chosen["frictional"] == ["fric/ccp"]
+
+
+def test_a_reduced_frictional_problems_pairs_are_frictional_candidates() -> None:
+    """Siconos' flows reduced to their contacts are of kind ``frictional-reduced`` in the
+    table: their pairs are chosen per law as the other frictional problems', never as impact
+    pairs."""
+    frame = pd.DataFrame(
+        bench_rows("fast", "y", "grid", [1e-4])
+        + bench_rows("osqp", "qpsolvers", "siconos", [2e-3], kind="frictional-reduced",
+                     formulation="staggered")
+        + bench_rows("osqp", "qpsolvers", "siconos", [1e-3], kind="frictional-reduced",
+                     formulation="ccp"))
+    chosen = head_to_head_pairs.fastest_external(frame, candidates=3, accuracy=1e-8)
+    assert chosen["frictional"] == ["osqp/staggered", "osqp/ccp"]
+    assert chosen["impact"] == ["fast/dual"]
 
 
 def test_each_candidate_familys_fastest_pair_is_a_candidate_too() -> None:
@@ -206,6 +223,17 @@ def test_a_frictional_problems_set_is_the_law_its_pairs_formulation_solves() -> 
     problem.normal.family, problem.normal.name = "siconos", "gfc2d_granularflowonwall_00069_00350"
     assert head_to_head.set_of(problem, "fc2d") == "Siconos granular (coulomb)"
     assert head_to_head.set_of(problem, "ccp") == "Siconos granular (ccp)"
+
+
+def test_a_siconos_flow_given_reduced_to_its_contacts_has_sets_of_its_own() -> None:
+    W = np.array([[2.0, 0.5], [0.5, 1.0]])
+    flow = ReducedFrictionalProblem.from_local("fc2d_granularflowonwall_00667_00000", W,
+                                               np.array([-1.0, 0.2]), np.array([0.5]),
+                                               family="siconos")
+    assert head_to_head.set_of(flow, "staggered") == "Siconos granular, reduced (coulomb)"
+    assert head_to_head.set_of(flow, "ccp") == "Siconos granular, reduced (ccp)"
+    assert {"Siconos granular, reduced (coulomb)",
+            "Siconos granular, reduced (ccp)"} <= set(head_to_head.SETS)
 
 
 def test_a_capture_of_any_7x7_grid_scene_is_in_the_7x7_set() -> None:

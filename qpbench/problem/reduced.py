@@ -28,10 +28,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from qpbench.errors import InputError
+from qpbench.problem.friction import KIND as FULL_KIND
 from qpbench.problem.friction import FrictionalProblem, FrictionalReference
 from qpbench.problem.impact import ImpactProblem, check_entries, check_vector
 
 KIND = "frictional-reduced"
+# the ``kind`` of a frictional problem in a results table: full (bodies, H, M) or reduced
+FRICTIONAL_KINDS = (FULL_KIND, KIND)
 # W is symmetrized on import; a larger asymmetry than this (relative to max |W_ij|) is not a
 # Delassus matrix printed with rounding but another operator, and is refused
 ASYMMETRY_LIMIT = 1e-3

@@ -19,6 +19,7 @@ import pandas as pd
 
 from qpbench.bench import stats
 from qpbench.problem.friction import MODELS, model_of
+from qpbench.problem.reduced import FRICTIONAL_KINDS
 from qpbench.studies.head_to_head_sets import HARD_FAMILIES
 
 OWN_IMPACT = ("pi-robust/lcp",)
@@ -62,7 +63,7 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float) -> d
     """
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
-    frictional = level["kind"].astype(str) == "frictional"
+    frictional = level["kind"].astype(str).isin(FRICTIONAL_KINDS)
     chosen: dict[str, Any] = {}
     impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
     chosen["impact"] = ranked(impact)[:candidates]

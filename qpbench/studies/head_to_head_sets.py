@@ -9,7 +9,8 @@ packings 1k-4k``, ``dense piles 1k``), so that a speedup is shown per size rathe
 averaged over sizes whose times differ by orders of magnitude. A frictional problem's set
 is named by the model its pair's formulation solves (``coulomb`` or ``ccp``), so that each set
 compares pairs that solve one law; Siconos' granular flows (imported, family ``siconos``) form
-sets of their own.
+sets of their own, those given in global form (M, H: ``gfc2d`` files) apart from those given
+reduced to the contacts (W alone: ``fc2d`` files, 667 to 7,002 contacts in the shared data).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from collections.abc import Sequence
 
 from qpbench.problem.friction import MODELS, FrictionalProblem, model_of
 from qpbench.problem.impact import ImpactProblem
+from qpbench.problem.reduced import ReducedFrictionalProblem
 from qpbench.problem.siconos_import import FAMILY as SICONOS_FAMILY
 
 # generated families of a set each, named by the family; each family's fastest external pair
@@ -41,7 +43,8 @@ SETS = ("fork 5x5 grid dumps", "fork 7x7 grid scenes", "grid scene captures",
         *(name for name, _, _ in GRID_BUCKETS), *(name for name, _, _ in BOX_BUCKETS),
         *(name for name, _, _ in PILE_BUCKETS), *HARD_FAMILIES,
         *(f"frictional ({model})" for model in MODELS),
-        *(f"Siconos granular ({model})" for model in MODELS))
+        *(f"Siconos granular ({model})" for model in MODELS),
+        *(f"Siconos granular, reduced ({model})" for model in MODELS))
 
 
 def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") -> str | None:
@@ -51,7 +54,8 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
     (:func:`~qpbench.problem.friction.model_of`): ``frictional (coulomb)`` for staggered
     projections, the LCP, NSGS and Siconos' ``fc2d`` alike, ``frictional (ccp)`` for Anitescu's
     relaxation; for a granular flow imported from Siconos, ``Siconos granular (coulomb)`` or
-    ``Siconos granular (ccp)`` (another Siconos problem: ``Siconos (coulomb)``, ...).
+    ``Siconos granular (ccp)``, and ``Siconos granular, reduced (coulomb)`` ... for one given
+    reduced to the contacts (another Siconos problem: ``Siconos (coulomb)``, ...).
     A generated grid or box packing, and an impact of a dense pile (``PILE_FAMILY``: its size
     the pile's bodies), is in the set of its size's bucket (:func:`size_bucket`), a problem of
     a hard family in the set named by the family.
@@ -74,6 +78,8 @@ def set_of(problem: ImpactProblem | FrictionalProblem, formulation: str = "") ->
         prefix = "frictional"
         if problem.family == SICONOS_FAMILY:
             prefix = "Siconos granular" if "granular" in problem.name else "Siconos"
+            if isinstance(problem, ReducedFrictionalProblem):
+                prefix += ", reduced"
         return f"{prefix} ({model_of(formulation)})"
     family = str(problem.family or "")
     if family == "dump":
