@@ -399,6 +399,18 @@ def test_the_target_sentence_names_what_holds_and_what_does_not() -> None:
         "The 3x target holds on: a; it does not hold on: b."
 
 
+def test_a_set_without_a_verdict_is_never_counted_as_holding() -> None:
+    """A set where one side was not measured (no external pair ran there) has no verdict:
+    with no verdict anywhere the sentence says so, and "every" means every set."""
+    sentence = head_to_head.target_sentence
+    assert sentence(3, [], [], "set", ["c"]) == \
+        "No set has a verdict on the 3x target; no verdict (one side not measured) on: c."
+    assert sentence(3, ["a"], [], "set", ["c"]) == (
+        "The 3x target holds on every set with a verdict: a; no verdict (one side not "
+        "measured) on: c.")
+    assert "every" not in sentence(3, [], [], "set")
+
+
 def test_the_table_keeps_each_problems_fastest_pass_and_every_pass_must_meet_the_target(
         ) -> None:
     """Two passes: pi-robust ran in a slow stretch in the second. The table (each problem's

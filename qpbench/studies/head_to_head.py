@@ -538,7 +538,8 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
     for entry in summary:
         own, external = entry.get("own"), entry.get("external")
         if own is None or external is None:
-            lines.append(f"| {entry['set']} | {entry['problems']} | | (not measured) "
+            absent = "pi-robust not measured" if own is None else "no external pair measured"
+            lines.append(f"| {entry['set']} | {entry['problems']} | | ({absent}) "
                          "| | | | | | | | | | |")
             continue
         lines.append(
@@ -553,8 +554,9 @@ def markdown(summary: Sequence[dict[str, Any]], repeats: int, passes: int = 1,
     held = [entry["set"] for entry in summary if entry.get("target_met")]
     missed = [entry["set"] for entry in summary if "target_met" in entry
               and not entry["target_met"]]
+    undecided = [entry["set"] for entry in summary if "target_met" not in entry]
     lines.append("")
-    lines.append(target_sentence(TARGET_SPEEDUP, held, missed, "set"))
+    lines.append(target_sentence(TARGET_SPEEDUP, held, missed, "set", undecided))
     lifted = [entry for entry in summary if entry.get("met_by_failures")]
     if lifted:
         lines.append("\nNot counted as met: " + "; ".join(
@@ -659,7 +661,7 @@ def pass_range(entry: dict[str, Any]) -> str:
 
 
 def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
-                    thing: str) -> str:
+                    thing: str, undecided: Sequence[str] = ()) -> str:
     """Which of the ``thing``s (sets, scenes) meet the ``target`` x speedup, in one sentence.
 
     Parameters
@@ -670,19 +672,29 @@ def target_sentence(target: float, held: Sequence[str], missed: Sequence[str],
         The names where the target holds, and where it does not.
     thing : str
         What the names are, singular (``set``, ``scene``).
+    undecided : sequence of str, optional
+        The names without a verdict (one side not measured there); none by default.
 
     Returns
     -------
     str
-        The sentence.
+        The sentence: "every" only where every name has a verdict and all hold, "no" where
+        none holds, and never a verdict where there is none.
     """
-    if not missed:
-        return f"The {target:g}x target holds on every {thing}: {', '.join(held)}."
-    if not held:
-        return f"The {target:g}x target holds on no {thing}; it does not hold on: " \
-               f"{', '.join(missed)}."
-    return f"The {target:g}x target holds on: {', '.join(held)}; it does not hold on: " \
-           f"{', '.join(missed)}."
+    if not held and not missed:
+        sentence = f"No {thing} has a verdict on the {target:g}x target"
+    elif not missed:
+        scope = f"every {thing} with a verdict" if undecided else f"every {thing}"
+        sentence = f"The {target:g}x target holds on {scope}: {', '.join(held)}"
+    elif not held:
+        sentence = f"The {target:g}x target holds on no {thing}; it does not hold on: " \
+                   f"{', '.join(missed)}"
+    else:
+        sentence = f"The {target:g}x target holds on: {', '.join(held)}; it does not hold " \
+                   f"on: {', '.join(missed)}"
+    if undecided:
+        sentence += f"; no verdict (one side not measured) on: {', '.join(undecided)}"
+    return sentence + "."
 
 
 def both_solve_phrase(common_speedup: float, thing: str) -> str:
