@@ -309,6 +309,16 @@ def test_sequence_command_replays_a_capture_folder(tmp_path: Path) -> None:
     assert "in each of 2 replays" in report["markdown"] and "(per pass: " in report["markdown"]
 
 
+@pytest.mark.parametrize("limit", ["0.5", "nan"])
+def test_an_out_of_running_limit_below_one_is_one_line(tmp_path: Path, limit: str,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    code = main(["sequence", str(tmp_path), "--out-of-running", limit,
+                 "-o", str(tmp_path / "s.json")])
+    err = capsys.readouterr().err
+    assert code != 0 and "--out-of-running must be at least 1" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "s.json").exists()
+
+
 def _step_row(solver: str, number: int, cold: float, warm: float,
               success: bool = True) -> dict:
     """A replayed step's row of ``solver`` in pass ``number`` (both modes succeed or fail)."""

@@ -25,6 +25,7 @@ from qpbench.bench.defaults import (
     HEAD_TO_HEAD_SOLVE_CAP_S,
 )
 from qpbench.bench.results import ResultStore
+from qpbench.bench.settings import check_at_least
 from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
@@ -117,8 +118,7 @@ def run(args: argparse.Namespace) -> int:
         raise QpbenchError("--repeats, --passes and --candidates must be at least 1")
     if args.cold_repeats < 0:
         raise QpbenchError(f"--cold-repeats must be at least 0, got {args.cold_repeats}")
-    if not args.out_of_running >= 1:  # NaN too
-        raise QpbenchError("--out-of-running must be at least 1 (inf: never)")
+    check_at_least(args.out_of_running, 1, "--out-of-running")  # (inf: every pair stays)
     if not args.solve_cap > 0:  # NaN too
         raise QpbenchError(f"--solve-cap must be positive seconds (inf: none), got "
                            f"{args.solve_cap}")

@@ -18,7 +18,7 @@ from qpbench.bench.defaults import (
     SEQUENCE_STEPS,
 )
 from qpbench.bench.results import ResultStore
-from qpbench.bench.settings import check_accuracy
+from qpbench.bench.settings import check_accuracy, check_at_least
 from qpbench.cli.guards import add_memory_option, guarded, memory_arguments
 from qpbench.cli.output import single_threaded_rerun, writable_output, write_json
 from qpbench.errors import InputError, QpbenchError
@@ -94,8 +94,7 @@ def run(args: argparse.Namespace) -> int:
     """
     if args.steps < 1 or args.repeats < 1 or args.passes < 1:
         raise QpbenchError("--steps, --repeats and --passes must be at least 1")
-    if not args.out_of_running >= 1:  # NaN too
-        raise QpbenchError("--out-of-running must be at least 1 (inf: no pair leaves)")
+    check_at_least(args.out_of_running, 1, "--out-of-running")  # (inf: every pair stays)
     check_accuracy(args.accuracy)
     output = writable_output(args.output)
     for scene in args.scenes:
