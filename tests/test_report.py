@@ -14,7 +14,7 @@ from friction_cases import ball_on_floor
 
 from qpbench.bench import reduced_reference, stats
 from qpbench.bench.report import write_report
-from qpbench.bench.results import ResultStore
+from qpbench.bench.results import ResultStore, split_kinds
 from qpbench.bench.runner import complete_row, fingerprint
 from qpbench.bench.settings import Cell, Limits
 from qpbench.bench.worker import CellSolver
@@ -387,3 +387,14 @@ def test_an_imported_problem_whose_file_changed_is_listed_but_not_described(
 def test_a_table_without_imported_problems_has_no_such_section(results: Path,
                                                               tmp_path: Path) -> None:
     assert "## Imported problems" not in write_report(results, tmp_path).read_text()
+
+
+def test_a_problem_reduced_to_its_contacts_is_reported_with_the_frictional_ones() -> None:
+    """Siconos' fc2d problems are of kind ``frictional-reduced`` in the table: they belong to
+    the frictional sections, never to the frictionless tables (whose pairs solve no friction),
+    and a row without a kind is frictionless."""
+    frame = pd.DataFrame({"problem": ["k3", "rough-box", "fc2d_flow", "old"],
+                          "kind": ["impact", "frictional", "frictional-reduced", None]})
+    frictionless, frictional = split_kinds(frame)
+    assert list(frictionless["problem"]) == ["k3", "old"]
+    assert list(frictional["problem"]) == ["rough-box", "fc2d_flow"]

@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 from qpbench.atomic import TEMPORARY_PREFIX, atomic_path
 from qpbench.bench.settings import CELL_KEY
 from qpbench.errors import InputError, QpbenchError
-from qpbench.problem.friction import KIND as FRICTIONAL
+from qpbench.problem.reduced import FRICTIONAL_KINDS
 
 # column order of the table, with the dtype each column is stored as
 FLOAT_COLUMNS = (
@@ -86,8 +86,27 @@ def table(rows: list[dict[str, Any]]) -> pd.DataFrame:
     return frame
 
 
+def frictional_rows(frame: pd.DataFrame) -> pd.Series:
+    """Which results rows are of frictional problems, full or reduced to their contacts
+    (``reduced.FRICTIONAL_KINDS``); rows without a kind are frictionless.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Results rows, with or without a ``kind`` column.
+
+    Returns
+    -------
+    pandas.Series
+        A boolean per row, on ``frame``'s index.
+    """
+    if "kind" not in frame:
+        return pd.Series(False, index=frame.index)
+    return frame["kind"].astype("string").isin(FRICTIONAL_KINDS).fillna(False).astype(bool)
+
+
 def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Split results rows by problem kind; rows without a kind are frictionless.
+    """Split results rows by problem kind (:func:`frictional_rows`).
 
     Parameters
     ----------
@@ -99,9 +118,8 @@ def split_kinds(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     tuple of (pandas.DataFrame, pandas.DataFrame)
         (frictionless rows, frictional rows).
     """
-    kind = frame["kind"].astype("string").fillna("impact") if "kind" in frame \
-        else pd.Series("impact", index=frame.index)
-    return frame[kind != FRICTIONAL], frame[kind == FRICTIONAL]
+    frictional = frictional_rows(frame)
+    return frame[~frictional], frame[frictional]
 
 
 def _check_dtypes(frame: pd.DataFrame, path: Path) -> None:

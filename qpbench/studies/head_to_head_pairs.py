@@ -18,8 +18,8 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench import stats
+from qpbench.bench.results import frictional_rows
 from qpbench.problem.friction import MODELS, model_of
-from qpbench.problem.reduced import FRICTIONAL_KINDS
 from qpbench.studies.head_to_head_sets import HARD_FAMILIES
 
 OWN_IMPACT = ("pi-robust/lcp",)
@@ -63,7 +63,7 @@ def fastest_external(bench: pd.DataFrame, candidates: int, accuracy: float) -> d
     """
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & (bench["backend"].astype(str) != stats.OWN_BACKEND)]
-    frictional = level["kind"].astype(str).isin(FRICTIONAL_KINDS)
+    frictional = frictional_rows(level)
     chosen: dict[str, Any] = {}
     impact = level[~frictional & level["family"].astype(str).isin(CANDIDATE_FAMILIES)]
     chosen["impact"] = ranked(impact)[:candidates]

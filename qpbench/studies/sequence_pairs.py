@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 
 from qpbench.bench.defaults import SEQUENCE_ACCURACY
+from qpbench.bench.results import frictional_rows
 from qpbench.bench.stats import OWN_BACKEND, solver_keys
-from qpbench.problem.reduced import FRICTIONAL_KINDS
 from qpbench.solvers.base import SolverSpec
 from qpbench.solvers.registry import usable_solvers
 from qpbench.studies.head_to_head_pairs import ranked
@@ -45,7 +45,7 @@ def fastest_cold(bench: pd.DataFrame, count: int = COLD_PAIRS,
                  if not spec.warm_start and spec.backend != OWN_BACKEND}
     level = bench[np.isclose(bench["accuracy"].astype(float), accuracy)
                   & bench["family"].astype(str).str.startswith("scene:")
-                  & ~bench["kind"].astype(str).isin(FRICTIONAL_KINDS)]
+                  & ~frictional_rows(bench)]
     return ranked(level[solver_keys(level).isin(cold_only)])[:count]
 
 
