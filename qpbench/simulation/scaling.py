@@ -606,15 +606,15 @@ def _fastest_passes(kind: str, kind_sizes: tuple[int, ...], steps: int,
     Every pass simulates each size once (:func:`measure_pile`), in reverse order every other
     pass; ``told`` hears of each pile."""
     kept: dict[int, tuple[dict[str, Any], StepEvent | None]] = {}
+    kept_rank: dict[int, tuple[bool, float]] = {}  # (success, time): a failure ranks first
     by_pass: dict[int, list[float]] = {bodies: [] for bodies in kind_sizes}
     for turn in range(passes):
         for bodies in kind_sizes if turn % 2 == 0 else kind_sizes[::-1]:
             row, last = measure_pile(kind, bodies, steps, choose_solve, solve_budget_s)
             by_pass[bodies].append(row["solve_per_body_step_us"])
             rank = (row["success"], row["solve_per_body_step_us"])
-            if bodies not in kept or rank < (kept[bodies][0]["success"],
-                                             kept[bodies][0]["solve_per_body_step_us"]):
-                kept[bodies] = (row, last)
+            if bodies not in kept or rank < kept_rank[bodies]:
+                kept[bodies], kept_rank[bodies] = (row, last), rank
             told(1, f"{kind} pile, {bodies} bodies, pass {turn + 1} of {passes}")
     for bodies in kind_sizes:
         kept[bodies][0].update(passes=passes, solve_per_body_step_us_by_pass=by_pass[bodies])
