@@ -68,9 +68,8 @@ def pair_row(problem: FrictionalProblem, name: str, rounds: int, depth: int | No
     output = with_staggered_row(rounds, depth,
                                 lambda: call_solver(spec, problem, ACCURACY))
     value = friction_metrics.residual(problem, output.impulses)
-    mixing = "" if depth is None and name == "nsgs/nsgs" else \
-        f", depth {accuracy.OPTIONS['staggered']['anderson_depth'] if depth is None else depth}"
-    budget = "" if name == "nsgs/nsgs" else f"{rounds} rounds{mixing}"
+    depth_used = accuracy.OPTIONS["staggered"]["anderson_depth"] if depth is None else depth
+    budget = "" if name == "nsgs/nsgs" else f"{rounds} rounds, depth {depth_used}"
     return (f"| {problem.name} | `{name}` | {budget} | {output.status} | {value:.2e} | "
             f"{output.time_s:.2f} |")
 
